@@ -1,0 +1,40 @@
+# Two entry points for a newcomer on a fresh machine (see README.md):
+#   make demo   set everything up, then run the main job
+#   make test   set everything up, then run the test suite
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+# The CPU build of torch must be installed before the project, or pip resolves a CUDA build of several GB.
+TORCH_SPEC ?= torch==2.13.0
+
+.PHONY: setup demo test lint format bench clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet "$(TORCH_SPEC)"
+	$(PY) -m pip install --quiet -e ".[dev]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	MPLBACKEND=Agg $(PY) -m training.demo
+
+test: $(STAMP)
+	MPLBACKEND=Agg $(PY) -m pytest -n 2 --durations=15
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+format: $(STAMP)
+	$(VENV)/bin/ruff format .
+	$(VENV)/bin/ruff check --fix .
+
+bench: $(STAMP)
+	$(PY) -m benchmarks.bench_kinematics
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info

@@ -1,0 +1,1 @@
+"""Gymnasium environments for parallel robots (registration lives here)."""
