@@ -1,1 +1,20 @@
-"""Gymnasium environments for parallel robots (registration lives here)."""
+"""Gymnasium environments for parallel robots; importing this package registers every id in ``ENV_IDS``."""
+
+from gymnasium.envs.registration import register, registry
+
+from envs.planar_3rpr import Planar3RPRReachEnv, Planar3RPRTrackEnv
+
+__all__ = ["ENV_IDS", "Planar3RPRReachEnv", "Planar3RPRTrackEnv"]
+
+#: Every registered id, with its entry point, episode length and keyword arguments.
+_SPECS = {
+    "Planar3RPRReach-v0": ("envs.planar_3rpr:Planar3RPRReachEnv", 200, {}),
+    "Planar3RPRReachHard-v0": ("envs.planar_3rpr:Planar3RPRReachEnv", 200, {"targets": "hard"}),
+    "Planar3RPRTrack-v0": ("envs.planar_3rpr:Planar3RPRTrackEnv", 400, {}),
+}
+
+ENV_IDS: tuple[str, ...] = tuple(_SPECS)
+
+for _env_id, (_entry_point, _steps, _kwargs) in _SPECS.items():
+    if _env_id not in registry:
+        register(id=_env_id, entry_point=_entry_point, max_episode_steps=_steps, kwargs=_kwargs)

@@ -1,0 +1,642 @@
+"""The Gymnasium environments Planar3RPRReach-v0 and Planar3RPRTrack-v0 (single robot)."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from envs import core
+from envs.core import EnvParams, Reference, State
+from envs.rendering import HumanWindow, render_frame
+from envs.tasks import is_safe, sample_reach, sample_track
+from envs.workspace import WorkspaceMap, WorkspaceSpec, certify_workspace
+from kinematics import Planar3RPR
+
+__all__ = ["Planar3RPRReachEnv", "Planar3RPRTrackEnv", "build_params"]
+
+_TARGET_MODES = ("standard", "hard")
+_INTEGRATORS = ("euler", "rk4")
+_TRAIL_LENGTH = 200
+
+
+def _number(name: str, value: Any, *, positive: bool = True, allow_zero: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if positive and (value < 0 or (value == 0 and not allow_zero)):
+        bound = "≥ 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be {bound}, got {value!r}")
+    return value
+
+
+def _pair(name: str, value: Any, size: int) -> tuple[float, ...]:
+    arr = np.asarray(value, dtype=object)
+    if arr.shape != (size,):
+        raise ValueError(f"{name} must be a sequence of {size} numbers, got {value!r}")
+    return tuple(_number(f"{name}[{i}]", v, positive=False) for i, v in enumerate(arr))
+
+
+def build_params(
+    *,
+    base: Any = None,
+    platform: Any = None,
+    characteristic_length: float | None = None,
+    stroke_limits: tuple[float, float] = (0.3, 1.0),
+    pose_low: tuple[float, float, float] = (-0.2, -0.3, -np.pi / 2),
+    pose_high: tuple[float, float, float] = (1.2, 1.2, np.pi / 2),
+    dt: float = 0.05,
+    max_rate: float = 0.25,
+    integrator: str = "euler",
+    safe_threshold: float = 0.15,
+    hard_threshold: float = 0.03,
+    position_weight: float = 1.0,
+    orientation_weight: float = 1.0,
+    singularity_weight: float = 1.0,
+    action_weight: float = 0.01,
+    termination_penalty: float = 50.0,
+    success_position_tolerance: float = 0.01,
+    success_orientation_tolerance: float = 0.05,
+    jump_tolerance: float = 0.02,
+    newton_max_iterations: int = 8,
+    track_period: float = 10.0,
+) -> EnvParams:
+    """Validate constructor arguments and gather them into ``EnvParams`` (see the env docstrings).
+
+    Returns:
+        The validated, frozen parameters.
+
+    Raises:
+        TypeError: On an argument of the wrong type.
+        ValueError: On an argument out of its range, naming the expected and the actual value.
+    """
+    robot = Planar3RPR(base=base, platform=platform, characteristic_length=characteristic_length)
+    lo, hi = _pair("stroke_limits", stroke_limits, 2)
+    if not 0 < lo < hi:
+        raise ValueError(f"stroke_limits must satisfy 0 < L_min < L_max, got {(lo, hi)}")
+    low, high = _pair("pose_low", pose_low, 3), _pair("pose_high", pose_high, 3)
+    if not all(a < b for a, b in zip(low, high)):
+        raise ValueError(f"pose_low must be < pose_high componentwise, got {low} and {high}")
+    if not (-np.pi <= low[2] and high[2] <= np.pi):
+        raise ValueError(f"the φ bounds must lie in [−π, π], got ({low[2]}, {high[2]})")
+    if integrator not in _INTEGRATORS:
+        raise ValueError(f"integrator must be one of {_INTEGRATORS}, got {integrator!r}")
+    safe = _number("safe_threshold", safe_threshold)
+    hard = _number("hard_threshold", hard_threshold)
+    if not 0 < hard < safe < 1:
+        raise ValueError(
+            f"thresholds must satisfy 0 < hard_threshold < safe_threshold < 1, got {hard} and {safe}"
+        )
+    if isinstance(newton_max_iterations, bool) or not isinstance(newton_max_iterations, (int, np.integer)):
+        raise TypeError(f"newton_max_iterations must be an int, got {newton_max_iterations!r}")
+    if newton_max_iterations < 1:
+        raise ValueError(f"newton_max_iterations must be ≥ 1, got {newton_max_iterations}")
+    return EnvParams(
+        robot=robot,
+        stroke_limits=(lo, hi),
+        dt=_number("dt", dt),
+        max_rate=_number("max_rate", max_rate),
+        integrator=integrator,
+        pose_low=low,
+        pose_high=high,
+        safe_threshold=safe,
+        hard_threshold=hard,
+        position_weight=_number("position_weight", position_weight, allow_zero=True),
+        orientation_weight=_number("orientation_weight", orientation_weight, allow_zero=True),
+        singularity_weight=_number("singularity_weight", singularity_weight, allow_zero=True),
+        action_weight=_number("action_weight", action_weight, allow_zero=True),
+        termination_penalty=_number("termination_penalty", termination_penalty, allow_zero=True),
+        success_position_tolerance=_number("success_position_tolerance", success_position_tolerance),
+        success_orientation_tolerance=_number("success_orientation_tolerance", success_orientation_tolerance),
+        jump_tolerance=_number("jump_tolerance", jump_tolerance),
+        newton_max_iterations=int(newton_max_iterations),
+        track_period=_number("track_period", track_period),
+    )
+
+
+def workspace_for(params: EnvParams) -> WorkspaceMap:
+    """The certified workspace of an environment's geometry, limits and safe threshold (cached).
+
+    Args:
+        params: Environment constants.
+
+    Returns:
+        The ``WorkspaceMap``.
+    """
+    return certify_workspace(
+        WorkspaceSpec(
+            robot=params.robot,
+            stroke_limits=params.stroke_limits,
+            pose_low=params.pose_low,
+            pose_high=params.pose_high,
+            safe_threshold=params.safe_threshold,
+        )
+    )
+
+
+def initial_state(params: EnvParams, start: np.ndarray, reference: Reference) -> State:
+    """State of N robots at rest at ``start``, strokes from the inverse kinematics.
+
+    Args:
+        params: Environment constants.
+        start: Starting poses, shape (N, 3).
+        reference: Target trajectories of the N robots.
+
+    Returns:
+        The state at t = 0.
+    """
+    q = params.robot.inverse_kinematics(start, validate=False)
+    k, det_sign = core.conditioning(params, q, start)
+    residual = np.max(np.abs(params.robot.constraints(q, start, validate=False)), axis=-1)
+    return State(
+        q=q,
+        x=start.copy(),
+        t=np.zeros(len(start), dtype=np.int64),
+        det_sign=det_sign,
+        inverse_condition=k,
+        residual=residual,
+        reference=reference,
+    )
+
+
+def step_info(
+    params: EnvParams, state: State, terms: dict[str, np.ndarray], reason: np.ndarray
+) -> dict[str, np.ndarray]:
+    """Per-robot diagnostics of a state (batched): errors, conditioning, success, cost, reward terms.
+
+    Args:
+        params: Environment constants.
+        state: The robots' state after the step.
+        terms: Reward terms of the step, each (N,).
+        reason: Termination reason codes, shape (N,).
+
+    Returns:
+        Arrays with a leading dimension N.
+    """
+    target, _ = core.reference_pose(params, state.reference, state.t)
+    position_error, orientation_error = core.tracking_errors(params, state.x, target)
+    return {
+        **terms,
+        "position_error": position_error,
+        "orientation_error": orientation_error,
+        "inverse_condition_number": state.inverse_condition,
+        "constraint_residual": state.residual,
+        "is_success": core.success(params, state.x, target) & (reason == 0),
+        "cost": (state.inverse_condition < params.safe_threshold).astype(np.float64),
+        "termination_reason": np.asarray(core.TERMINATION_REASONS, dtype=object)[reason],
+        "pose": state.x,
+        "target": target,
+    }
+
+
+class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
+    """Shared machinery of the 3-RPR environments; see the concrete classes for the documentation."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+    _with_velocity = False
+    _option_keys: tuple[str, ...] = ()
+
+    def _setup(self, render_mode: str | None, params: EnvParams) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.params = params
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / params.dt}
+        self.workspace = workspace_for(params)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        low, high = core.observation_bounds(params, self._with_velocity)
+        self.observation_space = spaces.Box(low.copy(), high.copy(), dtype=np.float32)
+        self._state: State | None = None
+        self._terminated = False
+        self._trail: deque[np.ndarray] = deque(maxlen=_TRAIL_LENGTH)
+        self._window: HumanWindow | None = None
+
+    # -- the Gymnasium API ----------------------------------------------------------------------
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start a new episode (see the class docstring, Starting State)."""
+        super().reset(seed=seed)
+        options = {} if options is None else options
+        if not isinstance(options, dict):
+            raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+        unknown = set(options) - set(self._option_keys)
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self._option_keys)}")
+        start, reference = self._sample_task(options)
+        self._state = initial_state(self.params, start, reference)
+        self._terminated = False
+        self._trail.clear()
+        self._trail.append(self._state.x[0, :2].copy())
+        zero = np.zeros(1)
+        terms = core.reward_terms(
+            self.params, self._state.x, self._target(), self._state.inverse_condition, np.zeros((1, 3)), zero
+        )
+        info = self._info(terms, np.zeros(1, dtype=np.int64))
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), info
+
+    def step(self, action: Any):
+        """Apply normalised stroke rates for one period dt (see the class docstring)."""
+        if self._state is None:
+            raise gym.error.ResetNeeded("Cannot call step() before reset()")
+        if self._terminated:
+            raise gym.error.ResetNeeded("The episode has terminated; call reset() before step()")
+        a = self._check_action(action)
+        state, outcome = core.transition(self.params, self._state, a[None])
+        self._state = state
+        terms = core.reward_terms(
+            self.params, state.x, self._target(), state.inverse_condition, outcome.action, outcome.reason
+        )
+        reward = float(sum(float(v[0]) for v in terms.values()))
+        terminated = bool(outcome.reason[0] != 0)
+        self._terminated = terminated
+        self._trail.append(state.x[0, :2].copy())
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), reward, terminated, False, self._info(terms, outcome.reason)
+
+    def render(self):
+        """An RGB frame (``rgb_array``), or a window update (``human``); None without a render mode."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        if self._state is None:
+            raise gym.error.ResetNeeded("Cannot call render() before reset()")
+        frame = render_frame(
+            self.params,
+            self._state.q[0],
+            self._state.x[0],
+            self._target()[0],
+            float(self._state.inverse_condition[0]),
+            trail=list(self._trail),
+            step=int(self._state.t[0]),
+        )
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._window is None:
+            self._window = HumanWindow(self.metadata["render_fps"])
+        self._window.show(frame)
+        return None
+
+    def close(self) -> None:
+        """Close the human window if one is open."""
+        if self._window is not None:
+            self._window.close()
+            self._window = None
+
+    # -- helpers ----------------------------------------------------------------------------------
+
+    @property
+    def state(self) -> State | None:
+        """The current batched state (N = 1), or None before the first reset."""
+        return self._state
+
+    def _target(self) -> np.ndarray:
+        return core.reference_pose(self.params, self._state.reference, self._state.t)[0]
+
+    def _observation(self) -> np.ndarray:
+        return core.observation(self.params, self._state, self._with_velocity)[0]
+
+    def _info(self, terms: dict[str, np.ndarray], reason: np.ndarray) -> dict[str, Any]:
+        batched = step_info(self.params, self._state, terms, reason)
+        info: dict[str, Any] = {}
+        for key, value in batched.items():
+            item = value[0]
+            if isinstance(item, np.ndarray):
+                info[key] = item.copy()
+            elif isinstance(item, (bool, np.bool_)):
+                info[key] = bool(item)
+            elif isinstance(item, str):
+                info[key] = item
+            else:
+                info[key] = float(item)
+        return info
+
+    @staticmethod
+    def _check_action(action: Any) -> np.ndarray:
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"action must be an array of 3 real numbers, got {action!r}") from exc
+        if a.shape != (3,):
+            raise ValueError(f"action must have shape (3,), got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {a.tolist()}")
+        return a
+
+    def _check_pose(self, name: str, value: Any) -> np.ndarray:
+        try:
+            pose = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"options[{name!r}] must be a pose (x, y, φ), got {value!r}") from exc
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise ValueError(f"options[{name!r}] must be a finite pose of shape (3,), got {value!r}")
+        if not is_safe(self.params, self.workspace, pose[None])[0]:
+            raise ValueError(
+                f"options[{name!r}] = {pose.tolist()} is not in the certified safe workspace "
+                "(strokes within limits, inverse condition number ≥ safe_threshold)"
+            )
+        return pose
+
+    def _sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+        raise NotImplementedError
+
+
+class Planar3RPRReachEnv(_Planar3RPREnv):
+    """Reach a target pose with a planar 3-RPR parallel robot, and hold it, away from singularities.
+
+    ## Description
+    A planar 3-RPR robot (lesson §5): three legs join base anchors B_i (fixed frame {B}) to platform
+    points P_i (frame {P}); the strokes q = (L_1, L_2, L_3) [m] are actuated. The platform pose
+    x = (x, y, φ) is defined implicitly by Φ_i = ‖p + R(φ) P_i − B_i‖² − L_i² = 0. Each step, the
+    strokes move at the commanded rates; the pose follows through ẋ = J_f q̇ with J_f = −J_x⁻¹ J_q
+    (Euler or RK4) and is corrected onto Φ = 0 by Newton's method (residual ≤ 1e-10). Near a Type II
+    singularity (J_x singular) small stroke rates give huge platform motion: the task is to reach a
+    target pose while keeping the homogeneous inverse condition number k away from 0.
+
+    ```
+            B_3
+            /\\          {B}: x to the right, y up, φ counter-clockwise
+        L_3/  \\
+          / P  \\       the platform triangle P_1 P_2 P_3 hangs between the three legs
+     B_1 /______\\ B_2
+    ```
+
+    ## Action Space
+    `Box(-1, 1, (3,), float32)`; out-of-range finite actions are clipped to [−1, 1].
+
+    | Num | Action | Unit |
+    |-----|--------|------|
+    | 0-2 | stroke rate q̇_i / max_rate of leg i | 1 (×max_rate m/s) |
+
+    Strokes stop at the limits [L_min, L_max] (hard stops): the achieved rate is the one used.
+
+    ## Observation Space
+    `Box(low, high, (15,), float32)`, finite bounds, values clipped into them.
+
+    | Num | Observation | Unit |
+    |-----|-------------|------|
+    | 0-1 | platform position x, y | m |
+    | 2-3 | cos φ, sin φ | 1 |
+    | 4-5 | target position x*, y* | m |
+    | 6-7 | cos φ*, sin φ* | 1 |
+    | 8-9 | position error x* − x, y* − y | m |
+    | 10 | orientation error wrap(φ* − φ) | rad |
+    | 11-13 | strokes normalised to [−1, 1] over [L_min, L_max] | 1 |
+    | 14 | inverse condition number k of the homogeneous Jacobian | 1 |
+
+    ## Rewards
+    r = −(w_p ‖p* − p‖ + w_φ ℓ_c |wrap(φ* − φ)|) − w_s ((k_safe − k)/k_safe)² [k < k_safe]
+        − w_a ‖a‖² − P [terminated],
+    with w_p = `position_weight`, w_φ = `orientation_weight`, w_s = `singularity_weight`,
+    w_a = `action_weight`, P = `termination_penalty`, k_safe = `safe_threshold` and ℓ_c the
+    characteristic length. Each term is in `info` (`reward_tracking`, `reward_singularity`,
+    `reward_action`, `reward_termination`) and the reward is their sum.
+
+    ## Starting State
+    Start and target are drawn from the same connected component of the certified safe workspace
+    (strokes inside the limits with a 2 cm margin, k ≥ k_safe; see `envs.workspace`), at least 0.1 m
+    apart in (x, y, ℓ_c φ): a singularity-free path between them exists. With `targets="hard"` (or
+    `reset(options={"targets": "hard"})`) the straight line from start to target in pose space also
+    passes below `hard_threshold`, so a straight-line controller meets the ill-conditioned zone.
+    `options` may also give `"start"` and/or `"target"` poses explicitly (they must be safe).
+
+    ## Episode End
+    Termination (with the penalty P), for the first reason that applies: `newton_failed` (the
+    correction did not converge; the robot stays where it was), `assembly_mode_change` (correction
+    jumped more than `jump_tolerance` from the prediction), `singularity_crossed` (sign(det J_x)
+    flipped), `singular` (k < `hard_threshold`), `out_of_bounds` (pose outside `pose_low`/`pose_high`).
+    Truncation after 200 steps (10 s at the default dt). `info["is_success"]`: position error ≤
+    `success_position_tolerance` and orientation error ≤ `success_orientation_tolerance`.
+    `info["cost"]` is 1.0 while k < k_safe, else 0.0 (the safety-gymnasium convention).
+
+    ## Arguments
+    | Parameter | Type | Default | Description |
+    |-----------|------|---------|-------------|
+    | `render_mode` | str or None | `None` | "rgb_array" (headless) or "human" (a window) |
+    | `targets` | str | `"standard"` | "standard" or "hard" targets |
+    | `base` | array (3, 2) or None | `None` | base anchors B_i [m]; None: the lesson's |
+    | `platform` | array (3, 2) or None | `None` | platform points P_i [m]; None: the lesson's |
+    | `characteristic_length` | float or None | `None` | ℓ_c [m]; None: farthest platform point |
+    | `stroke_limits` | (float, float) | `(0.3, 1.0)` | stroke limits (L_min, L_max) [m] |
+    | `pose_low` | (float, float, float) | `(-0.2, -0.3, -1.5707963267948966)` | lower pose bounds [m, m, rad] |
+    | `pose_high` | (float, float, float) | `(1.2, 1.2, 1.5707963267948966)` | upper pose bounds [m, m, rad] |
+    | `dt` | float | `0.05` | control period [s] |
+    | `max_rate` | float | `0.25` | stroke rate of a unit action [m/s] |
+    | `integrator` | str | `"euler"` | "euler" or "rk4" prediction of ẋ = J_f q̇ |
+    | `safe_threshold` | float | `0.15` | k below which the penalty and the cost start |
+    | `hard_threshold` | float | `0.03` | k below which the episode terminates |
+    | `position_weight` | float | `1.0` | w_p [1/m] |
+    | `orientation_weight` | float | `1.0` | w_φ [1/m], multiplies ℓ_c · orientation error |
+    | `singularity_weight` | float | `1.0` | w_s |
+    | `action_weight` | float | `0.01` | w_a |
+    | `termination_penalty` | float | `50.0` | P, subtracted once at termination |
+    | `success_position_tolerance` | float | `0.01` | success position error [m] |
+    | `success_orientation_tolerance` | float | `0.05` | success orientation error [rad] |
+    | `jump_tolerance` | float | `0.02` | largest prediction–correction gap [m] |
+    | `newton_max_iterations` | int | `8` | Newton iterations per step |
+
+    ## Version History
+    * v0: Initial version.
+    """
+
+    _option_keys = ("targets", "start", "target")
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        targets: str = "standard",
+        base: Any = None,
+        platform: Any = None,
+        characteristic_length: float | None = None,
+        stroke_limits: tuple[float, float] = (0.3, 1.0),
+        pose_low: tuple[float, float, float] = (-0.2, -0.3, -np.pi / 2),
+        pose_high: tuple[float, float, float] = (1.2, 1.2, np.pi / 2),
+        dt: float = 0.05,
+        max_rate: float = 0.25,
+        integrator: str = "euler",
+        safe_threshold: float = 0.15,
+        hard_threshold: float = 0.03,
+        position_weight: float = 1.0,
+        orientation_weight: float = 1.0,
+        singularity_weight: float = 1.0,
+        action_weight: float = 0.01,
+        termination_penalty: float = 50.0,
+        success_position_tolerance: float = 0.01,
+        success_orientation_tolerance: float = 0.05,
+        jump_tolerance: float = 0.02,
+        newton_max_iterations: int = 8,
+    ) -> None:
+        if targets not in _TARGET_MODES:
+            raise ValueError(f"targets must be one of {_TARGET_MODES}, got {targets!r}")
+        self.targets = targets
+        params = build_params(
+            base=base,
+            platform=platform,
+            characteristic_length=characteristic_length,
+            stroke_limits=stroke_limits,
+            pose_low=pose_low,
+            pose_high=pose_high,
+            dt=dt,
+            max_rate=max_rate,
+            integrator=integrator,
+            safe_threshold=safe_threshold,
+            hard_threshold=hard_threshold,
+            position_weight=position_weight,
+            orientation_weight=orientation_weight,
+            singularity_weight=singularity_weight,
+            action_weight=action_weight,
+            termination_penalty=termination_penalty,
+            success_position_tolerance=success_position_tolerance,
+            success_orientation_tolerance=success_orientation_tolerance,
+            jump_tolerance=jump_tolerance,
+            newton_max_iterations=newton_max_iterations,
+        )
+        self._setup(render_mode, params)
+
+    def _sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+        mode = options.get("targets", self.targets)
+        if mode not in _TARGET_MODES:
+            raise ValueError(f"options['targets'] must be one of {_TARGET_MODES}, got {mode!r}")
+        start, target = sample_reach(self.params, self.workspace, self.np_random, 1, hard=mode == "hard")
+        if "start" in options:
+            start = self._check_pose("start", options["start"])[None]
+        if "target" in options:
+            target = self._check_pose("target", options["target"])[None]
+        if self.workspace.component_of(start)[0] != self.workspace.component_of(target)[0]:
+            raise ValueError(
+                f"start {start[0].tolist()} and target {target[0].tolist()} lie in different safe regions "
+                "(different working modes): no singularity-free path joins them"
+            )
+        reference = Reference(center=target, radius=np.zeros(1), phase=np.zeros(1), amplitude=np.zeros(1))
+        return start, reference
+
+
+class Planar3RPRTrackEnv(_Planar3RPREnv):
+    """Follow a moving target pose with a planar 3-RPR parallel robot, away from singularities.
+
+    ## Description
+    The robot and its dynamics are those of `Planar3RPRReach-v0` (strokes actuated, pose integrated
+    through ẋ = J_f q̇ and corrected onto Φ(q, x) = 0). The target moves along a smooth reference:
+    p*(t) = c + r (cos(ωt + θ), sin(ωt + θ)), φ*(t) = c_φ + a sin(ωt), ω = 2π / `track_period`,
+    with r ∈ [0.05, 0.15] m and a ∈ [0, 0.4] rad, lying entirely in one safe region of the
+    certified workspace.
+
+    ## Action Space
+    `Box(-1, 1, (3,), float32)`: stroke rates q̇_i / max_rate [1]; out-of-range finite actions are
+    clipped; strokes stop at [L_min, L_max].
+
+    ## Observation Space
+    `Box(low, high, (18,), float32)`, finite bounds, values clipped into them.
+
+    | Num | Observation | Unit |
+    |-----|-------------|------|
+    | 0-14 | as in `Planar3RPRReach-v0` (pose, target, error, strokes, k) | m, 1, rad |
+    | 15-16 | target velocity ẋ*, ẏ* | m/s |
+    | 17 | target angular velocity φ̇* | rad/s |
+
+    ## Rewards
+    As in `Planar3RPRReach-v0`, against the moving target:
+    r = −(w_p ‖p* − p‖ + w_φ ℓ_c |wrap(φ* − φ)|) − w_s ((k_safe − k)/k_safe)² [k < k_safe]
+        − w_a ‖a‖² − P [terminated]; every term is in `info` and the reward is their sum.
+
+    ## Starting State
+    The robot starts at rest on the reference, at its pose for t = 0.
+
+    ## Episode End
+    Termination as in `Planar3RPRReach-v0`; truncation after 400 steps (two periods at the defaults).
+    `info["is_success"]`: the tracking error is within the (looser) success tolerances at that step.
+
+    ## Arguments
+    | Parameter | Type | Default | Description |
+    |-----------|------|---------|-------------|
+    | `render_mode` | str or None | `None` | "rgb_array" (headless) or "human" (a window) |
+    | `base` | array (3, 2) or None | `None` | base anchors B_i [m]; None: the lesson's |
+    | `platform` | array (3, 2) or None | `None` | platform points P_i [m]; None: the lesson's |
+    | `characteristic_length` | float or None | `None` | ℓ_c [m]; None: farthest platform point |
+    | `stroke_limits` | (float, float) | `(0.3, 1.0)` | stroke limits (L_min, L_max) [m] |
+    | `pose_low` | (float, float, float) | `(-0.2, -0.3, -1.5707963267948966)` | lower pose bounds [m, m, rad] |
+    | `pose_high` | (float, float, float) | `(1.2, 1.2, 1.5707963267948966)` | upper pose bounds [m, m, rad] |
+    | `dt` | float | `0.05` | control period [s] |
+    | `max_rate` | float | `0.25` | stroke rate of a unit action [m/s] |
+    | `integrator` | str | `"euler"` | "euler" or "rk4" prediction of ẋ = J_f q̇ |
+    | `safe_threshold` | float | `0.15` | k below which the penalty and the cost start |
+    | `hard_threshold` | float | `0.03` | k below which the episode terminates |
+    | `position_weight` | float | `1.0` | w_p [1/m] |
+    | `orientation_weight` | float | `1.0` | w_φ [1/m], multiplies ℓ_c · orientation error |
+    | `singularity_weight` | float | `1.0` | w_s |
+    | `action_weight` | float | `0.01` | w_a |
+    | `termination_penalty` | float | `50.0` | P, subtracted once at termination |
+    | `success_position_tolerance` | float | `0.02` | success position error [m] |
+    | `success_orientation_tolerance` | float | `0.1` | success orientation error [rad] |
+    | `jump_tolerance` | float | `0.02` | largest prediction–correction gap [m] |
+    | `newton_max_iterations` | int | `8` | Newton iterations per step |
+    | `track_period` | float | `10.0` | period of the reference [s] |
+
+    ## Version History
+    * v0: Initial version.
+    """
+
+    _with_velocity = True
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        base: Any = None,
+        platform: Any = None,
+        characteristic_length: float | None = None,
+        stroke_limits: tuple[float, float] = (0.3, 1.0),
+        pose_low: tuple[float, float, float] = (-0.2, -0.3, -np.pi / 2),
+        pose_high: tuple[float, float, float] = (1.2, 1.2, np.pi / 2),
+        dt: float = 0.05,
+        max_rate: float = 0.25,
+        integrator: str = "euler",
+        safe_threshold: float = 0.15,
+        hard_threshold: float = 0.03,
+        position_weight: float = 1.0,
+        orientation_weight: float = 1.0,
+        singularity_weight: float = 1.0,
+        action_weight: float = 0.01,
+        termination_penalty: float = 50.0,
+        success_position_tolerance: float = 0.02,
+        success_orientation_tolerance: float = 0.1,
+        jump_tolerance: float = 0.02,
+        newton_max_iterations: int = 8,
+        track_period: float = 10.0,
+    ) -> None:
+        params = build_params(
+            base=base,
+            platform=platform,
+            characteristic_length=characteristic_length,
+            stroke_limits=stroke_limits,
+            pose_low=pose_low,
+            pose_high=pose_high,
+            dt=dt,
+            max_rate=max_rate,
+            integrator=integrator,
+            safe_threshold=safe_threshold,
+            hard_threshold=hard_threshold,
+            position_weight=position_weight,
+            orientation_weight=orientation_weight,
+            singularity_weight=singularity_weight,
+            action_weight=action_weight,
+            termination_penalty=termination_penalty,
+            success_position_tolerance=success_position_tolerance,
+            success_orientation_tolerance=success_orientation_tolerance,
+            jump_tolerance=jump_tolerance,
+            newton_max_iterations=newton_max_iterations,
+            track_period=track_period,
+        )
+        self._setup(render_mode, params)
+
+    def _sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+        reference = sample_track(self.params, self.workspace, self.np_random, 1)
+        start, _ = core.reference_pose(self.params, reference, np.zeros(1, dtype=np.int64))
+        return start, reference
