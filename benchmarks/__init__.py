@@ -1,0 +1,1 @@
+"""Benchmarks of parallel-robot-gym, runnable as modules (python -m benchmarks.<name>)."""

@@ -377,14 +377,14 @@ def observation_bounds(params: EnvParams, with_velocity: bool) -> tuple[np.ndarr
         with_velocity: Whether the target velocity is appended (Track).
 
     Returns:
-        (low, high), each float32 of shape (15,) or (18,), read-only (cached per params).
+        (low, high), each float32 of shape (18,) or (21,), read-only (cached per params).
     """
     low_p, high_p = np.array(params.pose_low), np.array(params.pose_high)
     span = high_p[:2] - low_p[:2]
     pose_lo = [low_p[0], low_p[1], -1.0, -1.0]
     pose_hi = [high_p[0], high_p[1], 1.0, 1.0]
-    low = [*pose_lo, *pose_lo, -span[0], -span[1], -np.pi, -1.0, -1.0, -1.0, 0.0]
-    high = [*pose_hi, *pose_hi, span[0], span[1], np.pi, 1.0, 1.0, 1.0, 1.0]
+    low = [*pose_lo, *pose_lo, -span[0], -span[1], -np.pi, *[-1.0] * 6, 0.0]
+    high = [*pose_hi, *pose_hi, span[0], span[1], np.pi, *[1.0] * 6, 1.0]
     if with_velocity:
         # |ṗ*| ≤ ω · max(span)/2 and |φ̇*| ≤ ω · (φ_max − φ_min)/2 for every admissible reference.
         omega = 2.0 * np.pi / params.track_period
@@ -403,7 +403,8 @@ def observation(params: EnvParams, state: State, with_velocity: bool) -> np.ndar
 
     Layout: [0:4] pose (x, y, cos φ, sin φ); [4:8] target (x*, y*, cos φ*, sin φ*);
     [8:11] error (x* − x, y* − y, wrap(φ* − φ)); [11:14] strokes normalised to [−1, 1];
-    [14] inverse condition number; [15:18] (Track only) target velocity (ẋ*, ẏ*, φ̇*).
+    [14:17] stroke error (q(x*) − q) / (L_max − L_min), with q(x*) the target's inverse kinematics;
+    [17] inverse condition number; [18:21] (Track only) target velocity (ẋ*, ẏ*, φ̇*).
 
     Args:
         params: Environment constants.
@@ -411,7 +412,7 @@ def observation(params: EnvParams, state: State, with_velocity: bool) -> np.ndar
         with_velocity: Whether to append the target velocity.
 
     Returns:
-        Observations, shape (N, 15) or (N, 18), float32.
+        Observations, shape (N, 18) or (N, 21), float32.
     """
     x = state.x
     target, velocity = reference_pose(params, state.reference, state.t)
@@ -426,6 +427,7 @@ def observation(params: EnvParams, state: State, with_velocity: bool) -> np.ndar
         target[:, :2] - x[:, :2],
         wrap_angle(target[:, 2:3] - x[:, 2:3]),
         2.0 * (state.q - lo) / (hi - lo) - 1.0,
+        (params.robot.inverse_kinematics(target, validate=False) - state.q) / (hi - lo),
         state.inverse_condition[:, None],
     ]
     if with_velocity:

@@ -90,9 +90,7 @@ def build_params(
     safe = _number("safe_threshold", safe_threshold)
     hard = _number("hard_threshold", hard_threshold)
     if not 0 < hard < safe < 1:
-        raise ValueError(
-            f"thresholds must satisfy 0 < hard_threshold < safe_threshold < 1, got {hard} and {safe}"
-        )
+        raise ValueError(f"thresholds must satisfy 0 < hard_threshold < safe_threshold < 1, got {hard} and {safe}")
     if isinstance(newton_max_iterations, bool) or not isinstance(newton_max_iterations, (int, np.integer)):
         raise TypeError(f"newton_max_iterations must be an int, got {newton_max_iterations!r}")
     if newton_max_iterations < 1:
@@ -350,7 +348,7 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
 
 
 class Planar3RPRReachEnv(_Planar3RPREnv):
-    """Reach a target pose with a planar 3-RPR parallel robot, and hold it, away from singularities.
+    r"""Reach a target pose with a planar 3-RPR parallel robot, and hold it, away from singularities.
 
     ## Description
     A planar 3-RPR robot (lesson §5): three legs join base anchors B_i (fixed frame {B}) to platform
@@ -363,10 +361,10 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
 
     ```
             B_3
-            /\\          {B}: x to the right, y up, φ counter-clockwise
-        L_3/  \\
-          / P  \\       the platform triangle P_1 P_2 P_3 hangs between the three legs
-     B_1 /______\\ B_2
+            /\          {B}: x to the right, y up, φ counter-clockwise
+        L_3/  \
+          / P  \       the platform triangle P_1 P_2 P_3 hangs between the three legs
+     B_1 /______\ B_2
     ```
 
     ## Action Space
@@ -379,7 +377,7 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
     Strokes stop at the limits [L_min, L_max] (hard stops): the achieved rate is the one used.
 
     ## Observation Space
-    `Box(low, high, (15,), float32)`, finite bounds, values clipped into them.
+    `Box(low, high, (18,), float32)`, finite bounds, values clipped into them.
 
     | Num | Observation | Unit |
     |-----|-------------|------|
@@ -390,7 +388,8 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
     | 8-9 | position error x* − x, y* − y | m |
     | 10 | orientation error wrap(φ* − φ) | rad |
     | 11-13 | strokes normalised to [−1, 1] over [L_min, L_max] | 1 |
-    | 14 | inverse condition number k of the homogeneous Jacobian | 1 |
+    | 14-16 | stroke error (q(x*) − q) / (L_max − L_min), q(x*) the target's inverse kinematics | 1 |
+    | 17 | inverse condition number k of the homogeneous Jacobian | 1 |
 
     ## Rewards
     r = −(w_p ‖p* − p‖ + w_φ ℓ_c |wrap(φ* − φ)|) − w_s ((k_safe − k)/k_safe)² [k < k_safe]
@@ -534,13 +533,13 @@ class Planar3RPRTrackEnv(_Planar3RPREnv):
     clipped; strokes stop at [L_min, L_max].
 
     ## Observation Space
-    `Box(low, high, (18,), float32)`, finite bounds, values clipped into them.
+    `Box(low, high, (21,), float32)`, finite bounds, values clipped into them.
 
     | Num | Observation | Unit |
     |-----|-------------|------|
-    | 0-14 | as in `Planar3RPRReach-v0` (pose, target, error, strokes, k) | m, 1, rad |
-    | 15-16 | target velocity ẋ*, ẏ* | m/s |
-    | 17 | target angular velocity φ̇* | rad/s |
+    | 0-17 | as in `Planar3RPRReach-v0` (pose, target, error, strokes, stroke error, k) | m, 1, rad |
+    | 18-19 | target velocity ẋ*, ẏ* | m/s |
+    | 20 | target angular velocity φ̇* | rad/s |
 
     ## Rewards
     As in `Planar3RPRReach-v0`, against the moving target:

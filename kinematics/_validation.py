@@ -50,8 +50,7 @@ def check_finite(name: str, arr: FloatArray) -> None:
         bad = np.argwhere(~finite)
         first = tuple(int(i) for i in bad[0])
         raise ValueError(
-            f"{name} must be finite, got {len(bad)} non-finite value(s), "
-            f"first {arr[first]!r} at index {first}"
+            f"{name} must be finite, got {len(bad)} non-finite value(s), first {arr[first]!r} at index {first}"
         )
 
 
@@ -74,7 +73,10 @@ def batch_vector(name: str, value: Any, size: int, what: str) -> FloatArray:
     arr = value if type(value) is np.ndarray and value.dtype == np.float64 else as_float_array(name, value)
     if arr.ndim == 0 or arr.shape[-1] != size:
         raise ValueError(f"{name} must have shape (..., {size}) holding {what}, got shape {arr.shape}")
-    if not math.isfinite(float(np.dot(arr.ravel(), arr.ravel()))):  # cheap; exact check only on alarm
+    flat = arr.ravel()
+    # Cheap test, exact check only on alarm. A large np.dot goes to multithreaded BLAS, which can cost
+    # milliseconds on a busy or small machine, so large batches use np.isfinite instead.
+    if not (math.isfinite(float(np.dot(flat, flat))) if flat.size <= 1024 else np.isfinite(flat).all()):
         check_finite(name, arr)
     return arr
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from kinematics._validation import FloatArray, batch_vector
+from kinematics._validation import FloatArray, batch_vector, positive_scalar
 from kinematics.linalg import batched_solve, hadamard_ratio, singular_value_ratio
 
 __all__ = ["ForwardKinematicsResult", "ParallelMechanism", "SingularConfigurationError"]
@@ -50,6 +50,18 @@ def _scalarize(arr: np.ndarray) -> Any:
     return arr[()] if arr.ndim == 0 else arr
 
 
+def _check_broadcast(**arrays: np.ndarray) -> None:
+    """Raise a ``ValueError`` naming each batch shape (all axes but the last) if they do not broadcast."""
+    shapes = [arr.shape[:-1] for arr in arrays.values()]
+    if all(shape == shapes[0] for shape in shapes):
+        return
+    try:
+        np.broadcast_shapes(*shapes)
+    except ValueError:
+        named = [f"{name} {arr.shape[:-1]}" for name, arr in arrays.items()]
+        raise ValueError(f"batch shapes of {', '.join(named[:-1])} and {named[-1]} do not broadcast") from None
+
+
 class ParallelMechanism(abc.ABC):
     """A fully parallel mechanism with n actuators, an m-coordinate pose and k = m holonomic constraints.
 
@@ -74,13 +86,20 @@ class ParallelMechanism(abc.ABC):
         Args:
             pose_scale: Column scaling of J_i, shape (m,): 1 for translations, 1/ℓ_c [1/m] for rotations.
             singular_tolerance: Hadamard ratio |det Ĵ_x| / ∏_i ‖row_i(Ĵ_x)‖ of the homogenised
-                Ĵ_x = J_x · diag(1/pose_scale) below which ``forward_jacobian`` and ``actuator_forces`` raise ``SingularConfigurationError``.
+                Ĵ_x = J_x · diag(pose_scale) below which ``forward_jacobian`` and ``actuator_forces``
+                raise ``SingularConfigurationError``.
         """
         scale = np.array(pose_scale, dtype=np.float64)
         scale.setflags(write=False)
         self._pose_scale = scale
-        self._inverse_pose_scale = 1.0 / scale
         self._singular_tolerance = float(singular_tolerance)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Restore a pickled mechanism; unpickled arrays are writeable, so make them read-only again."""
+        self.__dict__.update(state)
+        for value in state.values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
 
     # -- what a concrete mechanism provides -------------------------------------------------------
 
@@ -123,13 +142,7 @@ class ParallelMechanism(abc.ABC):
     def _qx(self, q: Any, x: Any, validate: bool) -> tuple[FloatArray, FloatArray]:
         if validate:
             q, x = self._q(q), self._x(x)
-            if q.shape[:-1] != x.shape[:-1]:
-                try:
-                    np.broadcast_shapes(q.shape[:-1], x.shape[:-1])
-                except ValueError:
-                    raise ValueError(
-                        f"batch shapes of q {q.shape[:-1]} and x {x.shape[:-1]} do not broadcast"
-                    ) from None
+            _check_broadcast(q=q, x=x)
         return q, x
 
     # -- constraint level -------------------------------------------------------------------------
@@ -180,7 +193,7 @@ class ParallelMechanism(abc.ABC):
 
     def _singularity_measure(self, J_x: FloatArray) -> FloatArray:
         """Hadamard ratio of J_x with rotation columns scaled by 1/ℓ_c: 0 iff J_x is singular."""
-        return hadamard_ratio(J_x, self._inverse_pose_scale)
+        return hadamard_ratio(J_x, self._pose_scale)
 
     def _raise_if_singular(self, J_x: FloatArray, what: str) -> None:
         ratio = self._singularity_measure(J_x)
@@ -314,10 +327,12 @@ class ParallelMechanism(abc.ABC):
         if validate:
             q = self._q(q)
             x_guess = self._x(x_guess, "x_guess")
-            if not (isinstance(max_iterations, (int, np.integer)) and max_iterations >= 0):
+            _check_broadcast(q=q, x_guess=x_guess)
+            if isinstance(max_iterations, bool) or not (
+                isinstance(max_iterations, (int, np.integer)) and max_iterations >= 0
+            ):
                 raise ValueError(f"max_iterations must be an integer ≥ 0, got {max_iterations!r}")
-            if not (np.isfinite(tolerance) and tolerance > 0):
-                raise ValueError(f"tolerance must be a finite number > 0, got {tolerance!r}")
+            tolerance = positive_scalar("tolerance", tolerance)
         shape = np.broadcast_shapes(q.shape[:-1], x_guess.shape[:-1])
         q = np.broadcast_to(q, shape + q.shape[-1:])
         x = np.array(np.broadcast_to(x_guess, shape + x_guess.shape[-1:]), dtype=np.float64)
@@ -373,7 +388,7 @@ class ParallelMechanism(abc.ABC):
             DOF, shape (...) (int).
         """
         J_q, J_x = self.jacobians(q, x, validate=validate)
-        J_q, J_x = np.broadcast_arrays(J_q, J_x / self._pose_scale)
+        J_q, J_x = np.broadcast_arrays(J_q, J_x * self._pose_scale)
         J_c = np.concatenate([J_q, J_x], axis=-1)
         return _scalarize(self.n_actuators + self.n_pose - self._rank(J_c, rtol))
 
@@ -390,7 +405,7 @@ class ParallelMechanism(abc.ABC):
             Mobility, shape (...) (int); 0 at a regular configuration.
         """
         _, J_x = self.jacobians(q, x, validate=validate)
-        return _scalarize(self.n_pose - self._rank(J_x / self._pose_scale, rtol))
+        return _scalarize(self.n_pose - self._rank(J_x * self._pose_scale, rtol))
 
     # -- statics --------------------------------------------------------------------------------
 
@@ -407,8 +422,10 @@ class ParallelMechanism(abc.ABC):
             w, shape (..., m), dual to x (for planar robots: f_x [N], f_y [N], m_z [N·m] in {B}).
         """
         if validate:
+            q, x = self._qx(q, x, validate)
             tau = batch_vector("tau", tau, self.n_actuators, "actuator forces [N]")
-        J_i = self.inverse_jacobian(q, x, validate=validate)
+            _check_broadcast(q=q, x=x, tau=tau)
+        J_i = self.inverse_jacobian(q, x, validate=False)
         return np.einsum("...ij,...i->...j", J_i, tau)
 
     def actuator_forces(self, q: Any, x: Any, wrench: Any, *, validate: bool = True) -> FloatArray:
@@ -430,6 +447,7 @@ class ParallelMechanism(abc.ABC):
         q, x = self._qx(q, x, validate)
         if validate:
             wrench = batch_vector("wrench", wrench, self.n_pose, "a platform wrench")
+            _check_broadcast(q=q, x=x, wrench=wrench)
         J_q, J_x = self._jacobians(q, x)
         if validate:
             self._raise_if_singular(J_x, "actuator forces")

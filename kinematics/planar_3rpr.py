@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import math
+from typing import Any
 
 import numpy as np
 
 from kinematics._validation import FloatArray, point_set, positive_scalar
 from kinematics.mechanism import ParallelMechanism
 
-__all__ = ["Planar3RPR", "DEFAULT_BASE", "DEFAULT_PLATFORM"]
+__all__ = ["DEFAULT_BASE", "DEFAULT_PLATFORM", "Planar3RPR"]
 
 #: The lesson's base anchors B_i in {B} [m], shape (3, 2) (section 7).
 DEFAULT_BASE = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, np.sqrt(3.0) / 2.0]])
@@ -105,7 +104,7 @@ class Planar3RPR(ParallelMechanism):
         """Geometry in a form that can be pasted back."""
         return (
             f"Planar3RPR(base={self._B.tolist()}, platform={self._P.tolist()}, "
-            f"characteristic_length={self._l_c!r})"
+            f"characteristic_length={self._l_c!r}, singular_tolerance={self.singular_tolerance!r})"
         )
 
     def __eq__(self, other: object) -> bool:
@@ -166,35 +165,47 @@ class Planar3RPR(ParallelMechanism):
     # -- the constraint-level math ----------------------------------------------------------------
 
     def _check_actuators(self, q: FloatArray) -> None:
-        if not q.min() > 0:
+        if q.size and not q.min() > 0:
             raise ValueError(f"leg lengths q must be > 0 [m], got minimum {float(np.min(q))!r}")
 
-    def _constraints(self, q: FloatArray, x: FloatArray) -> FloatArray:
-        d = self.leg_vectors(x, validate=False)
-        return np.sum(d * d, axis=-1) - q * q
+    def _legs(self, x: FloatArray) -> tuple[bool, list[tuple[Any, Any, Any, Any]]]:
+        """Per leg i: ((R P_i)_x, (R P_i)_y, d_ix, d_iy) in {B} [m].
 
-    def _jacobians(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        # Written on components so that one configuration runs on Python floats (no array
-        # overhead) and a batch runs on arrays, through the same lines.
-        single = x.ndim == 1
+        Written on components so that one configuration runs on Python floats (no array overhead)
+        and a batch on arrays of shape (...), through the same lines.
+        """
+        single = x.size == 3
         if single:
-            px, py, phi = x.tolist()
+            px, py, phi = x.ravel().tolist()
             c, s = math.cos(phi), math.sin(phi)
         else:
             px, py, phi = x[..., 0], x[..., 1], x[..., 2]
             c, s = np.cos(phi), np.sin(phi)
-        rows = []
+        legs = []
         for (Bx, By), (Px, Py) in zip(self._B_list, self._P_list):
             RPx = c * Px - s * Py
             RPy = s * Px + c * Py
-            dx = px + RPx - Bx
-            dy = py + RPy - By
+            legs.append((RPx, RPy, px + RPx - Bx, py + RPy - By))
+        return single, legs
+
+    def _assemble(self, single: bool, entries: list[Any], batch: tuple[int, ...], tail: tuple[int, ...]) -> FloatArray:
+        """Stack per-component results into shape batch + tail."""
+        if single:
+            return np.array(entries).reshape(batch + tail)
+        return np.stack(entries, axis=-1).reshape(batch + tail)
+
+    def _constraints(self, q: FloatArray, x: FloatArray) -> FloatArray:
+        single, legs = self._legs(x)
+        squared = [dx * dx + dy * dy for _, _, dx, dy in legs]  # d_iᵀ d_i
+        return self._assemble(single, squared, x.shape[:-1], (3,)) - q * q
+
+    def _jacobians(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        single, legs = self._legs(x)
+        rows = []
+        for RPx, RPy, dx, dy in legs:
             # Row i: 2 (d_ix, d_iy, d_iᵀ S R P_i) with d_iᵀ S R P_i = d_iy (R P_i)_x − d_ix (R P_i)_y.
             rows += [2.0 * dx, 2.0 * dy, 2.0 * (dy * RPx - dx * RPy)]
-        if single:
-            J_x = np.array(rows).reshape(3, 3)
-        else:
-            J_x = np.stack(rows, axis=-1).reshape(np.shape(phi) + (3, 3))
+        J_x = self._assemble(single, rows, x.shape[:-1], (3, 3))
         shape = np.broadcast_shapes(q.shape, x.shape)[:-1] + (3, 3)
         J_q = np.zeros(shape)
         np.einsum("...ii->...i", J_q)[...] = -2.0 * q  # J_q = −2 diag(L_1, L_2, L_3)
@@ -207,9 +218,7 @@ class Planar3RPR(ParallelMechanism):
 
     # -- all assembly modes -----------------------------------------------------------------------
 
-    def assembly_modes(
-        self, q: Any, *, tolerance: float = 1e-10, n_samples: int = 64
-    ) -> FloatArray:
+    def assembly_modes(self, q: Any, *, tolerance: float = 1e-10, n_samples: int = 64) -> FloatArray:
         """Every real solution x of Φ(q, x) = 0 for one set of leg lengths (at most 6).
 
         Elimination: subtracting Φ_1 from Φ_2 and Φ_3 leaves M(φ) p = r(φ), linear in p, so
@@ -276,7 +285,10 @@ class Planar3RPR(ParallelMechanism):
         M, r, a = self._linear_system(q, phi)
         det = M[..., 0, 0] * M[..., 1, 1] - M[..., 0, 1] * M[..., 1, 0]
         adj_r = np.stack(
-            [M[..., 1, 1] * r[..., 0] - M[..., 0, 1] * r[..., 1], -M[..., 1, 0] * r[..., 0] + M[..., 0, 0] * r[..., 1]],
+            [
+                M[..., 1, 1] * r[..., 0] - M[..., 0, 1] * r[..., 1],
+                -M[..., 1, 0] * r[..., 0] + M[..., 0, 0] * r[..., 1],
+            ],
             axis=-1,
         )
         v = adj_r + det[..., None] * a[..., 0, :]

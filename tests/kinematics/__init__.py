@@ -1,0 +1,1 @@
+"""Tests of the kinematics package: Jacobians, assembly modes, singularities, batching, validation."""

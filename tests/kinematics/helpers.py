@@ -95,7 +95,7 @@ def central_difference(
 
 
 def max_relative_error(actual: np.ndarray, expected: np.ndarray) -> float:
-    """max over the batch of max|actual − expected| / max|expected| per matrix (or vector)."""
+    """Largest max|actual − expected| / max|expected| over the matrices (or vectors) of a batch."""
     actual, expected = np.broadcast_arrays(actual, expected)
     axes = tuple(range(1, expected.ndim))
     err = np.max(np.abs(actual - expected), axis=axes)

@@ -92,7 +92,7 @@ def test_actuator_forces_raise_at_type2_singularity(singular_robot):
 def test_singularity_error_is_a_value_error_and_names_the_batch_index(singular_robot):
     """SingularConfigurationError is a ValueError; in a batch it names the first singular index."""
     q = singular_robot.inverse_kinematics(POSE)
-    X = np.stack([POSE + [0.01, 0.0, 0.0], POSE, POSE])
+    X = np.stack([POSE + np.array([0.01, 0.0, 0.0]), POSE, POSE])
     Q = np.stack([q, q, q])
     with pytest.raises(ValueError, match=r"at batch index \(1,\)"):
         singular_robot.forward_jacobian(Q, X)

@@ -1,0 +1,94 @@
+"""Same seed ⇒ same rollout, pickling keeps the state, and long random rollouts stay finite and on Φ = 0."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+from envs import ENV_IDS
+from envs.core import TERMINATION_REASONS
+from tests.envs.helpers import all_finite, assert_steps_equal, numeric_info_values
+
+#: Random-action steps per id of the long rollout (100 000 in all).
+LONG_ROLLOUT_STEPS = {
+    "Planar3RPRReach-v0": 40_000,
+    "Planar3RPRReachHard-v0": 30_000,
+    "Planar3RPRTrack-v0": 30_000,
+}
+
+
+def _lockstep(env_a, env_b, actions: np.ndarray, where: str) -> None:
+    """Step two envs with the same actions (resetting both on episode end) and compare every result."""
+    for step, action in enumerate(actions):
+        result_a, result_b = env_a.step(action), env_b.step(action)
+        assert_steps_equal(result_a, result_b, f"{where}, step {step}")
+        if result_a[2] or result_a[3]:
+            assert_steps_equal(env_a.reset(), env_b.reset(), f"{where}, reset after step {step}")
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_rollout(env_id, make_env, rng):
+    """Two envs reset with the same seed and fed the same actions give identical obs, rewards and infos."""
+    env_a, env_b = make_env(env_id), make_env(env_id)
+    assert_steps_equal(env_a.reset(seed=123), env_b.reset(seed=123), "reset")
+    actions = rng.uniform(-1.0, 1.0, size=(500, 3)).astype(np.float32)
+    _lockstep(env_a, env_b, actions, env_id)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_different_seeds_give_different_tasks(env_id, make_env):
+    """The seed drives the task: different seeds give different starting observations."""
+    env = make_env(env_id)
+    first = [env.reset(seed=seed)[0] for seed in range(5)]
+    assert len({obs.tobytes() for obs in first}) == 5
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_pickle_round_trip(env_id, make_env, rng):
+    """An env pickled mid-episode and loaded continues exactly like the original (state and RNG)."""
+    env = make_env(env_id)
+    env.reset(seed=7)
+    for action in rng.uniform(-0.5, 0.5, size=(5, 3)).astype(np.float32):
+        _, _, terminated, truncated, _ = env.step(action)
+        assert not (terminated or truncated)
+    clone = pickle.loads(pickle.dumps(env))
+    assert clone is not env and clone.unwrapped is not env.unwrapped
+    np.testing.assert_array_equal(clone.unwrapped.state.x, env.unwrapped.state.x)
+    actions = rng.uniform(-1.0, 1.0, size=(300, 3)).astype(np.float32)
+    _lockstep(env, clone, actions, f"{env_id} pickled")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_long_random_rollout_is_finite_and_on_the_manifold(env_id, make_env):
+    """100 000 random steps over all ids: everything finite, |Φ| ≤ 1e-10, only documented reasons."""
+    env = make_env(env_id)
+    steps = LONG_ROLLOUT_STEPS[env_id]
+    actions = np.random.default_rng(99).uniform(-1.0, 1.0, size=(steps, 3)).astype(np.float32)
+    obs, info = env.reset(seed=99)
+    assert all_finite(obs, 0.0, info)
+    numeric_keys = sorted(numeric_info_values(info))
+    observations = np.empty((steps, *obs.shape), dtype=np.float32)
+    rewards = np.empty(steps)
+    infos = np.empty((steps, sum(np.size(info[k]) for k in numeric_keys)))
+    reasons: set[str] = set()
+    for step, action in enumerate(actions):
+        obs, reward, terminated, truncated, info = env.step(action)
+        observations[step], rewards[step] = obs, reward
+        infos[step] = np.concatenate([np.ravel(info[k]) for k in numeric_keys])
+        if terminated:
+            reasons.add(info["termination_reason"])
+        if terminated or truncated:
+            env.reset()
+    finite = np.isfinite(observations).all(axis=1) & np.isfinite(rewards) & np.isfinite(infos).all(axis=1)
+    bad = np.flatnonzero(~finite)
+    assert bad.size == 0, (
+        f"{bad.size} steps with a non-finite value, first at step {bad[0]}: obs={observations[bad[0]]}, "
+        f"reward={rewards[bad[0]]}, info {numeric_keys} = {infos[bad[0]]}"
+    )
+    residual = infos[:, numeric_keys.index("constraint_residual")]
+    worst = int(np.argmax(residual))
+    assert residual[worst] <= 1e-10, f"constraint residual {residual[worst]} at step {worst}"
+    assert reasons <= set(TERMINATION_REASONS) - {""}, reasons

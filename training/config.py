@@ -1,0 +1,176 @@
+"""Hyperparameters as data: the RL Zoo's YAML layout, read with ``yaml.safe_load`` and checked key by key."""
+
+from __future__ import annotations
+
+import copy
+import inspect
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+from stable_baselines3 import PPO, SAC, TD3
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+__all__ = [
+    "ALGORITHMS",
+    "ConfigError",
+    "algorithm_class",
+    "load_hyperparams",
+    "parse_overrides",
+    "resolve_policy_kwargs",
+]
+
+#: Algorithms the project trains, by command-line name.
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3}
+
+#: Keys of an env entry that belong to the run, not to the algorithm's constructor (RL Zoo layout).
+RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "eval_freq", "n_eval_episodes", "env_kwargs")
+
+#: Activation functions that ``policy_kwargs.activation_fn`` may name (no ``eval`` of strings).
+_ACTIVATIONS = ("ReLU", "Tanh", "ELU", "LeakyReLU", "GELU", "SiLU")
+
+#: Constructor arguments set by the training script itself, never from a config.
+_RESERVED = ("self", "policy", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model")
+
+
+class ConfigError(ValueError):
+    """A hyperparameter file, entry or override is invalid; the message lists the valid choices."""
+
+
+def algorithm_class(algo: str) -> type[BaseAlgorithm]:
+    """The SB3 class for an algorithm name.
+
+    Args:
+        algo: "ppo", "sac" or "td3" (case-insensitive).
+
+    Returns:
+        The algorithm class.
+
+    Raises:
+        ConfigError: For an unknown name, listing the valid ones.
+    """
+    key = str(algo).lower()
+    if key not in ALGORITHMS:
+        raise ConfigError(f"unknown algorithm {algo!r}; valid choices: {sorted(ALGORITHMS)}")
+    return ALGORITHMS[key]
+
+
+def valid_keys(algo: str) -> set[str]:
+    """Every key an env entry of ``algo``'s YAML file may hold.
+
+    Args:
+        algo: Algorithm name.
+
+    Returns:
+        The run keys and the algorithm constructor's own arguments.
+    """
+    params = inspect.signature(algorithm_class(algo).__init__).parameters
+    return set(RUN_KEYS) | {name for name in params if name not in _RESERVED}
+
+
+def default_config_path(algo: str) -> Path:
+    """The shipped YAML file of an algorithm: ``training/<algo>.yml``.
+
+    Args:
+        algo: Algorithm name.
+
+    Returns:
+        Its path.
+    """
+    algorithm_class(algo)
+    return Path(str(resources.files("training").joinpath(f"{algo.lower()}.yml")))
+
+
+def load_hyperparams(
+    algo: str, env_id: str, path: str | Path | None = None, overrides: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """Read the hyperparameters of ``env_id`` for ``algo`` and apply command-line overrides.
+
+    Args:
+        algo: Algorithm name.
+        env_id: Environment id, a top-level key of the YAML file.
+        path: YAML file; default ``training/<algo>.yml``.
+        overrides: Keys to replace (already parsed, see ``parse_overrides``).
+
+    Returns:
+        A fresh dict of hyperparameters (run keys and algorithm arguments).
+
+    Raises:
+        ConfigError: If the file is missing or malformed, has no entry for ``env_id``, or an entry or
+            override holds a key the algorithm does not take.
+    """
+    path = Path(path) if path is not None else default_config_path(algo)
+    if not path.is_file():
+        raise ConfigError(f"hyperparameter file {str(path)!r} does not exist")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"hyperparameter file {str(path)!r} is not valid YAML: {exc}") from exc
+    if not isinstance(data, dict):
+        raise ConfigError(f"hyperparameter file {str(path)!r} must map env ids to settings, got {type(data).__name__}")
+    if env_id not in data:
+        raise ConfigError(f"{str(path)!r} has no entry for env {env_id!r}; entries: {sorted(data)}")
+    entry = data[env_id]
+    if not isinstance(entry, dict):
+        raise ConfigError(f"entry {env_id!r} of {str(path)!r} must be a mapping, got {type(entry).__name__}")
+    config = copy.deepcopy(entry)
+    config.update(overrides or {})
+    allowed = valid_keys(algo)
+    unknown = sorted(set(config) - allowed)
+    if unknown:
+        raise ConfigError(
+            f"unknown hyperparameter(s) {unknown} for {algo.upper()} (from {str(path)!r} or the command line); "
+            f"valid keys: {sorted(allowed)}"
+        )
+    for key in ("n_envs", "n_timesteps"):
+        if key in config and (not isinstance(config[key], int) or isinstance(config[key], bool) or config[key] < 1):
+            raise ConfigError(f"{key} must be a positive integer, got {config[key]!r}")
+    return config
+
+
+def parse_overrides(items: list[str] | None) -> dict[str, Any]:
+    """Parse ``key=value`` overrides; values are YAML scalars or flow collections (``yaml.safe_load``).
+
+    Args:
+        items: Strings such as ``"learning_rate=1e-3"`` or ``"policy_kwargs={net_arch: [64, 64]}"``.
+
+    Returns:
+        The overrides as a dict.
+
+    Raises:
+        ConfigError: On an item without ``=`` or with an unparsable value.
+    """
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"override {item!r} must look like key=value")
+        try:
+            out[key.strip()] = yaml.safe_load(raw)
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"override {item!r}: value is not valid YAML: {exc}") from exc
+    return out
+
+
+def resolve_policy_kwargs(policy_kwargs: dict[str, Any] | None) -> dict[str, Any]:
+    """Turn the YAML form of ``policy_kwargs`` into SB3's (an activation name into its torch class).
+
+    Args:
+        policy_kwargs: As written in YAML, or None.
+
+    Returns:
+        A new dict ready for the algorithm's constructor.
+
+    Raises:
+        ConfigError: For an activation function outside the allowed list.
+    """
+    import torch
+
+    kwargs = dict(policy_kwargs or {})
+    name = kwargs.get("activation_fn")
+    if name is not None:
+        if name not in _ACTIVATIONS:
+            raise ConfigError(f"policy_kwargs.activation_fn {name!r} is not one of {list(_ACTIVATIONS)}")
+        kwargs["activation_fn"] = getattr(torch.nn, name)
+    return kwargs

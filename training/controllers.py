@@ -1,0 +1,169 @@
+"""Classical controllers in the evaluation harness: resolved-rate and singularity-aware resolved-rate.
+
+Both read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, 3).
+They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.core import EnvParams, wrap_angle
+
+__all__ = ["CONTROLLERS", "ResolvedRateController", "SingularityAwareController", "decode_observation"]
+
+
+def decode_observation(params: EnvParams, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pose, target pose and target velocity from observations (layout of ``envs.core.observation``).
+
+    Args:
+        params: Environment constants.
+        obs: Observations, shape (N, 18) or (N, 21).
+
+    Returns:
+        (pose (N, 3), target (N, 3), target velocity (N, 3), zeros for Reach) [m, m, rad] and per second.
+    """
+    obs = np.asarray(obs, dtype=np.float64)
+    pose = np.stack([obs[:, 0], obs[:, 1], np.arctan2(obs[:, 3], obs[:, 2])], axis=-1)
+    target = np.stack([obs[:, 4], obs[:, 5], np.arctan2(obs[:, 7], obs[:, 6])], axis=-1)
+    # The error block is exact (not recomputed from clipped poses), so prefer it for the target.
+    target = pose + np.concatenate([obs[:, 8:10], obs[:, 10:11]], axis=-1)
+    velocity = obs[:, 18:21] if obs.shape[1] >= 21 else np.zeros_like(pose)
+    return pose, target, velocity
+
+
+class ResolvedRateController:
+    """q̇ = J_i(x) v, v = ẋ* + K (x* − x): straight toward the target in pose space, within the bounds.
+
+    The platform speed ‖(v_x, v_y, ℓ_c v_φ)‖ is capped at ``max_speed``, and when a stroke rate would
+    exceed ``max_rate`` the whole q̇ is scaled down (not clipped per leg), so the commanded platform
+    velocity keeps its direction.
+
+    Args:
+        params: Environment constants (robot, max_rate).
+        gain: K [1/s].
+        max_speed: Cap on the scaled platform speed [m/s].
+    """
+
+    name = "resolved-rate"
+
+    def __init__(self, params: EnvParams, gain: float = 2.0, max_speed: float = 0.25) -> None:
+        self.params = params
+        self.gain = float(gain)
+        self.max_speed = float(max_speed)
+
+    def desired_velocity(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Pose velocity the controller asks for, shape (N, 3) [m/s, m/s, rad/s]."""
+        error = target - pose
+        error[:, 2] = wrap_angle(error[:, 2])
+        return velocity + self.gain * error
+
+    def _cap(self, v: np.ndarray) -> np.ndarray:
+        speed = np.linalg.norm(v * self.params.pose_scale, axis=-1, keepdims=True)
+        return v / np.maximum(speed / self.max_speed, 1.0)
+
+    def _respect_stroke_limits(self, q: np.ndarray, J_i: np.ndarray, x_dot: np.ndarray) -> np.ndarray:
+        """q̇ = J_i ẋ, with ẋ projected (in z = (x, y, ℓ_c φ)) so no leg at a hard stop is driven into it."""
+        lo, hi = self.params.stroke_limits
+        scale = self.params.pose_scale
+        vz = x_dot * scale
+        rows = J_i / scale  # q̇_i = rows_i · v_z
+        for i in range(3):
+            rate = np.sum(rows[:, i] * vz, axis=-1)
+            blocked = ((q[:, i] <= lo + 1e-3) & (rate < 0)) | ((q[:, i] >= hi - 1e-3) & (rate > 0))
+            r = rows[:, i]
+            vz = np.where(blocked[:, None], vz - (rate / np.sum(r * r, axis=-1))[:, None] * r, vz)
+        return np.einsum("nij,nj->ni", J_i, vz / scale)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Actions for a batch of observations.
+
+        Args:
+            obs: Observations, shape (N, D).
+
+        Returns:
+            Normalised stroke rates in [−1, 1], shape (N, 3), float32.
+        """
+        pose, target, velocity = decode_observation(self.params, obs)
+        robot = self.params.robot
+        q = robot.inverse_kinematics(pose, validate=False)
+        x_dot = self._cap(self.desired_velocity(pose, target, velocity))
+        J_i = robot.inverse_jacobian(q, pose, validate=False)
+        q_dot = self._respect_stroke_limits(q, J_i, x_dot)
+        a = q_dot / self.params.max_rate
+        a /= np.maximum(np.max(np.abs(a), axis=-1, keepdims=True), 1.0)
+        return a.astype(np.float32)
+
+
+class SingularityAwareController(ResolvedRateController):
+    """Resolved-rate with a damped detour around the ill-conditioned zone.
+
+    In the scaled pose space z = (x, y, ℓ_c φ), where the inverse condition number k falls below
+    ``margin`` · k_safe the component of the desired velocity that would lower k is removed (the robot
+    slides along the level set of k) and a push up the gradient of k is added, growing as k falls:
+
+        v ← max(k/k_m, f_min) (v − min(0, v·n) n + β ((k_m − k)/k_m)₊ n),
+        n = ∇_z k / ‖∇_z k‖,  k_m = margin · k_safe.
+
+    The gradient comes from central differences of the kinematics library's inverse condition number.
+
+    Args:
+        params: Environment constants.
+        gain: K [1/s].
+        max_speed: Cap on the scaled platform speed [m/s].
+        margin: Multiple of the safe threshold where the detour starts.
+        push: β [m/s], speed of the push at k = 0.
+        min_speed_fraction: Smallest fraction of the speed kept near the zone (the speed is scaled by
+            k / k_m, the damping of the detour).
+        step: Finite-difference step in z [m].
+    """
+
+    name = "singularity-aware"
+
+    def __init__(
+        self,
+        params: EnvParams,
+        gain: float = 2.0,
+        max_speed: float = 0.25,
+        margin: float = 2.0,
+        push: float = 0.3,
+        min_speed_fraction: float = 0.2,
+        step: float = 1e-4,
+    ) -> None:
+        super().__init__(params, gain, max_speed)
+        self.margin, self.push, self.step = float(margin), float(push), float(step)
+        self.min_speed_fraction = float(min_speed_fraction)
+
+    def _k(self, pose: np.ndarray) -> np.ndarray:
+        robot = self.params.robot
+        q = np.maximum(robot.inverse_kinematics(pose, validate=False), 1e-9)
+        return robot.inverse_condition_number(q, pose, validate=False)
+
+    def desired_velocity(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Resolved-rate velocity with the detour term, shape (N, 3)."""
+        v = self._cap(super().desired_velocity(pose, target, velocity))
+        scale = self.params.pose_scale
+        k = self._k(pose)
+        k_m = self.margin * self.params.safe_threshold
+        near = k < k_m
+        if not np.any(near):
+            return v
+        p = pose[near]
+        grad = np.empty_like(p)
+        for j in range(3):
+            dz = np.zeros(3)
+            dz[j] = self.step / scale[j]
+            grad[:, j] = (self._k(p + dz) - self._k(p - dz)) / (2.0 * self.step)
+        n = grad / np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-12)
+        vz = v[near] * scale
+        into = np.minimum(np.sum(vz * n, axis=-1, keepdims=True), 0.0)
+        strength = np.clip((k_m - k[near]) / k_m, 0.0, 1.0)[:, None]
+        vz = vz - into * n + self.push * strength * n
+        # Damping: slow down as k falls, so one step cannot carry the robot across the fold.
+        slow = np.clip(k[near] / k_m, self.min_speed_fraction, 1.0)[:, None]
+        v[near] = slow * vz / scale
+        return v
+
+
+#: Controllers by command-line name.
+CONTROLLERS = {cls.name: cls for cls in (ResolvedRateController, SingularityAwareController)}
