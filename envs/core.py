@@ -93,8 +93,8 @@ class EnvParams:
     track_period: float = 10.0
 
     @property
-    def pose_scale(self) -> np.ndarray:
-        """(1, 1, ℓ_c): multiplies a pose difference into metres, shape (3,)."""
+    def pose_metric(self) -> np.ndarray:
+        """(1, 1, ℓ_c): multiplies a pose difference (Δx, Δy, Δφ) into metres (Δx, Δy, ℓ_c Δφ), shape (3,)."""
         return np.array([1.0, 1.0, self.robot.characteristic_length])
 
 
@@ -258,7 +258,7 @@ def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[Sta
     q_next = np.where(failed[:, None], state.q, q_new)
     x_next = np.where(failed[:, None], state.x, fk.x)
     residual = np.where(failed, state.residual, fk.residual)
-    jump = np.linalg.norm((np.where(failed[:, None], x_pred, fk.x) - x_pred) * params.pose_scale, axis=-1)
+    jump = np.linalg.norm((np.where(failed[:, None], x_pred, fk.x) - x_pred) * params.pose_metric, axis=-1)
     inverse_condition, det_sign = conditioning(params, q_next, x_next)
     out = np.any((x_next < params.pose_low) | (x_next > params.pose_high), axis=-1)
     reason = np.select(

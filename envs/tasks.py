@@ -115,7 +115,7 @@ def sample_reach(
         comp = rng.choice(workspace.component_ids, size=m, p=workspace.component_weights)
         s = _sample_in_components(params, workspace, rng, comp)
         t = _sample_in_components(params, workspace, rng, comp)
-        ok = np.linalg.norm((t - s) * params.pose_scale, axis=-1) >= min_distance
+        ok = np.linalg.norm((t - s) * params.pose_metric, axis=-1) >= min_distance
         if hard:
             ok &= segment_min_condition(params, s, t) < params.hard_threshold
         good = np.flatnonzero(ok)[: todo.size]

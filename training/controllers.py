@@ -59,13 +59,13 @@ class ResolvedRateController:
         return velocity + self.gain * error
 
     def _cap(self, v: np.ndarray) -> np.ndarray:
-        speed = np.linalg.norm(v * self.params.pose_scale, axis=-1, keepdims=True)
+        speed = np.linalg.norm(v * self.params.pose_metric, axis=-1, keepdims=True)
         return v / np.maximum(speed / self.max_speed, 1.0)
 
     def _respect_stroke_limits(self, q: np.ndarray, J_i: np.ndarray, x_dot: np.ndarray) -> np.ndarray:
         """q̇ = J_i ẋ, with ẋ projected (in z = (x, y, ℓ_c φ)) so no leg at a hard stop is driven into it."""
         lo, hi = self.params.stroke_limits
-        scale = self.params.pose_scale
+        scale = self.params.pose_metric
         vz = x_dot * scale
         rows = J_i / scale  # q̇_i = rows_i · v_z
         for i in range(3):
@@ -142,7 +142,7 @@ class SingularityAwareController(ResolvedRateController):
     def desired_velocity(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """Resolved-rate velocity with the detour term, shape (N, 3)."""
         v = self._cap(super().desired_velocity(pose, target, velocity))
-        scale = self.params.pose_scale
+        scale = self.params.pose_metric
         k = self._k(pose)
         k_m = self.margin * self.params.safe_threshold
         near = k < k_m

@@ -1,0 +1,436 @@
+"""Headless evaluation of a trained run or a classical controller on fixed-seed episodes.
+
+Usage::
+
+    python -m training.evaluate --run DIR | --controller resolved-rate|singularity-aware
+                                [--env ID] [--episodes 100] [--seed 0] [--targets standard|hard]
+                                [--video] [--out DIR] [--model final|best]
+
+Writes ``metrics.json`` (aggregates), ``episodes.csv`` (one row per episode), ``trajectories.png``
+(paths over the inverse-condition-number map), ``condition_number.png`` (k over time) and, with
+``--video``, ``episodes.gif``; prints the metrics as a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+
+import envs
+from envs.core import TERMINATION_REASONS
+from training.config import ConfigError, algorithm_class
+from training.controllers import CONTROLLERS
+
+__all__ = [
+    "EpisodeRecord",
+    "EvaluationError",
+    "aggregate",
+    "evaluate_agent",
+    "load_controller",
+    "load_run",
+    "main",
+]
+
+#: Termination reasons that mean the robot met a singularity.
+SINGULARITY_REASONS = ("singular", "singularity_crossed", "assembly_mode_change", "newton_failed")
+TARGET_SETS = ("standard", "hard")
+Agent = Callable[[np.ndarray], np.ndarray]
+
+
+class EvaluationError(ValueError):
+    """A run folder, controller, env id or option cannot be evaluated; the message says why."""
+
+
+@dataclass
+class EpisodeRecord:
+    """One evaluated episode.
+
+    Attributes:
+        episode: Index (its reset seed is seed + episode).
+        success: ``is_success`` at the last step.
+        final_position_error_mm: Position error at the last step [mm].
+        final_orientation_error_deg: Orientation error at the last step [deg].
+        episode_return: Sum of rewards.
+        min_inverse_condition: Smallest inverse condition number along the episode.
+        singularity_termination: Whether it ended at a singularity (see ``SINGULARITY_REASONS``).
+        termination_reason: The env's termination reason ("" if none).
+        cost_fraction: Fraction of steps with ``cost`` = 1.
+        length: Steps taken.
+        poses: Platform poses, one per step including the start, shape (length + 1, 3).
+        targets: Target poses, same shape.
+        inverse_condition: Inverse condition number per step, shape (length + 1,).
+    """
+
+    episode: int
+    success: bool
+    final_position_error_mm: float
+    final_orientation_error_deg: float
+    episode_return: float
+    min_inverse_condition: float
+    singularity_termination: bool
+    termination_reason: str
+    cost_fraction: float
+    length: int
+    poses: np.ndarray = field(repr=False)
+    targets: np.ndarray = field(repr=False)
+    inverse_condition: np.ndarray = field(repr=False)
+
+    def row(self) -> dict[str, Any]:
+        """The scalar fields, for ``episodes.csv``."""
+        return {k: v for k, v in asdict(self).items() if k not in ("poses", "targets", "inverse_condition")}
+
+
+# -- agents ----------------------------------------------------------------------------------------
+
+
+def load_controller(name: str, env: gym.Env) -> Agent:
+    """A classical controller for an environment.
+
+    Args:
+        name: "resolved-rate" or "singularity-aware".
+        env: The environment (its parameters configure the controller).
+
+    Returns:
+        A batched agent: observations (N, D) → actions (N, 3).
+
+    Raises:
+        EvaluationError: For an unknown name, listing the valid ones.
+    """
+    if name not in CONTROLLERS:
+        raise EvaluationError(f"unknown controller {name!r}; valid choices: {sorted(CONTROLLERS)}")
+    return CONTROLLERS[name](env.unwrapped.params)
+
+
+def read_run_config(run_dir: str | Path) -> dict[str, Any]:
+    """The resolved configuration a run folder was trained with.
+
+    Args:
+        run_dir: The run folder written by ``training.train``.
+
+    Returns:
+        The contents of ``config.yml``.
+
+    Raises:
+        EvaluationError: If the folder or its ``config.yml`` is missing or unreadable.
+    """
+    run = Path(run_dir)
+    if not run.is_dir():
+        raise EvaluationError(f"run folder {str(run)!r} does not exist")
+    path = run / "config.yml"
+    if not path.is_file():
+        present = sorted(p.name for p in run.iterdir())
+        raise EvaluationError(f"{str(run)!r} is not a run folder: no config.yml (it holds {present})")
+    try:
+        config = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise EvaluationError(f"{str(path)!r} is corrupt: {exc}") from exc
+    if not isinstance(config, dict) or "algo" not in config or "env_id" not in config:
+        raise EvaluationError(f"{str(path)!r} is corrupt: it must name 'algo' and 'env_id'")
+    return config
+
+
+def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str, Any]]:
+    """Load a trained policy and its observation normalisation from a run folder.
+
+    Args:
+        run_dir: The run folder written by ``training.train``.
+        which: "final" (``model.zip``) or "best" (``best_model.zip`` of the periodic evaluations).
+
+    Returns:
+        (a batched deterministic agent, the run's configuration).
+
+    Raises:
+        EvaluationError: If the folder, the model or the normalisation statistics are missing or corrupt.
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    config = read_run_config(run_dir)
+    run = Path(run_dir)
+    names = {"final": "model.zip", "best": "best_model.zip"}
+    if which not in names:
+        raise EvaluationError(f"--model must be one of {sorted(names)}, got {which!r}")
+    model_path = run / names[which]
+    if not model_path.is_file():
+        raise EvaluationError(f"run folder {str(run)!r} has no {names[which]}")
+    try:
+        cls = algorithm_class(config["algo"])
+    except ConfigError as exc:
+        raise EvaluationError(f"{str(run / 'config.yml')!r}: {exc}") from exc
+    try:
+        model = cls.load(model_path, device="cpu")
+    except Exception as exc:  # SB3 raises many kinds on a damaged zip
+        raise EvaluationError(f"cannot load {str(model_path)!r}: {type(exc).__name__}: {exc}") from exc
+    normalizer = None
+    stats = run / "vecnormalize.pkl"
+    if config.get("hyperparams", {}).get("normalize"):
+        if not stats.is_file():
+            raise EvaluationError(f"run folder {str(run)!r} normalises observations but has no vecnormalize.pkl")
+        env_id = config["env_id"]
+        try:
+            normalizer = VecNormalize.load(str(stats), DummyVecEnv([lambda: gym.make(env_id)]))
+        except Exception as exc:
+            raise EvaluationError(f"cannot load {str(stats)!r}: {type(exc).__name__}: {exc}") from exc
+        normalizer.training = False
+
+    def agent(obs: np.ndarray) -> np.ndarray:
+        if normalizer is not None:
+            obs = normalizer.normalize_obs(obs)
+        action, _ = model.predict(obs, deterministic=True)
+        return action
+
+    return agent, config
+
+
+# -- episodes --------------------------------------------------------------------------------------
+
+
+def evaluate_agent(
+    agent: Agent,
+    env: gym.Env,
+    episodes: int,
+    seed: int = 0,
+    targets: str = "standard",
+    frames: list[np.ndarray] | None = None,
+    video_episodes: int = 3,
+) -> list[EpisodeRecord]:
+    """Run fixed-seed episodes (episode i resets with seed + i) and record them.
+
+    Args:
+        agent: Batched agent.
+        env: A ``gym.make`` environment (with its TimeLimit).
+        episodes: Number of episodes.
+        seed: Seed of the first episode.
+        targets: "standard" or "hard" (Reach environments only).
+        frames: If given, RGB frames of the first ``video_episodes`` episodes are appended to it.
+        video_episodes: Episodes to film.
+
+    Returns:
+        One record per episode.
+    """
+    if targets not in TARGET_SETS:
+        raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {targets!r}")
+    options = {"targets": targets} if "targets" in type(env.unwrapped)._option_keys else None
+    if targets == "hard" and options is None:
+        raise EvaluationError(f"hard targets exist only for the Reach environments, not {env.spec.id}")
+    records = []
+    for episode in range(episodes):
+        obs, info = env.reset(seed=seed + episode, options=options)
+        poses, goal, ks, costs = [info["pose"]], [info["target"]], [info["inverse_condition_number"]], []
+        total, done, terminated = 0.0, False, False
+        film = frames is not None and episode < video_episodes
+        if film:
+            frames.append(env.render())
+        while not done:
+            action = agent(obs[None])[0]
+            obs, reward, terminated, truncated, info = env.step(action)
+            total += reward
+            done = terminated or truncated
+            poses.append(info["pose"])
+            goal.append(info["target"])
+            ks.append(info["inverse_condition_number"])
+            costs.append(info["cost"])
+            if film:
+                frames.append(env.render())
+        reason = info["termination_reason"]
+        records.append(
+            EpisodeRecord(
+                episode=episode,
+                success=bool(info["is_success"]),
+                final_position_error_mm=1000.0 * info["position_error"],
+                final_orientation_error_deg=float(np.degrees(info["orientation_error"])),
+                episode_return=total,
+                min_inverse_condition=float(np.min(ks)),
+                singularity_termination=reason in SINGULARITY_REASONS,
+                termination_reason=reason,
+                cost_fraction=float(np.mean(costs)) if costs else 0.0,
+                length=len(costs),
+                poses=np.array(poses),
+                targets=np.array(goal),
+                inverse_condition=np.array(ks),
+            )
+        )
+    return records
+
+
+def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
+    """Aggregate metrics over episodes (means with standard deviations where it makes sense).
+
+    Args:
+        records: Evaluated episodes.
+
+    Returns:
+        A JSON-ready dict.
+    """
+
+    def stats(values: list[float]) -> dict[str, float]:
+        arr = np.asarray(values, dtype=float)
+        return {"mean": float(arr.mean()), "std": float(arr.std()), "median": float(np.median(arr))}
+
+    reasons = [r.termination_reason for r in records]
+    return {
+        "episodes": len(records),
+        "success_rate": float(np.mean([r.success for r in records])),
+        "final_position_error_mm": stats([r.final_position_error_mm for r in records]),
+        "final_orientation_error_deg": stats([r.final_orientation_error_deg for r in records]),
+        "return": stats([r.episode_return for r in records]),
+        "min_inverse_condition": {
+            **stats([r.min_inverse_condition for r in records]),
+            "min": float(min(r.min_inverse_condition for r in records)),
+        },
+        "singularity_terminations": int(sum(r.singularity_termination for r in records)),
+        "terminations": {name: reasons.count(name) for name in TERMINATION_REASONS[1:] if reasons.count(name)},
+        "cost_fraction": stats([r.cost_fraction for r in records]),
+        "episode_length": stats([r.length for r in records]),
+    }
+
+
+def format_table(rows: dict[str, dict[str, Any]]) -> str:
+    """A Markdown table of aggregated metrics, one row per agent/target set.
+
+    Args:
+        rows: Label → ``aggregate`` output.
+
+    Returns:
+        The table as Markdown text.
+    """
+    head = (
+        "| agent | targets | success | final pos. error [mm] | final orient. error [deg] | min k (mean / worst) "
+        "| singularity terminations | cost fraction | return |\n"
+        "|---|---|---|---|---|---|---|---|---|\n"
+    )
+    lines = []
+    for label, m in rows.items():
+        agent, _, targets = label.partition(" @ ")
+        lines.append(
+            f"| {agent} | {targets or '-'} | {100 * m['success_rate']:.0f} % "
+            f"| {m['final_position_error_mm']['median']:.2f} (median) "
+            f"| {m['final_orientation_error_deg']['median']:.2f} (median) "
+            f"| {m['min_inverse_condition']['mean']:.3f} / {m['min_inverse_condition']['min']:.3f} "
+            f"| {m['singularity_terminations']} / {m['episodes']} "
+            f"| {m['cost_fraction']['mean']:.3f} | {m['return']['mean']:.1f} ± {m['return']['std']:.1f} |"
+        )
+    return head + "\n".join(lines) + "\n"
+
+
+def print_table(rows: dict[str, dict[str, Any]]) -> None:
+    """Print aggregated metrics as a table on the terminal (rich)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="evaluation")
+    for name in ("agent @ targets", "success", "pos. err [mm]", "orient. err [deg]", "min k", "sing. term.", "cost"):
+        table.add_column(name)
+    for label, m in rows.items():
+        table.add_row(
+            label,
+            f"{100 * m['success_rate']:.0f} %",
+            f"{m['final_position_error_mm']['median']:.2f}",
+            f"{m['final_orientation_error_deg']['median']:.2f}",
+            f"{m['min_inverse_condition']['mean']:.3f} / {m['min_inverse_condition']['min']:.3f}",
+            f"{m['singularity_terminations']} / {m['episodes']}",
+            f"{m['cost_fraction']['mean']:.3f}",
+        )
+    Console(width=140).print(table)
+
+
+# -- output ----------------------------------------------------------------------------------------
+
+
+def write_outputs(
+    out: Path, label: str, env: gym.Env, records: list[EpisodeRecord], frames: list[np.ndarray] | None
+) -> dict[str, Any]:
+    """Write metrics.json, episodes.csv, the pictures and the GIF of one evaluation.
+
+    Args:
+        out: Output folder (created).
+        label: Name of the agent and target set, for titles.
+        env: The evaluated environment.
+        records: Its episodes.
+        frames: Video frames, or None.
+
+    Returns:
+        The aggregated metrics.
+    """
+    from training import plots
+
+    out.mkdir(parents=True, exist_ok=True)
+    metrics = aggregate(records)
+    (out / "metrics.json").write_text(json.dumps({"label": label, **metrics}, indent=2) + "\n")
+    with open(out / "episodes.csv", "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(records[0].row()))
+        writer.writeheader()
+        for r in records:
+            writer.writerow(r.row())
+    params = env.unwrapped.params
+    workspace = env.unwrapped.workspace
+    plots.trajectories_figure({label: records}, params, workspace, out / "trajectories.png")
+    plots.condition_figure({label: records}, params, out / "condition_number.png")
+    if frames:
+        plots.save_gif(frames, out / "episodes.gif", fps=env.unwrapped.metadata["render_fps"])
+    return metrics
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line interface."""
+    parser = argparse.ArgumentParser(prog="python -m training.evaluate", description=__doc__.split("\n")[0])
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--run", help="run folder written by training.train")
+    source.add_argument("--controller", help=f"one of {sorted(CONTROLLERS)}")
+    parser.add_argument("--env", default=None, help=f"one of {list(envs.ENV_IDS)}; default: the run's env")
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i")
+    parser.add_argument("--targets", default="standard", help=f"one of {list(TARGET_SETS)} (Reach only)")
+    parser.add_argument("--video", action="store_true", help="write a GIF of the first episodes")
+    parser.add_argument("--out", default=None, help="output folder; default: <run>/eval-<targets> or evals/...")
+    parser.add_argument("--model", default="final", help="final (model.zip) or best (best_model.zip)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``python -m training.evaluate``; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.episodes < 1:
+            raise EvaluationError(f"--episodes must be ≥ 1, got {args.episodes}")
+        if args.run is not None:
+            config = read_run_config(args.run)
+            env_id = args.env or config["env_id"]
+        else:
+            env_id = args.env or "Planar3RPRReach-v0"
+        if env_id not in envs.ENV_IDS:
+            raise EvaluationError(f"unknown env id {env_id!r}; valid choices: {list(envs.ENV_IDS)}")
+        if args.targets not in TARGET_SETS:
+            raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {args.targets!r}")
+        env = gym.make(env_id, render_mode="rgb_array" if args.video else None)
+        if args.run is not None:
+            agent, _ = load_run(args.run, args.model)
+            name = f"{config['algo']} ({Path(args.run).name})"
+            out = Path(args.out) if args.out else Path(args.run) / f"eval-{args.targets}"
+        else:
+            agent = load_controller(args.controller, env)
+            name = args.controller
+            out = Path(args.out) if args.out else Path("evals") / f"{args.controller}-{env_id}-{args.targets}"
+        frames: list[np.ndarray] | None = [] if args.video else None
+        records = evaluate_agent(agent, env, args.episodes, args.seed, args.targets, frames)
+        label = f"{name} @ {args.targets}"
+        metrics = write_outputs(out, label, env, records, frames)
+    except (EvaluationError, ConfigError) as exc:
+        parser.error(str(exc))
+    print_table({label: metrics})
+    print(f"outputs written to {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,152 @@
+"""Figures of evaluations: trajectories over the conditioning map, k over time, and GIFs (matplotlib Agg)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from PIL import Image  # noqa: E402
+
+from envs.core import EnvParams  # noqa: E402
+from envs.workspace import WorkspaceMap  # noqa: E402
+
+if TYPE_CHECKING:
+    from training.evaluate import EpisodeRecord
+
+__all__ = ["condition_figure", "save_gif", "trajectories_figure"]
+
+
+def _condition_slice(params: EnvParams, workspace: WorkspaceMap, phi: float) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse condition number over (x, y) at orientation φ, NaN where a stroke limit is violated."""
+    xs, ys, _ = workspace.axes
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    poses = np.stack([X, Y, np.full_like(X, phi)], axis=-1)
+    robot = params.robot
+    q = robot.inverse_kinematics(poses, validate=False)
+    lo, hi = params.stroke_limits
+    k = robot.inverse_condition_number(np.maximum(q, 1e-9), poses, validate=False)
+    reachable = (q.min(axis=-1) >= lo) & (q.max(axis=-1) <= hi)
+    return np.where(reachable, k, np.nan), np.array([xs[0], xs[-1], ys[0], ys[-1]])
+
+
+def trajectories_figure(
+    runs: dict[str, list[EpisodeRecord]],
+    params: EnvParams,
+    workspace: WorkspaceMap,
+    path: Path,
+    episodes: int = 4,
+) -> Path:
+    """Paths of the first episodes of each agent over the map of k where each came closest to a singularity.
+
+    Rows are agents, columns episodes (the same seeds, so the same start and target across a column).
+    The background is the homogeneous inverse condition number on the (x, y) plane at the orientation
+    φ the platform had when k was smallest along the episode; grey is out of the stroke limits; the
+    hatched zone is k < k_safe (orange line), the red line k = hard threshold.
+
+    Args:
+        runs: Agent label → its episode records.
+        params: Environment constants.
+        workspace: Certified grid (its axes set the map's resolution).
+        path: Output PNG.
+        episodes: Columns to draw.
+
+    Returns:
+        ``path``.
+    """
+    labels = list(runs)
+    cols = min(episodes, min(len(r) for r in runs.values()))
+    fig, axes = plt.subplots(len(labels), cols, figsize=(3.4 * cols, 3.3 * len(labels)), squeeze=False)
+    cmap = plt.get_cmap("viridis").copy()
+    cmap.set_bad("0.85")
+    image = None
+    for row, label in enumerate(labels):
+        for col in range(cols):
+            rec = runs[label][col]
+            ax = axes[row, col]
+            phi = float(rec.poses[int(np.argmin(rec.inverse_condition)), 2])
+            k_map, extent = _condition_slice(params, workspace, phi)
+            image = ax.imshow(k_map.T, origin="lower", extent=extent, cmap=cmap, vmin=0.0, vmax=1.0)
+            ax.contourf(
+                np.linspace(extent[0], extent[1], k_map.shape[0]),
+                np.linspace(extent[2], extent[3], k_map.shape[1]),
+                np.nan_to_num(k_map.T, nan=1.0),
+                levels=[0.0, params.safe_threshold],
+                colors="none",
+                hatches=["////"],
+            )
+            ax.contour(
+                np.linspace(extent[0], extent[1], k_map.shape[0]),
+                np.linspace(extent[2], extent[3], k_map.shape[1]),
+                np.nan_to_num(k_map.T, nan=1.0),
+                levels=[params.hard_threshold, params.safe_threshold],
+                colors=["red", "orange"],
+                linewidths=0.8,
+            )
+            ax.plot(rec.poses[:, 0], rec.poses[:, 1], color="white", lw=2.2)
+            ax.plot(rec.poses[:, 0], rec.poses[:, 1], color="C3", lw=1.2)
+            ax.plot(*rec.poses[0, :2], "o", color="white", mec="k", ms=6)
+            ax.plot(*rec.targets[-1, :2], "*", color="magenta", mec="k", ms=12)
+            ax.plot(*rec.poses[-1, :2], "x", color="k", ms=7)
+            outcome = "success" if rec.success else (rec.termination_reason or "not reached")
+            ax.set_title(f"{label}\nep {rec.episode}: {outcome}, min k {rec.min_inverse_condition:.3f}", fontsize=8)
+            ax.set_xticks([])
+            ax.set_yticks([])
+    if image is not None:
+        fig.colorbar(image, ax=axes, shrink=0.8, label="inverse condition number k at φ of the episode's min k")
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def condition_figure(runs: dict[str, list[EpisodeRecord]], params: EnvParams, path: Path, episodes: int = 20) -> Path:
+    """Inverse condition number over time for each agent, with the safe and hard thresholds.
+
+    Args:
+        runs: Agent label → its episode records.
+        params: Environment constants.
+        path: Output PNG.
+        episodes: Episodes drawn per agent.
+
+    Returns:
+        ``path``.
+    """
+    fig, axes = plt.subplots(1, len(runs), figsize=(5.0 * len(runs), 3.4), squeeze=False, sharey=True)
+    for ax, (label, records) in zip(axes[0], runs.items()):
+        for rec in records[:episodes]:
+            t = np.arange(len(rec.inverse_condition)) * params.dt
+            color = "C3" if rec.singularity_termination else ("C2" if rec.success else "C0")
+            ax.plot(t, rec.inverse_condition, color=color, lw=0.9, alpha=0.8)
+        ax.axhline(params.safe_threshold, color="orange", ls="--", lw=1, label="safe threshold")
+        ax.axhline(params.hard_threshold, color="red", ls="--", lw=1, label="hard threshold (terminates)")
+        ax.set(title=label, xlabel="time [s]", ylim=(0, 1))
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("inverse condition number k")
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def save_gif(frames: list[np.ndarray], path: Path, fps: float, max_frames: int = 600) -> Path:
+    """Write RGB frames as an animated GIF (Pillow), subsampled to at most ``max_frames``.
+
+    Args:
+        frames: uint8 images of shape (H, W, 3).
+        path: Output file.
+        fps: Playback rate of the unsampled frames.
+        max_frames: Largest number of frames kept.
+
+    Returns:
+        ``path``.
+    """
+    stride = max(1, int(np.ceil(len(frames) / max_frames)))
+    images = [Image.fromarray(f).quantize(colors=64) for f in frames[::stride]]
+    duration = int(round(1000.0 * stride / fps))
+    images[0].save(path, save_all=True, append_images=images[1:], duration=duration, loop=0, optimize=True)
+    return path
