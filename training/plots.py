@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from PIL import Image  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from PIL import Image
 
-from envs.core import EnvParams  # noqa: E402
-from envs.workspace import WorkspaceMap  # noqa: E402
+from envs.core import EnvParams
+from envs.workspace import WorkspaceMap
 
 if TYPE_CHECKING:
     from training.evaluate import EpisodeRecord
