@@ -14,7 +14,6 @@ from typing import NamedTuple
 import numpy as np
 
 from kinematics import Planar3RPR
-from kinematics.linalg import determinant
 
 __all__ = [
     "TERMINATION_REASONS",
@@ -215,9 +214,8 @@ def conditioning(params: EnvParams, q: np.ndarray, x: np.ndarray) -> tuple[np.nd
     Returns:
         (inverse condition number (N,) in [0, 1], sign of det J_x (N,) in {−1, 0, 1}).
     """
-    robot = params.robot
-    _, J_x = robot.jacobians(q, x, validate=False)
-    return robot.inverse_condition_number(q, x, validate=False), np.sign(determinant(J_x))
+    inverse_condition, det = params.robot.singularity_measures(q, x, validate=False)
+    return inverse_condition, np.sign(det)
 
 
 def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[State, StepOutcome]:
@@ -398,7 +396,9 @@ def observation_bounds(params: EnvParams, with_velocity: bool) -> tuple[np.ndarr
     return low_arr, high_arr
 
 
-def observation(params: EnvParams, state: State, with_velocity: bool) -> np.ndarray:
+def observation(
+    params: EnvParams, state: State, target: np.ndarray, velocity: np.ndarray, with_velocity: bool
+) -> np.ndarray:
     """The observation vector of N robots, float32, clipped to ``observation_bounds``.
 
     Layout: [0:4] pose (x, y, cos φ, sin φ); [4:8] target (x*, y*, cos φ*, sin φ*);
@@ -409,13 +409,14 @@ def observation(params: EnvParams, state: State, with_velocity: bool) -> np.ndar
     Args:
         params: Environment constants.
         state: The robots' state.
+        target: Target poses at the state's step (``reference_pose``), shape (N, 3).
+        velocity: Target velocities at the state's step, shape (N, 3).
         with_velocity: Whether to append the target velocity.
 
     Returns:
         Observations, shape (N, 18) or (N, 21), float32.
     """
     x = state.x
-    target, velocity = reference_pose(params, state.reference, state.t)
     lo, hi = params.stroke_limits
     parts = [
         x[:, :2],

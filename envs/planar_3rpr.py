@@ -164,20 +164,20 @@ def initial_state(params: EnvParams, start: np.ndarray, reference: Reference) ->
 
 
 def step_info(
-    params: EnvParams, state: State, terms: dict[str, np.ndarray], reason: np.ndarray
+    params: EnvParams, state: State, target: np.ndarray, terms: dict[str, np.ndarray], reason: np.ndarray
 ) -> dict[str, np.ndarray]:
     """Per-robot diagnostics of a state (batched): errors, conditioning, success, cost, reward terms.
 
     Args:
         params: Environment constants.
         state: The robots' state after the step.
+        target: Target poses at the state's step, shape (N, 3).
         terms: Reward terms of the step, each (N,).
         reason: Termination reason codes, shape (N,).
 
     Returns:
         Arrays with a leading dimension N.
     """
-    target, _ = core.reference_pose(params, state.reference, state.t)
     position_error, orientation_error = core.tracking_errors(params, state.x, target)
     return {
         **terms,
@@ -231,14 +231,15 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
         self._terminated = False
         self._trail.clear()
         self._trail.append(self._state.x[0, :2].copy())
-        zero = np.zeros(1)
+        reason = np.zeros(1, dtype=np.int64)
+        target, velocity = self._reference()
         terms = core.reward_terms(
-            self.params, self._state.x, self._target(), self._state.inverse_condition, np.zeros((1, 3)), zero
+            self.params, self._state.x, target, self._state.inverse_condition, np.zeros((1, 3)), reason
         )
-        info = self._info(terms, np.zeros(1, dtype=np.int64))
+        info = self._info(target, terms, reason)
         if self.render_mode == "human":
             self.render()
-        return self._observation(), info
+        return self._observation(target, velocity), info
 
     def step(self, action: Any):
         """Apply normalised stroke rates for one period dt (see the class docstring)."""
@@ -249,16 +250,15 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
         a = self._check_action(action)
         state, outcome = core.transition(self.params, self._state, a[None])
         self._state = state
-        terms = core.reward_terms(
-            self.params, state.x, self._target(), state.inverse_condition, outcome.action, outcome.reason
-        )
+        target, velocity = self._reference()
+        terms = core.reward_terms(self.params, state.x, target, state.inverse_condition, outcome.action, outcome.reason)
         reward = float(sum(float(v[0]) for v in terms.values()))
         terminated = bool(outcome.reason[0] != 0)
         self._terminated = terminated
         self._trail.append(state.x[0, :2].copy())
         if self.render_mode == "human":
             self.render()
-        return self._observation(), reward, terminated, False, self._info(terms, outcome.reason)
+        return self._observation(target, velocity), reward, terminated, False, self._info(target, terms, outcome.reason)
 
     def render(self):
         """An RGB frame (``rgb_array``), or a window update (``human``); None without a render mode."""
@@ -271,7 +271,7 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
             self.params,
             self._state.q[0],
             self._state.x[0],
-            self._target()[0],
+            self._reference()[0][0],
             float(self._state.inverse_condition[0]),
             trail=list(self._trail),
             step=int(self._state.t[0]),
@@ -296,14 +296,14 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
         """The current batched state (N = 1), or None before the first reset."""
         return self._state
 
-    def _target(self) -> np.ndarray:
-        return core.reference_pose(self.params, self._state.reference, self._state.t)[0]
+    def _reference(self) -> tuple[np.ndarray, np.ndarray]:
+        return core.reference_pose(self.params, self._state.reference, self._state.t)
 
-    def _observation(self) -> np.ndarray:
-        return core.observation(self.params, self._state, self._with_velocity)[0]
+    def _observation(self, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        return core.observation(self.params, self._state, target, velocity, self._with_velocity)[0]
 
-    def _info(self, terms: dict[str, np.ndarray], reason: np.ndarray) -> dict[str, Any]:
-        batched = step_info(self.params, self._state, terms, reason)
+    def _info(self, target: np.ndarray, terms: dict[str, np.ndarray], reason: np.ndarray) -> dict[str, Any]:
+        batched = step_info(self.params, self._state, target, terms, reason)
         info: dict[str, Any] = {}
         for key, value in batched.items():
             item = value[0]

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from kinematics._validation import FloatArray, batch_vector, positive_scalar
-from kinematics.linalg import batched_solve, hadamard_ratio, singular_value_ratio
+from kinematics.linalg import batched_solve, determinant, hadamard_ratio, singular_value_ratio
 
 __all__ = ["ForwardKinematicsResult", "ParallelMechanism", "SingularConfigurationError"]
 
@@ -110,6 +110,10 @@ class ParallelMechanism(abc.ABC):
     @abc.abstractmethod
     def _jacobians(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         """(J_q, J_x), shapes (..., k, n) and (..., k, m), no validation."""
+
+    def _newton_terms(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(Φ, J_x) at once, for Newton's method; override to share work between the two."""
+        return self._constraints(q, x), self._jacobians(q, x)[1]
 
     @abc.abstractmethod
     def _inverse_kinematics(self, x: FloatArray) -> FloatArray:
@@ -278,6 +282,25 @@ class ParallelMechanism(abc.ABC):
         """
         return _scalarize(singular_value_ratio(self.homogeneous_jacobian(q, x, validate=validate)))
 
+    def singularity_measures(self, q: Any, x: Any, *, validate: bool = True) -> tuple[Any, Any]:
+        """The inverse condition number and det J_x from a single evaluation of the Jacobians.
+
+        The inverse condition number measures the distance to a Type II singularity; the sign of
+        det J_x identifies the working mode (it flips when a Type II singularity is crossed).
+
+        Args:
+            q: Actuator coordinates, shape (..., n).
+            x: Platform pose of {P} in {B}, shape (..., m).
+            validate: Check inputs.
+
+        Returns:
+            (``inverse_condition_number``, shape (...); det J_x, shape (...)).
+        """
+        q, x = self._qx(q, x, validate)
+        J_q, J_x = self._jacobians(q, x)
+        ratio = singular_value_ratio(-batched_solve(J_q, J_x) * self._pose_scale)
+        return _scalarize(ratio), _scalarize(determinant(J_x))
+
     def raw_condition_number(self, q: Any, x: Any, *, validate: bool = True) -> Any:
         """cond(J_x) = σ_max/σ_min of the raw constraint Jacobian, as used in the lesson.
 
@@ -337,25 +360,26 @@ class ParallelMechanism(abc.ABC):
         q = np.broadcast_to(q, shape + q.shape[-1:])
         x = np.array(np.broadcast_to(x_guess, shape + x_guess.shape[-1:]), dtype=np.float64)
         iterations = np.zeros(shape, dtype=np.int64)
-        residual = np.asarray(np.max(np.abs(self._constraints(q, x)), axis=-1))
-        active = np.asarray(residual > tolerance)
-        for _ in range(max_iterations):
-            if not active.any():
-                break
+        residual = np.full(shape, np.inf)
+        active = np.ones(shape, dtype=bool)
+        for it in range(max_iterations + 1):
             q_a, x_a = q[active], x[active]
-            _, J_x = self._jacobians(q_a, x_a)
-            phi = self._constraints(q_a, x_a)
-            x_new = x_a - batched_solve(J_x, phi[..., None])[..., 0]
-            ok = np.isfinite(x_new).all(axis=-1)
-            x_a = np.where(ok[..., None], x_new, x_a)
-            res_a = np.where(ok, np.max(np.abs(self._constraints(q_a, x_a)), axis=-1), np.inf)
-            x[active] = x_a
+            phi, J_x = self._newton_terms(q_a, x_a)
+            res_a = np.max(np.abs(phi), axis=-1)
             residual[active] = res_a
-            iterations[active] += 1
-            still = ok & (res_a > tolerance)
-            active[active] = still
+            step = res_a > tolerance  # NaN compares False: a non-finite residual stops there
+            if it == max_iterations or not step.any():
+                break
+            x_new = x_a[step] - batched_solve(J_x[step], phi[step][..., None])[..., 0]
+            ok = np.isfinite(x_new).all(axis=-1)
+            moved = np.flatnonzero(step)[ok]
+            x_a[moved] = x_new[ok]
+            x[active] = x_a
+            index = np.flatnonzero(active.ravel())[moved]
+            iterations.ravel()[index] += 1
+            active = np.zeros(shape, dtype=bool)
+            active.ravel()[index] = True
         converged = residual <= tolerance
-        residual = np.where(np.isfinite(residual), residual, np.max(np.abs(self._constraints(q, x)), axis=-1))
         return ForwardKinematicsResult(
             x=x,
             converged=_scalarize(converged),

@@ -199,13 +199,22 @@ class Planar3RPR(ParallelMechanism):
         squared = [dx * dx + dy * dy for _, _, dx, dy in legs]  # d_iᵀ d_i
         return self._assemble(single, squared, x.shape[:-1], (3,)) - q * q
 
-    def _jacobians(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        single, legs = self._legs(x)
+    def _jacobian_x(self, single: bool, legs: list, batch: tuple[int, ...]) -> FloatArray:
         rows = []
         for RPx, RPy, dx, dy in legs:
             # Row i: 2 (d_ix, d_iy, d_iᵀ S R P_i) with d_iᵀ S R P_i = d_iy (R P_i)_x − d_ix (R P_i)_y.
             rows += [2.0 * dx, 2.0 * dy, 2.0 * (dy * RPx - dx * RPy)]
-        J_x = self._assemble(single, rows, x.shape[:-1], (3, 3))
+        return self._assemble(single, rows, batch, (3, 3))
+
+    def _newton_terms(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        single, legs = self._legs(x)
+        squared = [dx * dx + dy * dy for _, _, dx, dy in legs]
+        phi = self._assemble(single, squared, x.shape[:-1], (3,)) - q * q
+        return phi, self._jacobian_x(single, legs, x.shape[:-1])
+
+    def _jacobians(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        single, legs = self._legs(x)
+        J_x = self._jacobian_x(single, legs, x.shape[:-1])
         shape = np.broadcast_shapes(q.shape, x.shape)[:-1] + (3, 3)
         J_q = np.zeros(shape)
         np.einsum("...ii->...i", J_q)[...] = -2.0 * q  # J_q = −2 diag(L_1, L_2, L_3)
