@@ -84,8 +84,8 @@ class EnvParams:
     singularity_weight: float = 1.0
     action_weight: float = 0.01
     termination_penalty: float = 50.0
-    success_position_tolerance: float = 0.01
-    success_orientation_tolerance: float = 0.05
+    success_position_tolerance: float = 0.02
+    success_orientation_tolerance: float = 0.1
     newton_tolerance: float = 1e-12
     newton_max_iterations: int = 8
     jump_tolerance: float = 0.02

@@ -61,8 +61,8 @@ def build_params(
     singularity_weight: float = 1.0,
     action_weight: float = 0.01,
     termination_penalty: float = 50.0,
-    success_position_tolerance: float = 0.01,
-    success_orientation_tolerance: float = 0.05,
+    success_position_tolerance: float = 0.02,
+    success_orientation_tolerance: float = 0.1,
     jump_tolerance: float = 0.02,
     newton_max_iterations: int = 8,
     track_period: float = 10.0,
@@ -437,8 +437,8 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
     | `singularity_weight` | float | `1.0` | w_s |
     | `action_weight` | float | `0.01` | w_a |
     | `termination_penalty` | float | `50.0` | P, subtracted once at termination |
-    | `success_position_tolerance` | float | `0.01` | success position error [m] |
-    | `success_orientation_tolerance` | float | `0.05` | success orientation error [rad] |
+    | `success_position_tolerance` | float | `0.02` | success position error [m] |
+    | `success_orientation_tolerance` | float | `0.1` | success orientation error [rad] |
     | `jump_tolerance` | float | `0.02` | largest prediction–correction gap [m] |
     | `newton_max_iterations` | int | `8` | Newton iterations per step |
 
@@ -468,8 +468,8 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
         singularity_weight: float = 1.0,
         action_weight: float = 0.01,
         termination_penalty: float = 50.0,
-        success_position_tolerance: float = 0.01,
-        success_orientation_tolerance: float = 0.05,
+        success_position_tolerance: float = 0.02,
+        success_orientation_tolerance: float = 0.1,
         jump_tolerance: float = 0.02,
         newton_max_iterations: int = 8,
     ) -> None:
