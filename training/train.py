@@ -14,6 +14,7 @@ The run folder holds: ``model.zip`` (final), ``best_model.zip`` (best periodic e
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import platform
 import shlex
@@ -84,23 +85,53 @@ def make_training_env(
     )
 
 
+def read_monitor(folder: Path) -> dict[str, np.ndarray]:
+    """Episodes of every Monitor CSV in ``folder``, in the order they ended.
+
+    Args:
+        folder: Folder of ``*.monitor.csv`` files (SB3's format: a JSON comment line, then a header).
+
+    Returns:
+        Columns "r" (return), "l" (length), "t" (wall time [s]), "is_success" and "cost" (the values of
+        the episode's last info, as Monitor records them), each of shape (episodes,).
+    """
+    rows: list[dict[str, str]] = []
+    for path in sorted(Path(folder).glob("*monitor.csv")):
+        with open(path, newline="") as fh:
+            fh.readline()  # the JSON header line
+            rows.extend(csv.DictReader(fh))
+    rows.sort(key=lambda row: float(row["t"]))
+
+    def column(name: str) -> np.ndarray:
+        return np.array(
+            [float(row[name] == "True") if row[name] in ("True", "False") else float(row[name] or 0) for row in rows]
+        )
+
+    return (
+        {name: column(name) for name in ("r", "l", "t", "is_success", "cost")}
+        if rows
+        else {name: np.zeros(0) for name in ("r", "l", "t", "is_success", "cost")}
+    )
+
+
 def _plot_learning_curve(run_dir: Path, env_id: str, algo: str) -> Path:
     """Episode return and success (Monitor) and periodic evaluations against timesteps."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from stable_baselines3.common.monitor import load_results
 
     fig, (ax_r, ax_s) = plt.subplots(1, 2, figsize=(11, 4))
-    monitor = load_results(str(run_dir / "monitor"))
-    if len(monitor):
-        steps = np.cumsum(monitor["l"].to_numpy())
-        window = max(1, min(50, len(monitor) // 10))
-        smooth = np.convolve(monitor["r"].to_numpy(), np.ones(window) / window, mode="valid")
+    monitor = read_monitor(run_dir / "monitor")
+    if len(monitor["r"]):
+        steps = np.cumsum(monitor["l"])
+        window = max(1, min(50, len(steps) // 10))
+        kernel = np.ones(window) / window
         ax_r.plot(steps, monitor["r"], color="0.8", lw=0.5, label="episode return")
-        ax_r.plot(steps[window - 1 :], smooth, color="C0", label=f"mean of {window}")
-        success = np.convolve(monitor["is_success"].astype(float), np.ones(window) / window, mode="valid")
+        ax_r.plot(
+            steps[window - 1 :], np.convolve(monitor["r"], kernel, mode="valid"), color="C0", label=f"mean of {window}"
+        )
+        success = np.convolve(monitor["is_success"], kernel, mode="valid")
         ax_s.plot(steps[window - 1 :], success, color="C0", label="training episodes")
     evaluations = run_dir / "evaluations.npz"
     if evaluations.is_file():
@@ -241,10 +272,10 @@ def _versions() -> dict[str, str]:
 
     return {
         "python": platform.python_version(),
-        "numpy": np.__version__,
-        "gymnasium": gym.__version__,
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": torch.__version__,
+        "numpy": str(np.__version__),
+        "gymnasium": str(gym.__version__),
+        "stable_baselines3": str(stable_baselines3.__version__),
+        "torch": str(torch.__version__),
     }
 
 
