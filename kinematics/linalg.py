@@ -68,7 +68,12 @@ def batched_solve(A: FloatArray, B: FloatArray) -> FloatArray:
         X, shape (..., k, r); all-NaN for the matrices of the batch that are exactly singular.
     """
     batch = A.shape[:-2]
-    if A.shape[-2:] == (3, 3) and np.prod(batch, dtype=np.int64) >= _ADJUGATE_MIN_BATCH:
+    if A.ndim == 2 and B.ndim == 2:
+        try:
+            return np.linalg.solve(A, B)
+        except np.linalg.LinAlgError:
+            return np.full(B.shape, np.nan)
+    if A.shape[-2:] == (3, 3) and math.prod(batch) >= _ADJUGATE_MIN_BATCH:
         adj, det = _adjugate3(A)
         with np.errstate(divide="ignore", invalid="ignore"):
             X = np.matmul(adj, B) / det[..., None, None]

@@ -201,6 +201,8 @@ class ParallelMechanism(abc.ABC):
 
     def _raise_if_singular(self, J_x: FloatArray, what: str) -> None:
         ratio = self._singularity_measure(J_x)
+        if ratio.size == 0 or ratio.min() >= self._singular_tolerance:
+            return
         bad = ratio < self._singular_tolerance
         if np.any(bad):
             idx = tuple(int(i) for i in np.argwhere(np.atleast_1d(bad))[0])

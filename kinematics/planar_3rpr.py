@@ -215,6 +215,8 @@ class Planar3RPR(ParallelMechanism):
     def _jacobians(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         single, legs = self._legs(x)
         J_x = self._jacobian_x(single, legs, x.shape[:-1])
+        if q.ndim == 1 and x.ndim == 1:
+            return np.diag(-2.0 * q), J_x  # J_q = −2 diag(L_1, L_2, L_3)
         shape = np.broadcast_shapes(q.shape, x.shape)[:-1] + (3, 3)
         J_q = np.zeros(shape)
         np.einsum("...ii->...i", J_q)[...] = -2.0 * q  # J_q = −2 diag(L_1, L_2, L_3)
