@@ -33,7 +33,7 @@ from training.evaluate import (
     print_table,
 )
 
-__all__ = ["PRETRAINED_RUN", "main", "run_demo"]
+__all__ = ["PRETRAINED_RUN", "main", "record_regression", "run_demo"]
 
 #: The run folder of the policy that ships with the project (trained by ``training.train``).
 PRETRAINED_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReach-v0")))
@@ -87,6 +87,34 @@ def run_demo(run: Path, out: Path, episodes: int, seed: int = 1000, video_episod
     return metrics
 
 
+def record_regression(run: Path, episodes: int = 20, seed: int = 5000) -> dict:
+    """Evaluate a run on fixed standard-target seeds and store the result as ``regression.json``.
+
+    The test suite re-runs exactly these episodes and checks the policy still reaches this success rate.
+
+    Args:
+        run: Run folder of the policy.
+        episodes: Number of episodes.
+        seed: Seed of the first episode.
+
+    Returns:
+        The recorded dict.
+    """
+    policy, config = load_run(run)
+    env = gym.make(config["env_id"])
+    metrics = aggregate(evaluate_agent(policy, env, episodes, seed, "standard"))
+    record = {
+        "env_id": config["env_id"],
+        "targets": "standard",
+        "seed": seed,
+        "episodes": episodes,
+        "success_rate": metrics["success_rate"],
+        "singularity_terminations": metrics["singularity_terminations"],
+    }
+    (run / "regression.json").write_text(json.dumps(record, indent=2) + "\n")
+    return record
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``python -m training.demo``; returns the exit status."""
     parser = argparse.ArgumentParser(prog="python -m training.demo", description=__doc__.split("\n")[0])
@@ -94,7 +122,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="reports/demo", help="report folder")
     parser.add_argument("--run", default=str(PRETRAINED_RUN), help="run folder of the policy")
     parser.add_argument("--seed", type=int, default=1000, help="seed of the first episode")
+    parser.add_argument(
+        "--record-regression", action="store_true", help="only write <run>/regression.json (for the test suite)"
+    )
     args = parser.parse_args(argv)
+    if args.record_regression:
+        try:
+            print(json.dumps(record_regression(Path(args.run)), indent=2))
+        except EvaluationError as exc:
+            parser.error(str(exc))
+        return 0
     start = time.perf_counter()
     try:
         if args.episodes < 1:
