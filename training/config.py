@@ -19,6 +19,7 @@ __all__ = [
     "load_hyperparams",
     "parse_overrides",
     "resolve_policy_kwargs",
+    "resolve_schedules",
 ]
 
 #: Algorithms the project trains, by command-line name.
@@ -174,3 +175,49 @@ def resolve_policy_kwargs(policy_kwargs: dict[str, Any] | None) -> dict[str, Any
             raise ConfigError(f"policy_kwargs.activation_fn {name!r} is not one of {list(_ACTIVATIONS)}")
         kwargs["activation_fn"] = getattr(torch.nn, name)
     return kwargs
+
+
+#: Hyperparameters that SB3 accepts as a schedule of the remaining progress (1 → 0).
+SCHEDULED_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
+
+
+def resolve_schedules(hyperparams: dict[str, Any]) -> dict[str, Any]:
+    """Turn the RL Zoo's ``lin_<value>`` strings into linear schedules (value · remaining progress).
+
+    Args:
+        hyperparams: Algorithm arguments as written in YAML.
+
+    Returns:
+        A new dict where e.g. ``learning_rate: lin_3e-4`` became a callable decaying 3e-4 → 0.
+
+    Raises:
+        ConfigError: For a string that is not ``lin_<positive number>``.
+    """
+    out = dict(hyperparams)
+    for key in SCHEDULED_KEYS:
+        value = out.get(key)
+        if not isinstance(value, str):
+            continue
+        prefix, _, number = value.partition("_")
+        try:
+            initial = float(number)
+        except ValueError:
+            initial = -1.0
+        if prefix != "lin" or not initial > 0:
+            raise ConfigError(f"{key} must be a number or 'lin_<positive number>', got {value!r}")
+        out[key] = LinearSchedule(initial)
+    return out
+
+
+class LinearSchedule:
+    """initial · progress_remaining, picklable (SB3 saves schedules with the model)."""
+
+    def __init__(self, initial: float) -> None:
+        self.initial = float(initial)
+
+    def __call__(self, progress_remaining: float) -> float:
+        """The value at ``progress_remaining`` (1 at the start of training, 0 at the end)."""
+        return self.initial * progress_remaining
+
+    def __repr__(self) -> str:
+        return f"lin_{self.initial!r}"
