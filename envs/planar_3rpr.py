@@ -504,18 +504,24 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
         mode = options.get("targets", self.targets)
         if mode not in _TARGET_MODES:
             raise ValueError(f"options['targets'] must be one of {_TARGET_MODES}, got {mode!r}")
-        start, target = sample_reach(self.params, self.workspace, self.np_random, 1, hard=mode == "hard")
-        if "start" in options:
-            start = self._check_pose("start", options["start"])[None]
-        if "target" in options:
-            target = self._check_pose("target", options["target"])[None]
-        if self.workspace.component_of(start)[0] != self.workspace.component_of(target)[0]:
-            raise ValueError(
-                f"start {start[0].tolist()} and target {target[0].tolist()} lie in different safe regions "
-                "(different working modes): no singularity-free path joins them"
-            )
-        reference = Reference(center=target, radius=np.zeros(1), phase=np.zeros(1), amplitude=np.zeros(1))
-        return start, reference
+        start = self._check_pose("start", options["start"]) if "start" in options else None
+        target = self._check_pose("target", options["target"]) if "target" in options else None
+        if start is not None and target is not None:
+            if self.workspace.component_of(start) != self.workspace.component_of(target):
+                raise ValueError(
+                    f"start {start.tolist()} and target {target.tolist()} lie in different safe regions "
+                    "(different working modes): no singularity-free path joins them"
+                )
+            starts, targets = start[None], target[None]
+        else:
+            try:
+                starts, targets = sample_reach(
+                    self.params, self.workspace, self.np_random, 1, mode == "hard", start=start, target=target
+                )
+            except RuntimeError as exc:
+                raise ValueError(f"no {mode} task exists for the given pose: {exc}") from exc
+        reference = Reference(center=targets, radius=np.zeros(1), phase=np.zeros(1), amplitude=np.zeros(1))
+        return starts, reference
 
 
 class Planar3RPRTrackEnv(_Planar3RPREnv):

@@ -85,12 +85,15 @@ def sample_reach(
     n: int,
     hard: bool,
     min_distance: float = 0.1,
+    start: np.ndarray | None = None,
+    target: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Starts and targets in the same safe region (so a singularity-free path joins them).
 
     Standard pairs are at least ``min_distance`` apart in (x, y, ℓ_c φ). Hard pairs are also such that
     the straight line between them in pose space dips below ``hard_threshold``: a straight-line
-    controller meets the ill-conditioned zone, a detour inside the region does not.
+    controller meets the ill-conditioned zone, a detour inside the region does not. A given ``start``
+    (or ``target``) is kept and the other end is drawn from its region under the same conditions.
 
     Args:
         params: Environment constants.
@@ -99,22 +102,31 @@ def sample_reach(
         n: Number of pairs.
         hard: Whether to sample hard pairs.
         min_distance: Smallest start–target distance [m].
+        start: A fixed safe start pose, shape (3,), or None.
+        target: A fixed safe target pose, shape (3,), or None (not both given).
 
     Returns:
         (starts (n, 3), targets (n, 3)) [m, m, rad].
 
     Raises:
-        RuntimeError: If this geometry offers no such pair (for example no hard pair at all).
+        RuntimeError: If no such pair is found (for example no hard target for a given start).
     """
     starts, targets = np.empty((n, 3)), np.empty((n, 3))
+    fixed = start if start is not None else target
     todo = np.arange(n)
     for _ in range(_MAX_ROUNDS):
         if todo.size == 0:
             return starts, targets
         m = todo.size * (_BATCH // 8 if hard else 1)
-        comp = rng.choice(workspace.component_ids, size=m, p=workspace.component_weights)
-        s = _sample_in_components(params, workspace, rng, comp)
-        t = _sample_in_components(params, workspace, rng, comp)
+        if fixed is None:
+            comp = rng.choice(workspace.component_ids, size=m, p=workspace.component_weights)
+            s = _sample_in_components(params, workspace, rng, comp)
+            t = _sample_in_components(params, workspace, rng, comp)
+        else:
+            comp = np.full(m, workspace.component_of(np.asarray(fixed)))
+            other = _sample_in_components(params, workspace, rng, comp)
+            ends = np.broadcast_to(fixed, other.shape)
+            s, t = (ends, other) if start is not None else (other, ends)
         ok = np.linalg.norm((t - s) * params.pose_metric, axis=-1) >= min_distance
         if hard:
             ok &= segment_min_condition(params, s, t) < params.hard_threshold
@@ -123,7 +135,7 @@ def sample_reach(
         targets[todo[: good.size]] = t[good]
         todo = todo[good.size :]
     kind = "hard " if hard else ""
-    raise RuntimeError(f"could not sample {kind}start/target pairs for this geometry and these thresholds")
+    raise RuntimeError(f"could not sample {kind}start/target pairs for this geometry, thresholds and poses")
 
 
 def sample_track(
@@ -133,13 +145,12 @@ def sample_track(
     n: int,
     radius_range: tuple[float, float] = (0.05, 0.15),
     amplitude_range: tuple[float, float] = (0.0, 0.4),
-    n_check: int = 64,
 ) -> Reference:
     """Reference trajectories that lie entirely in one safe region.
 
     Each reference is a circle of radius r in (x, y) travelled once per ``track_period`` with φ
-    oscillating by ±a around c_φ; every one of ``n_check`` points along it is safe and in the same
-    region as its centre.
+    oscillating by ±a around c_φ; its pose at every control step of a period (the poses the
+    environment visits) is safe and in the same region as its centre.
 
     Args:
         params: Environment constants.
@@ -148,7 +159,6 @@ def sample_track(
         n: Number of references.
         radius_range: Range of r [m].
         amplitude_range: Range of a [rad].
-        n_check: Points checked along each reference.
 
     Returns:
         The references (its values at t = 0 are the starting poses).
@@ -156,7 +166,8 @@ def sample_track(
     center, radius = np.empty((n, 3)), np.empty(n)
     phase, amplitude = np.empty(n), np.empty(n)
     todo = np.arange(n)
-    omega_t = np.linspace(0.0, 2.0 * np.pi, n_check, endpoint=False)
+    n_check = int(np.ceil(params.track_period / params.dt))
+    omega_t = 2.0 * np.pi / params.track_period * params.dt * np.arange(n_check)
     for _ in range(_MAX_ROUNDS):
         if todo.size == 0:
             return Reference(center=center, radius=radius, phase=phase, amplitude=amplitude)

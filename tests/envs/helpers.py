@@ -100,3 +100,8 @@ def component_node(workspace: WorkspaceMap, component: int, rank: int = 0) -> np
     flat = workspace.component_nodes[int(component)]
     order = np.argsort(-workspace.inverse_condition.ravel()[flat], kind="stable")
     return workspace.nodes.reshape(-1, 3)[flat[order[rank]]].copy()
+
+
+def pose_metric(params: Any) -> np.ndarray:
+    """(1, 1, ℓ_c): turns a pose difference (Δx, Δy, Δφ) into metres (Δx, Δy, ℓ_c Δφ), shape (3,)."""
+    return np.array([1.0, 1.0, params.robot.characteristic_length])

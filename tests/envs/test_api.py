@@ -13,8 +13,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gymnasium_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from envs import ENV_IDS
-from tests.envs.helpers import INFO_KEYS, MAX_EPISODE_STEPS, REWARD_TERMS
+from envs import ENV_IDS, core
+from tests.envs.helpers import INFO_KEYS, MAX_EPISODE_STEPS, REWARD_TERMS, component_node
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -71,13 +71,11 @@ def test_make_with_module_prefix_in_fresh_interpreter():
         "env = gym.make('envs:Planar3RPRReach-v0')\n"
         "obs, info = env.reset(seed=0)\n"
         "obs, reward, terminated, truncated, info = env.step(env.action_space.sample())\n"
-        "print(type(env.unwrapped).__name__, env.spec.max_episode_steps, obs.shape)\n"
+        "print(type(env.unwrapped).__name__, env.spec.max_episode_steps, env.observation_space.contains(obs))\n"
     )
-    result = subprocess.run(
-        [sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120
-    )
+    result = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split() == ["Planar3RPRReachEnv", "200", "(15,)"]
+    assert result.stdout.split() == ["Planar3RPRReachEnv", "200", "True"]
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -103,7 +101,8 @@ def test_spaces(env_id, make_env):
     space = env.observation_space
     assert isinstance(space, gym.spaces.Box)
     assert space.dtype == np.float32
-    assert space.shape == ((18,) if "Track" in env_id else (15,))
+    reach_shape = make_env("Planar3RPRReach-v0").observation_space.shape
+    assert space.shape == ((reach_shape[0] + 3,) if "Track" in env_id else reach_shape)  # + target velocity
     assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
     assert np.all(space.low < space.high)
     assert space.is_bounded("both")
@@ -132,7 +131,7 @@ def test_observations_rewards_and_infos(env_id, make_env):
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_reward_is_sum_of_terms(env_id, make_env):
-    """reward == reward_tracking + reward_singularity + reward_action + reward_termination, every step."""
+    """The reward is reward_tracking + reward_singularity + reward_action + reward_termination, every step."""
     env = make_env(env_id)
     terminated_seen = False
     for step, (_, reward, terminated, _, info) in enumerate(_rollout(env, 600, seed=2)):
@@ -187,3 +186,69 @@ def test_returned_arrays_are_fresh(env_id, make_env, rng):
             obs_a, info_a = mutated.reset(seed=step)
             obs_b, info_b = clean.reset(seed=step)
             previous = None
+
+
+def _documented_observation(env: gym.Env) -> np.ndarray:
+    """The observation the Observation Space table describes, rebuilt from the state (float64, clipped)."""
+    unwrapped = env.unwrapped
+    params, state = unwrapped.params, unwrapped.state
+    q, x = state.q[0], state.x[0]
+    target, velocity = core.reference_pose(params, state.reference, state.t)
+    target, velocity = target[0], velocity[0]
+    lo, hi = params.stroke_limits
+    robot = params.robot
+    parts = [
+        x[:2],
+        [np.cos(x[2]), np.sin(x[2])],
+        target[:2],
+        [np.cos(target[2]), np.sin(target[2])],
+        target[:2] - x[:2],
+        [np.angle(np.exp(1j * (target[2] - x[2])))],
+        2.0 * (q - lo) / (hi - lo) - 1.0,
+        (robot.inverse_kinematics(target) - q) / (hi - lo),
+        [robot.inverse_condition_number(q, x)],
+    ]
+    if env.observation_space.shape[0] == 21:
+        parts.append(velocity)
+    expected = np.concatenate([np.asarray(p, dtype=np.float64) for p in parts])
+    return np.clip(expected, env.observation_space.low, env.observation_space.high)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_observation_matches_documented_layout(env_id, make_env, rng):
+    """Every entry is what the Observation Space table says, in that order (pose, target, errors, k, …)."""
+    env = make_env(env_id)
+    obs, _ = env.reset(seed=6)
+    np.testing.assert_allclose(obs, _documented_observation(env), rtol=0, atol=2e-6)
+    for step in range(100):
+        obs, _, terminated, truncated, _ = env.step(rng.uniform(-1.0, 1.0, size=3).astype(np.float32))
+        np.testing.assert_allclose(obs, _documented_observation(env), rtol=0, atol=2e-6, err_msg=f"step {step}")
+        if terminated or truncated:
+            obs, _ = env.reset()
+
+
+def test_success_at_the_target(make_env):
+    """Holding still on the target is a success with zero tracking reward; elsewhere it is not."""
+    env = make_env("Planar3RPRReach-v0")
+    workspace = env.unwrapped.workspace
+    component = workspace.component_ids[np.argmax(workspace.component_weights)]
+    pose = component_node(workspace, component)
+    _, info = env.reset(seed=0, options={"start": pose, "target": pose})
+    assert info["is_success"] and info["position_error"] == 0.0 and info["orientation_error"] == 0.0
+    _, reward, terminated, _, info = env.step(np.zeros(3, dtype=np.float32))
+    assert not terminated and info["is_success"]
+    assert info["reward_tracking"] == 0.0 and reward == pytest.approx(info["reward_singularity"], abs=1e-15)
+    params = env.unwrapped.params
+    outcomes = set()
+    for _ in range(10):
+        _, _, terminated, _, info = env.step(np.array([0.5, 1.0, 0.5], dtype=np.float32))
+        within = (
+            info["position_error"] <= params.success_position_tolerance
+            and info["orientation_error"] <= params.success_orientation_tolerance
+        )
+        assert info["is_success"] == (within and not terminated), info
+        assert info["reward_tracking"] < 0.0
+        outcomes.add(info["is_success"])
+        if terminated:
+            break
+    assert outcomes == {True, False}, "the platform never left (or never was within) the success tolerance"

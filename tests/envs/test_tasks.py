@@ -1,0 +1,184 @@
+"""Task sampling is fair and the certified workspace is sound: safe starts, targets and references."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from envs import core
+from envs.tasks import is_safe, segment_min_condition
+from tests.envs.helpers import component_node, pose_metric
+
+#: (env id, reset options) of every way to get a Reach task; the flag says whether it is a hard one.
+REACH_CASES = [
+    pytest.param("Planar3RPRReach-v0", None, False, id="standard"),
+    pytest.param("Planar3RPRReach-v0", {"targets": "hard"}, True, id="hard-option"),
+    pytest.param("Planar3RPRReachHard-v0", None, True, id="hard-id"),
+]
+
+SEEDS = range(25)
+
+
+def _reach_tasks(env, options) -> tuple[np.ndarray, np.ndarray]:
+    """(starts, targets), each (len(SEEDS), 3), of resets with the given options."""
+    starts, targets = [], []
+    for seed in SEEDS:
+        _, info = env.reset(seed=seed, options=options)
+        np.testing.assert_array_equal(info["pose"], env.unwrapped.state.x[0])
+        starts.append(info["pose"])
+        targets.append(info["target"])
+    return np.array(starts), np.array(targets)
+
+
+@pytest.mark.parametrize(("env_id", "options", "hard"), REACH_CASES)
+def test_start_and_target_are_safe_and_connected(env_id, options, hard, make_env):
+    """Start and target are both safe and lie in the same component of the certified workspace."""
+    env = make_env(env_id)
+    params, workspace = env.unwrapped.params, env.unwrapped.workspace
+    starts, targets = _reach_tasks(env, options)
+    assert is_safe(params, workspace, starts).all()
+    assert is_safe(params, workspace, targets).all()
+    start_components = workspace.component_of(starts)
+    np.testing.assert_array_equal(start_components, workspace.component_of(targets))
+    assert np.isin(start_components, workspace.component_ids).all()
+
+
+@pytest.mark.parametrize(("env_id", "options", "hard"), REACH_CASES)
+def test_targets_are_far_and_hard_ones_cross_the_ill_conditioned_zone(env_id, options, hard, make_env):
+    """Every pair is ≥ 0.1 m apart in (x, y, ℓ_c φ); hard pairs' straight line dips below hard_threshold."""
+    env = make_env(env_id)
+    params = env.unwrapped.params
+    starts, targets = _reach_tasks(env, options)
+    distance = np.linalg.norm((targets - starts) * pose_metric(params), axis=-1)
+    assert distance.min() >= 0.1, distance.min()
+    line_min = segment_min_condition(params, starts, targets)
+    if hard:
+        assert np.all(line_min < params.hard_threshold), line_min
+    else:
+        assert np.any(line_min >= params.hard_threshold), "standard targets are all hard ones"
+
+
+def test_every_component_has_one_det_sign(make_env):
+    """Within each connected safe region sign(det J_x) is constant (one working mode per region)."""
+    workspace = make_env("Planar3RPRReach-v0").unwrapped.workspace
+    labels = np.unique(workspace.labels)
+    labels = labels[labels != 0]
+    assert labels.size >= 1
+    for component in labels:
+        signs = np.unique(workspace.det_sign[workspace.labels == component])
+        assert signs.size == 1 and signs[0] != 0, f"component {component} has det signs {signs}"
+    assert set(workspace.component_ids) <= set(labels)
+
+
+def test_grid_certification_is_sound(make_env):
+    """Along the segment between face-adjacent safe nodes of a kept component, k stays above hard_threshold."""
+    env = make_env("Planar3RPRReach-v0")
+    params, workspace = env.unwrapped.params, env.unwrapped.workspace
+    rng = np.random.default_rng(5)
+    labels = workspace.labels
+    shape = np.array(labels.shape)
+    kept = np.argwhere(np.isin(labels, workspace.component_ids))
+    first = kept[rng.integers(0, len(kept), size=20_000)]
+    second = first.copy()
+    axis = rng.integers(0, 3, size=len(first))
+    second[np.arange(len(first)), axis] += rng.choice([-1, 1], size=len(first))
+    inside = np.all((second >= 0) & (second < shape), axis=-1)
+    first, second = first[inside], second[inside]
+    same = labels[tuple(first.T)] == labels[tuple(second.T)]
+    first, second = first[same], second[same]
+    assert len(first) > 10_000
+    nodes = workspace.nodes
+    a, b = nodes[tuple(first.T)], nodes[tuple(second.T)]
+    s = np.linspace(0.0, 1.0, 20)[None, :, None]
+    points = a[:, None, :] + s * (b - a)[:, None, :]
+    q = params.robot.inverse_kinematics(points)
+    k = params.robot.inverse_condition_number(q, points)
+    worst = np.unravel_index(np.argmin(k), k.shape)
+    assert k.min() > params.hard_threshold, f"k = {k.min()} at {points[worst]}"
+
+
+def test_track_references_are_safe_everywhere(make_env):
+    """Every step pose along a period of each sampled reference is safe and in one component."""
+    env = make_env("Planar3RPRTrack-v0")
+    unwrapped = env.unwrapped
+    params, workspace = unwrapped.params, unwrapped.workspace
+    period_steps = int(round(params.track_period / params.dt))
+    t = np.arange(period_steps)
+    failures = []
+    for seed in range(200):
+        env.reset(seed=seed)
+        reference = unwrapped.state.reference
+        poses, _ = core.reference_pose(params, reference, t)
+        safe = is_safe(params, workspace, poses)
+        components = np.unique(workspace.component_of(poses))
+        if not safe.all() or components.size != 1:
+            failures.append((seed, t[~safe].tolist(), components.tolist()))
+    assert not failures, f"unsafe reference points (seed, steps, components): {failures}"
+
+
+def test_explicit_start_and_target(make_env):
+    """reset(options={"start", "target"}) with safe poses of one component starts exactly there."""
+    env = make_env("Planar3RPRReach-v0")
+    workspace = env.unwrapped.workspace
+    component = workspace.component_ids[np.argmax(workspace.component_weights)]
+    start, target = component_node(workspace, component, 0), component_node(workspace, component, 50)
+    for options in ({"start": start, "target": target}, {"start": start, "target": target, "targets": "hard"}):
+        obs, info = env.reset(seed=0, options=options)
+        np.testing.assert_array_equal(env.unwrapped.state.x[0], start)
+        np.testing.assert_array_equal(info["pose"], start)
+        np.testing.assert_array_equal(info["target"], target)
+        np.testing.assert_allclose(obs[:2], start[:2], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(obs[4:6], target[:2], rtol=0, atol=1e-6)
+    _, _, terminated, _, _ = env.step(np.zeros(3, dtype=np.float32))
+    assert not terminated
+
+
+@pytest.mark.parametrize("given", ["start", "target"])
+def test_explicit_start_or_target_alone(given, make_env):
+    """Giving only a safe start (or target) draws the other end in the same component."""
+    env = make_env("Planar3RPRReach-v0")
+    workspace = env.unwrapped.workspace
+    smallest = workspace.component_ids[np.argmin(workspace.component_weights)]
+    pose = component_node(workspace, smallest)
+    for seed in range(10):
+        _, info = env.reset(seed=seed, options={given: pose})
+        other = info["target"] if given == "start" else info["pose"]
+        np.testing.assert_array_equal(info["pose"] if given == "start" else info["target"], pose)
+        assert workspace.component_of(other) == smallest
+
+
+@pytest.mark.parametrize(
+    ("options", "match"),
+    [
+        ({"start": [0.5, 0.3]}, r"options\['start'\] must be a finite pose of shape \(3,\)"),
+        ({"target": [[0.5, 0.3, 0.0]]}, r"options\['target'\] must be a finite pose of shape \(3,\)"),
+        ({"start": [0.5, np.nan, 0.0]}, r"options\['start'\] must be a finite pose"),
+        ({"start": [5.0, 5.0, 0.0]}, r"options\['start'\] = \[5.0, 5.0, 0.0\] is not in the certified safe"),
+        ({"target": [0.5, 0.0, 0.0]}, r"options\['target'\] .* is not in the certified safe workspace"),
+        ({"targets": "impossible"}, r"options\['targets'\] must be one of \('standard', 'hard'\)"),
+        ({"goal": [0.5, 0.3, 0.0]}, r"unknown reset option\(s\) \['goal'\]"),
+    ],
+)
+def test_bad_reach_options_raise(options, match, make_env):
+    """Wrong-shaped, non-finite or unsafe poses and unknown keys are refused with a precise message."""
+    env = make_env("Planar3RPRReach-v0")
+    with pytest.raises(ValueError, match=match):
+        env.reset(seed=0, options=options)
+
+
+def test_explicit_poses_in_different_components_raise(make_env):
+    """A start and a target in different safe regions (different working modes) are refused."""
+    env = make_env("Planar3RPRReach-v0")
+    workspace = env.unwrapped.workspace
+    first, second = workspace.component_ids[:2]
+    options = {"start": component_node(workspace, first), "target": component_node(workspace, second)}
+    with pytest.raises(ValueError, match="different safe regions"):
+        env.reset(seed=0, options=options)
+
+
+@pytest.mark.parametrize("key", ["start", "targets", "speed"])
+def test_track_refuses_unknown_options(key, make_env):
+    """Track takes no reset options; any key is refused, naming it."""
+    env = make_env("Planar3RPRTrack-v0")
+    with pytest.raises(ValueError, match=rf"unknown reset option\(s\) \['{key}'\]"):
+        env.reset(seed=0, options={key: [0.5, 0.3, 0.0]})
