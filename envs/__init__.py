@@ -3,18 +3,37 @@
 from gymnasium.envs.registration import register, registry
 
 from envs.planar_3rpr import Planar3RPRReachEnv, Planar3RPRTrackEnv
+from envs.vector import Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv, Planar3RPRVectorEnv
 
-__all__ = ["ENV_IDS", "Planar3RPRReachEnv", "Planar3RPRTrackEnv"]
+__all__ = [
+    "ENV_IDS",
+    "Planar3RPRReachEnv",
+    "Planar3RPRReachVectorEnv",
+    "Planar3RPRTrackEnv",
+    "Planar3RPRTrackVectorEnv",
+    "Planar3RPRVectorEnv",
+]
 
-#: Every registered id, with its entry point, episode length and keyword arguments.
+#: Every registered id, with its entry point, vector entry point, episode length and keyword arguments.
 _SPECS = {
-    "Planar3RPRReach-v0": ("envs.planar_3rpr:Planar3RPRReachEnv", 200, {}),
-    "Planar3RPRReachHard-v0": ("envs.planar_3rpr:Planar3RPRReachEnv", 200, {"targets": "hard"}),
-    "Planar3RPRTrack-v0": ("envs.planar_3rpr:Planar3RPRTrackEnv", 400, {}),
+    "Planar3RPRReach-v0": ("envs.planar_3rpr:Planar3RPRReachEnv", "envs.vector:Planar3RPRReachVectorEnv", 200, {}),
+    "Planar3RPRReachHard-v0": (
+        "envs.planar_3rpr:Planar3RPRReachEnv",
+        "envs.vector:Planar3RPRReachVectorEnv",
+        200,
+        {"targets": "hard"},
+    ),
+    "Planar3RPRTrack-v0": ("envs.planar_3rpr:Planar3RPRTrackEnv", "envs.vector:Planar3RPRTrackVectorEnv", 400, {}),
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)
 
-for _env_id, (_entry_point, _steps, _kwargs) in _SPECS.items():
+for _env_id, (_entry_point, _vector_entry_point, _steps, _kwargs) in _SPECS.items():
     if _env_id not in registry:
-        register(id=_env_id, entry_point=_entry_point, max_episode_steps=_steps, kwargs=_kwargs)
+        register(
+            id=_env_id,
+            entry_point=_entry_point,
+            vector_entry_point=_vector_entry_point,
+            max_episode_steps=_steps,
+            kwargs=_kwargs,
+        )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections import deque
 from typing import Any, ClassVar
@@ -116,6 +117,11 @@ def build_params(
         newton_max_iterations=int(newton_max_iterations),
         track_period=_number("track_period", track_period),
     )
+
+
+def _build_params_arguments(arguments: dict[str, Any]) -> dict[str, Any]:
+    """The constructor arguments that ``build_params`` takes, picked from an ``__init__``'s ``locals()``."""
+    return {name: arguments[name] for name in inspect.signature(build_params).parameters if name in arguments}
 
 
 def workspace_for(params: EnvParams) -> WorkspaceMap:
@@ -476,28 +482,7 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
         if targets not in _TARGET_MODES:
             raise ValueError(f"targets must be one of {_TARGET_MODES}, got {targets!r}")
         self.targets = targets
-        params = build_params(
-            base=base,
-            platform=platform,
-            characteristic_length=characteristic_length,
-            stroke_limits=stroke_limits,
-            pose_low=pose_low,
-            pose_high=pose_high,
-            dt=dt,
-            max_rate=max_rate,
-            integrator=integrator,
-            safe_threshold=safe_threshold,
-            hard_threshold=hard_threshold,
-            position_weight=position_weight,
-            orientation_weight=orientation_weight,
-            singularity_weight=singularity_weight,
-            action_weight=action_weight,
-            termination_penalty=termination_penalty,
-            success_position_tolerance=success_position_tolerance,
-            success_orientation_tolerance=success_orientation_tolerance,
-            jump_tolerance=jump_tolerance,
-            newton_max_iterations=newton_max_iterations,
-        )
+        params = build_params(**_build_params_arguments(locals()))
         self._setup(render_mode, params)
 
     def _sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
@@ -616,29 +601,7 @@ class Planar3RPRTrackEnv(_Planar3RPREnv):
         newton_max_iterations: int = 8,
         track_period: float = 10.0,
     ) -> None:
-        params = build_params(
-            base=base,
-            platform=platform,
-            characteristic_length=characteristic_length,
-            stroke_limits=stroke_limits,
-            pose_low=pose_low,
-            pose_high=pose_high,
-            dt=dt,
-            max_rate=max_rate,
-            integrator=integrator,
-            safe_threshold=safe_threshold,
-            hard_threshold=hard_threshold,
-            position_weight=position_weight,
-            orientation_weight=orientation_weight,
-            singularity_weight=singularity_weight,
-            action_weight=action_weight,
-            termination_penalty=termination_penalty,
-            success_position_tolerance=success_position_tolerance,
-            success_orientation_tolerance=success_orientation_tolerance,
-            jump_tolerance=jump_tolerance,
-            newton_max_iterations=newton_max_iterations,
-            track_period=track_period,
-        )
+        params = build_params(**_build_params_arguments(locals()))
         self._setup(render_mode, params)
 
     def _sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:

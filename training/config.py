@@ -1,13 +1,15 @@
-"""Hyperparameters as data: the RL Zoo's YAML layout, read with ``yaml.safe_load`` and checked key by key."""
+"""Hyperparameters as data: the RL Zoo's YAML layout, read with a safe YAML loader and checked key by key."""
 
 from __future__ import annotations
 
 import copy
 import inspect
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -33,6 +35,36 @@ _ACTIVATIONS = ("ReLU", "Tanh", "ELU", "LeakyReLU", "GELU", "SiLU")
 
 #: Constructor arguments set by the training script itself, never from a config.
 _RESERVED = ("self", "policy", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model")
+
+
+class _Loader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that also reads YAML 1.2 floats such as ``1e-3`` (YAML 1.1 needs a dot)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+def safe_load(text: str) -> Any:
+    """``yaml.safe_load`` with YAML 1.2 floats: no Python objects are ever constructed.
+
+    Args:
+        text: YAML text.
+
+    Returns:
+        The parsed data.
+    """
+    return yaml.load(text, Loader=_Loader)  # _Loader derives from SafeLoader
 
 
 class ConfigError(ValueError):
@@ -105,7 +137,7 @@ def load_hyperparams(
     if not path.is_file():
         raise ConfigError(f"hyperparameter file {str(path)!r} does not exist")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = safe_load(path.read_text())
     except yaml.YAMLError as exc:
         raise ConfigError(f"hyperparameter file {str(path)!r} is not valid YAML: {exc}") from exc
     if not isinstance(data, dict):
@@ -125,8 +157,9 @@ def load_hyperparams(
             f"valid keys: {sorted(allowed)}"
         )
     for key in ("n_envs", "n_timesteps"):
-        if key in config and (not isinstance(config[key], int) or isinstance(config[key], bool) or config[key] < 1):
-            raise ConfigError(f"{key} must be a positive integer, got {config[key]!r}")
+        value = config.get(key, 1)
+        if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 1:
+            raise ConfigError(f"{key} must be a positive integer, got {value!r}")
     return config
 
 
@@ -148,7 +181,7 @@ def parse_overrides(items: list[str] | None) -> dict[str, Any]:
         if not sep or not key.strip():
             raise ConfigError(f"override {item!r} must look like key=value")
         try:
-            out[key.strip()] = yaml.safe_load(raw)
+            out[key.strip()] = safe_load(raw)
         except yaml.YAMLError as exc:
             raise ConfigError(f"override {item!r}: value is not valid YAML: {exc}") from exc
     return out

@@ -35,6 +35,7 @@ __all__ = [
     "EpisodeRecord",
     "EvaluationError",
     "aggregate",
+    "check_compatible",
     "evaluate_agent",
     "load_controller",
     "load_run",
@@ -152,8 +153,10 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
     Raises:
         EvaluationError: If the folder, the model or the normalisation statistics are missing or corrupt.
     """
+    import torch
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+    torch.set_num_threads(1)  # small MLPs: threads only contend with the environment
     config = read_run_config(run_dir)
     run = Path(run_dir)
     names = {"final": "model.zip", "best": "best_model.zip"}
@@ -171,10 +174,10 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
     except Exception as exc:  # SB3 raises many kinds on a damaged zip
         raise EvaluationError(f"cannot load {str(model_path)!r}: {type(exc).__name__}: {exc}") from exc
     normalizer = None
-    stats = run / "vecnormalize.pkl"
+    stats = run / ("best_vecnormalize.pkl" if which == "best" else "vecnormalize.pkl")
     if config.get("hyperparams", {}).get("normalize"):
         if not stats.is_file():
-            raise EvaluationError(f"run folder {str(run)!r} normalises observations but has no vecnormalize.pkl")
+            raise EvaluationError(f"run folder {str(run)!r} normalises observations but has no {stats.name}")
         env_id = config["env_id"]
         try:
             normalizer = VecNormalize.load(str(stats), DummyVecEnv([lambda: gym.make(env_id)]))
@@ -188,7 +191,27 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
         action, _ = model.predict(obs, deterministic=True)
         return action
 
+    agent.observation_space = model.observation_space  # type: ignore[attr-defined]
     return agent, config
+
+
+def check_compatible(agent: Agent, env: gym.Env, source: str) -> None:
+    """Raise if a trained agent expects observations of another shape than ``env`` gives.
+
+    Args:
+        agent: An agent from ``load_run`` (classical controllers have no fixed shape and always pass).
+        env: The environment to evaluate on.
+        source: Where the agent came from, for the message.
+
+    Raises:
+        EvaluationError: On a shape mismatch, naming both shapes.
+    """
+    space = getattr(agent, "observation_space", None)
+    if space is not None and space.shape != env.observation_space.shape:
+        raise EvaluationError(
+            f"{source} was trained on observations of shape {space.shape}, but {env.spec.id} gives "
+            f"{env.observation_space.shape}; evaluate it on the env it was trained on"
+        )
 
 
 # -- episodes --------------------------------------------------------------------------------------
@@ -199,7 +222,7 @@ def evaluate_agent(
     env: gym.Env,
     episodes: int,
     seed: int = 0,
-    targets: str = "standard",
+    targets: str | None = None,
     frames: list[np.ndarray] | None = None,
     video_episodes: int = 3,
 ) -> list[EpisodeRecord]:
@@ -210,18 +233,21 @@ def evaluate_agent(
         env: A ``gym.make`` environment (with its TimeLimit).
         episodes: Number of episodes.
         seed: Seed of the first episode.
-        targets: "standard" or "hard" (Reach environments only).
+        targets: "standard" or "hard" (Reach environments only); None keeps the env's own setting
+            (``Planar3RPRReachHard-v0`` samples hard targets).
         frames: If given, RGB frames of the first ``video_episodes`` episodes are appended to it.
         video_episodes: Episodes to film.
 
     Returns:
         One record per episode.
     """
-    if targets not in TARGET_SETS:
-        raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {targets!r}")
-    options = {"targets": targets} if "targets" in type(env.unwrapped)._option_keys else None
-    if targets == "hard" and options is None:
-        raise EvaluationError(f"hard targets exist only for the Reach environments, not {env.spec.id}")
+    options = None
+    if targets is not None:
+        if targets not in TARGET_SETS:
+            raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {targets!r}")
+        if "targets" not in type(env.unwrapped)._option_keys:
+            raise EvaluationError(f"--targets applies only to the Reach environments, not {env.spec.id}")
+        options = {"targets": targets}
     records = []
     for episode in range(episodes):
         obs, info = env.reset(seed=seed + episode, options=options)
@@ -389,7 +415,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--env", default=None, help=f"one of {list(envs.ENV_IDS)}; default: the run's env")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i")
-    parser.add_argument("--targets", default="standard", help=f"one of {list(TARGET_SETS)} (Reach only)")
+    parser.add_argument(
+        "--targets", default=None, help=f"one of {list(TARGET_SETS)} (Reach only); default: the env's own"
+    )
     parser.add_argument("--video", action="store_true", help="write a GIF of the first episodes")
     parser.add_argument("--out", default=None, help="output folder; default: <run>/eval-<targets> or evals/...")
     parser.add_argument("--model", default="final", help="final (model.zip) or best (best_model.zip)")
@@ -410,20 +438,22 @@ def main(argv: list[str] | None = None) -> int:
             env_id = args.env or "Planar3RPRReach-v0"
         if env_id not in envs.ENV_IDS:
             raise EvaluationError(f"unknown env id {env_id!r}; valid choices: {list(envs.ENV_IDS)}")
-        if args.targets not in TARGET_SETS:
+        if args.targets is not None and args.targets not in TARGET_SETS:
             raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {args.targets!r}")
         env = gym.make(env_id, render_mode="rgb_array" if args.video else None)
+        targets = args.targets or getattr(env.unwrapped, "targets", "standard")
         if args.run is not None:
             agent, _ = load_run(args.run, args.model)
+            check_compatible(agent, env, f"run {args.run!r}")
             name = f"{config['algo']} ({Path(args.run).name})"
-            out = Path(args.out) if args.out else Path(args.run) / f"eval-{args.targets}"
+            out = Path(args.out) if args.out else Path(args.run) / f"eval-{env_id}-{targets}"
         else:
             agent = load_controller(args.controller, env)
             name = args.controller
-            out = Path(args.out) if args.out else Path("evals") / f"{args.controller}-{env_id}-{args.targets}"
+            out = Path(args.out) if args.out else Path("evals") / f"{args.controller}-{env_id}-{targets}"
         frames: list[np.ndarray] | None = [] if args.video else None
         records = evaluate_agent(agent, env, args.episodes, args.seed, args.targets, frames)
-        label = f"{name} @ {args.targets}"
+        label = f"{name} @ {targets}"
         metrics = write_outputs(out, label, env, records, frames)
     except (EvaluationError, ConfigError) as exc:
         parser.error(str(exc))

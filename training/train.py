@@ -6,8 +6,9 @@ Usage::
                              [--n-envs K] [--run-dir DIR] [--hyperparams key=value ...]
 
 The run folder holds: ``model.zip`` (final), ``best_model.zip`` (best periodic evaluation),
-``vecnormalize.pkl`` (when observations are normalised), ``config.yml`` (the resolved configuration),
-``command.txt`` (the exact command), ``monitor/`` (Monitor logs with ``is_success`` and ``cost``),
+``vecnormalize.pkl`` and ``best_vecnormalize.pkl`` (their normalisation statistics, when used),
+``config.yml`` (the resolved configuration), ``command.txt`` (the exact command),
+``monitor/`` (Monitor logs with ``is_success`` and ``cost``),
 ``evaluations.npz`` (EvalCallback), ``learning_curve.png`` and ``summary.json``.
 """
 
@@ -35,11 +36,12 @@ from training.config import (
     load_hyperparams,
     parse_overrides,
     resolve_policy_kwargs,
+    resolve_schedules,
 )
 
 __all__ = ["main", "make_training_env", "train"]
 
-VEC_KINDS = ("dummy", "subproc")
+VEC_KINDS = ("native", "dummy", "subproc")
 
 
 def _check_env_id(env_id: str) -> None:
@@ -61,19 +63,29 @@ def make_training_env(
         env_id: A registered id (see ``envs.ENV_IDS``).
         n_envs: Number of environments.
         seed: Seed of the first environment (the others get seed + i).
-        vec: "dummy" (one process) or "subproc" (one process per environment).
+        vec: "native" (the id's native vector env, ``training.vec_adapter.NativeVecEnvAdapter``, with a
+            ``VecMonitor``), "dummy" (one process) or "subproc" (one process per environment).
         monitor_dir: Folder for the Monitor CSV logs (with ``is_success`` and ``cost``), or None.
-        env_kwargs: Keyword arguments for ``gym.make``.
+        env_kwargs: Keyword arguments for ``gym.make`` (or ``gym.make_vec`` for "native").
 
     Returns:
         The SB3 ``VecEnv``.
     """
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
     _check_env_id(env_id)
     if vec not in VEC_KINDS:
         raise ConfigError(f"unknown vectorisation {vec!r}; valid choices: {list(VEC_KINDS)}")
+    if vec == "native":
+        from training.vec_adapter import NativeVecEnvAdapter
+
+        if gym.spec(env_id).vector_entry_point is None:
+            raise ConfigError(f"{env_id} has no native vector env; use --vec dummy or subproc")
+        adapter = NativeVecEnvAdapter.from_id(env_id, n_envs, **(env_kwargs or {}))
+        adapter.seed(seed)
+        filename = None if monitor_dir is None else str(Path(monitor_dir) / "native.monitor.csv")
+        return VecMonitor(adapter, filename=filename, info_keywords=("is_success", "cost"))
     return make_vec_env(
         env_id,
         n_envs=n_envs,
@@ -195,14 +207,14 @@ def train(
     from stable_baselines3.common.callbacks import EvalCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
-    algo = algo.lower()
     cls = algorithm_class(algo)
+    algo = algo.lower()
     _check_env_id(env_id)
+    if vec not in VEC_KINDS:
+        raise ConfigError(f"unknown vectorisation {vec!r}; valid choices: {list(VEC_KINDS)}")
+    counts = {"n_timesteps": timesteps, "n_envs": n_envs}
+    overrides = {**(overrides or {}), **{key: value for key, value in counts.items() if value is not None}}
     config = load_hyperparams(algo, env_id, config_path, overrides)
-    if timesteps is not None:
-        config["n_timesteps"] = int(timesteps)
-    if n_envs is not None:
-        config["n_envs"] = int(n_envs)
     run = Path(run_dir) if run_dir is not None else Path("runs") / f"{algo}-{env_id}-s{seed}"
     run.mkdir(parents=True, exist_ok=True)
     (run / "monitor").mkdir(exist_ok=True)
@@ -217,6 +229,7 @@ def train(
     env_kwargs = hyper.pop("env_kwargs", None) or {}
     if "policy_kwargs" in hyper:
         hyper["policy_kwargs"] = resolve_policy_kwargs(hyper["policy_kwargs"])
+    hyper = resolve_schedules(hyper)
 
     resolved = {
         "algo": algo,
@@ -232,7 +245,8 @@ def train(
 
     torch.set_num_threads(1)
     venv = make_training_env(env_id, count, seed, vec, run / "monitor", env_kwargs)
-    eval_env = make_training_env(env_id, 1, seed + 10_000, "dummy", None, env_kwargs)
+    # Wrapped like the training env (VecNormalize syncs its statistics through the same wrapper stack).
+    eval_env = make_training_env(env_id, 1, seed + 10_000, "native" if vec == "native" else "dummy", None, env_kwargs)
     if normalize:
         norm = normalize if isinstance(normalize, dict) else {}
         gamma = hyper.get("gamma", 0.99)
@@ -245,6 +259,7 @@ def train(
         eval_freq=max(eval_freq // count, 1),
         log_path=str(run),
         best_model_save_path=str(run),
+        callback_on_new_best=_SaveNormalization(run / "best_vecnormalize.pkl") if normalize else None,
         deterministic=True,
         verbose=0,
     )
@@ -264,6 +279,20 @@ def train(
     venv.close()
     eval_env.close()
     return run
+
+
+def _SaveNormalization(path: Path):  # a class factory: SB3 is imported lazily
+    """A callback that saves the training VecNormalize statistics next to each new best model."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class SaveNormalization(BaseCallback):
+        def _on_step(self) -> bool:
+            normalizer = self.model.get_vec_normalize_env()
+            if normalizer is not None:
+                normalizer.save(str(path))
+            return True
+
+    return SaveNormalization()
 
 
 def _versions() -> dict[str, str]:
@@ -289,7 +318,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--n-envs", type=int, default=None, help="default: the config's n_envs")
     parser.add_argument("--run-dir", default=None, help="default: runs/<algo>-<env>-s<seed>")
     parser.add_argument("--config", default=None, help="YAML file; default training/<algo>.yml")
-    parser.add_argument("--vec", default="dummy", help=f"one of {list(VEC_KINDS)}")
+    parser.add_argument(
+        "--vec",
+        default="native",
+        help=f"one of {list(VEC_KINDS)}; default native (every registered id has a native vector env)",
+    )
     parser.add_argument(
         "--hyperparams", nargs="*", default=[], metavar="KEY=VALUE", help="override config keys (YAML values)"
     )

@@ -1,0 +1,1 @@
+"""Tests of the training layer: configuration, training runs, evaluation, controllers and the demo."""

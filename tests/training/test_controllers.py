@@ -1,0 +1,180 @@
+"""The classical baselines: batched, bounded actions; deterministic episodes; reach, track and avoid singularities."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from envs import ENV_IDS
+from tests.training.conftest import REACH
+from training import evaluate
+from training.controllers import CONTROLLERS, ResolvedRateController, SingularityAwareController
+from training.evaluate import EvaluationError, aggregate, evaluate_agent, load_controller
+
+NAMES = sorted(CONTROLLERS)
+EPISODES = 5
+
+
+@pytest.fixture(scope="module")
+def hard_results() -> dict[str, dict]:
+    """Aggregated metrics of both controllers on the same five hard Reach episodes (seed 0)."""
+    import gymnasium as gym
+
+    env = gym.make(REACH)
+    try:
+        return {name: aggregate(evaluate_agent(load_controller(name, env), env, EPISODES, 0, "hard")) for name in NAMES}
+    finally:
+        env.close()
+
+
+def _observations(make_env, env_id: str, count: int, rng: np.random.Generator) -> np.ndarray:
+    """Real observations of ``env_id``: resets (standard and, for Reach, hard targets) and random-action steps."""
+    env = make_env(env_id)
+    env.action_space.seed(int(rng.integers(1 << 31)))
+    hard = "targets" in type(env.unwrapped)._option_keys
+    obs_list = []
+    episode = 0
+    while len(obs_list) < count:
+        options = {"targets": "hard"} if hard and episode % 2 else None
+        obs, _ = env.reset(seed=int(rng.integers(1 << 31)), options=options)
+        obs_list.append(obs)
+        for _ in range(int(rng.integers(0, 40))):
+            obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            obs_list.append(obs)
+            if terminated or truncated:
+                break
+        episode += 1
+    return np.array(obs_list[:count])
+
+
+def test_registry_names():
+    """The command-line names map to the two controller classes."""
+    assert CONTROLLERS == {"resolved-rate": ResolvedRateController, "singularity-aware": SingularityAwareController}
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("name", NAMES)
+def test_actions_are_bounded_float32(name, env_id, make_env):
+    """On real observations the actions are finite float32 in [-1, 1] with shape (N, 3) and in the action space."""
+    env = make_env(env_id)
+    controller = load_controller(name, env)
+    obs = _observations(make_env, env_id, 200, np.random.default_rng(0))
+    actions = controller(obs)
+    assert actions.shape == (len(obs), 3)
+    assert actions.dtype == np.float32
+    assert np.all(np.isfinite(actions))
+    assert np.all(np.abs(actions) <= 1.0)
+    assert all(env.action_space.contains(a) for a in actions)
+    assert np.max(np.abs(actions)) > 0.5, "a controller that never moves is not a baseline"
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("name", NAMES)
+def test_batch_equals_stacked_single_calls(name, env_id, make_env):
+    """A batch of N = 5 observations gives (5, 3), equal to five one-row calls stacked."""
+    controller = load_controller(name, make_env(env_id))
+    obs = _observations(make_env, env_id, 5, np.random.default_rng(1))
+    batch = controller(obs)
+    assert batch.shape == (5, 3)
+    stacked = np.concatenate([controller(obs[i : i + 1]) for i in range(5)])
+    np.testing.assert_allclose(batch, stacked, rtol=0, atol=1e-6)
+
+
+def test_controller_does_not_modify_observations(make_env):
+    """Calling a controller leaves the observation array unchanged."""
+    obs = _observations(make_env, REACH, 20, np.random.default_rng(2))
+    before = obs.copy()
+    for name in NAMES:
+        load_controller(name, make_env(REACH))(obs)
+    np.testing.assert_array_equal(obs, before)
+
+
+def test_unknown_controller_lists_choices(make_env):
+    """load_controller with an unknown name raises EvaluationError listing the valid names."""
+    with pytest.raises(
+        EvaluationError, match=r"unknown controller 'pid'; valid choices: \['resolved-rate', 'singularity-aware'\]"
+    ):
+        load_controller("pid", make_env(REACH))
+
+
+@pytest.mark.parametrize("targets", ["standard", "hard"])
+@pytest.mark.parametrize("name", NAMES)
+def test_episodes_are_deterministic(name, targets, make_env):
+    """The same seed gives the same episodes, in a fresh env or in one that already ran other episodes."""
+    env_a, env_b = make_env(REACH), make_env(REACH)
+    evaluate_agent(load_controller(name, env_b), env_b, 1, 123, targets)  # leave env_b in another state
+    runs = [evaluate_agent(load_controller(name, env), env, 2, 0, targets) for env in (env_a, env_b)]
+    for a, b in zip(*runs):
+        assert a.row() == b.row()
+        np.testing.assert_array_equal(a.poses, b.poses)
+        np.testing.assert_array_equal(a.inverse_condition, b.inverse_condition)
+
+
+def test_different_seeds_give_different_episodes(make_env):
+    """Episodes with other seeds start elsewhere (the seed reaches reset)."""
+    env = make_env(REACH)
+    agent = load_controller("resolved-rate", env)
+    a, b = (evaluate_agent(agent, env, 1, seed, "standard")[0] for seed in (0, 1))
+    assert not np.allclose(a.poses[0], b.poses[0])
+
+
+def test_resolved_rate_reaches_standard_targets(make_env):
+    """On standard targets resolved-rate succeeds in at least 4 of 5 episodes, with mm-level final error."""
+    env = make_env(REACH)
+    records = evaluate_agent(load_controller("resolved-rate", env), env, EPISODES, 0)
+    metrics = aggregate(records)
+    assert sum(r.success for r in records) >= 4, [r.row() for r in records]
+    assert metrics["singularity_terminations"] == 0
+    assert metrics["final_position_error_mm"]["median"] < 20.0
+
+
+def test_hard_targets_send_resolved_rate_into_singularities(hard_results):
+    """Hard targets do what they promise: the straight line meets the ill-conditioned zone in most episodes."""
+    rr = hard_results["resolved-rate"]
+    assert rr["singularity_terminations"] >= 3, rr["terminations"]
+    assert rr["min_inverse_condition"]["mean"] < 0.05
+
+
+def test_singularity_aware_keeps_away_from_singularities(hard_results):
+    """On hard targets singularity-aware keeps a higher min inverse condition and ends fewer episodes singular."""
+    rr, sa = hard_results["resolved-rate"], hard_results["singularity-aware"]
+    assert sa["min_inverse_condition"]["mean"] > rr["min_inverse_condition"]["mean"] + 0.05
+    assert sa["singularity_terminations"] < rr["singularity_terminations"]
+    assert sa["singularity_terminations"] <= 1
+
+
+def test_resolved_rate_tracks(make_env):
+    """On Track, resolved-rate (with the target-velocity feed-forward) succeeds in at least 80 % of episodes."""
+    env = make_env("Planar3RPRTrack-v0")
+    records = evaluate_agent(load_controller("resolved-rate", env), env, EPISODES, 0)
+    metrics = aggregate(records)
+    assert metrics["success_rate"] >= 0.8, [r.row() for r in records]
+    assert metrics["singularity_terminations"] == 0
+    assert all(r.length == env.spec.max_episode_steps for r in records), "tracking episodes run to the time limit"
+
+
+def test_evaluate_cli_writes_gif(tmp_path, capsys):
+    """evaluate.main with a controller, hard targets and --video writes an animated GIF and the metrics."""
+    out = tmp_path / "rr-hard"
+    argv = ["--controller", "resolved-rate", "--episodes", "2", "--targets", "hard", "--video", "--out", str(out)]
+    assert evaluate.main(argv) == 0
+    with Image.open(out / "episodes.gif") as gif:
+        assert gif.format == "GIF"
+        assert gif.n_frames > 2
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["episodes"] == 2
+    assert metrics["label"] == "resolved-rate @ hard"
+    assert (out / "trajectories.png").is_file() and (out / "condition_number.png").is_file()
+    assert str(out) in capsys.readouterr().out
+
+
+def test_evaluate_hard_env_id_uses_hard_targets(tmp_path):
+    """--env Planar3RPRReachHard-v0 evaluates the same episodes as Planar3RPRReach-v0 with --targets hard."""
+    common = ["--controller", "resolved-rate", "--episodes", "2"]
+    hard_id, hard_option = tmp_path / "hard-id", tmp_path / "hard-option"
+    assert evaluate.main([*common, "--env", "Planar3RPRReachHard-v0", "--out", str(hard_id)]) == 0
+    assert evaluate.main([*common, "--env", REACH, "--targets", "hard", "--out", str(hard_option)]) == 0
+    assert (hard_id / "episodes.csv").read_text() == (hard_option / "episodes.csv").read_text()

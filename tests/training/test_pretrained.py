@@ -1,0 +1,109 @@
+"""The shipped pre-trained policy: its run folder, its recorded regression result, and the demo built on it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+import yaml
+from PIL import Image
+
+from envs import ENV_IDS
+from training import demo
+from training.demo import PRETRAINED_RUN
+from training.evaluate import aggregate, evaluate_agent, load_run
+
+#: Keys of regression.json and their types.
+REGRESSION_KEYS = {
+    "env_id": str,
+    "targets": str,
+    "seed": int,
+    "episodes": int,
+    "success_rate": float,
+    "singularity_terminations": int,
+}
+
+
+@pytest.fixture(scope="module")
+def pretrained_run() -> Path:
+    """The shipped run folder; the tests that need it are skipped until it exists."""
+    if not PRETRAINED_RUN.is_dir():
+        pytest.skip("pre-trained policy not shipped yet")
+    return PRETRAINED_RUN
+
+
+@pytest.fixture(scope="module")
+def regression(pretrained_run: Path) -> dict:
+    """The recorded regression result, checked against its contract."""
+    record = json.loads((pretrained_run / "regression.json").read_text())
+    assert set(record) == set(REGRESSION_KEYS), sorted(record)
+    for key, kind in REGRESSION_KEYS.items():
+        value = record[key]
+        ok = isinstance(value, kind) and not isinstance(value, bool)
+        assert ok or (kind is float and type(value) is int), f"{key} = {value!r} is not {kind.__name__}"
+    assert record["env_id"] in ENV_IDS
+    assert record["targets"] == "standard"
+    assert record["episodes"] >= 1
+    assert 0.0 <= record["success_rate"] <= 1.0
+    assert 0 <= record["singularity_terminations"] <= record["episodes"]
+    return record
+
+
+def test_pretrained_folder_is_a_complete_run(pretrained_run, regression):
+    """The folder holds model.zip, vecnormalize.pkl, config.yml, command.txt and regression.json."""
+    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "command.txt", "regression.json"):
+        assert (pretrained_run / name).is_file(), f"{name} missing from {pretrained_run}"
+    config = yaml.safe_load((pretrained_run / "config.yml").read_text())
+    assert config["algo"] == "ppo"
+    assert config["env_id"] == regression["env_id"] == "Planar3RPRReach-v0"
+    assert "training.train" in (pretrained_run / "command.txt").read_text()
+
+
+@pytest.mark.slow
+def test_pretrained_policy_keeps_its_recorded_performance(pretrained_run, regression):
+    """Re-running the recorded episodes gives at least the recorded success rate (−0.1) and singularity count (+1)."""
+    agent, config = load_run(pretrained_run)
+    assert config["env_id"] == regression["env_id"]
+    env = gym.make(regression["env_id"])
+    try:
+        records = evaluate_agent(agent, env, regression["episodes"], regression["seed"], regression["targets"])
+    finally:
+        env.close()
+    metrics = aggregate(records)
+    assert metrics["episodes"] == regression["episodes"]
+    assert metrics["success_rate"] >= regression["success_rate"] - 0.1, metrics
+    assert metrics["singularity_terminations"] <= regression["singularity_terminations"] + 1, metrics
+
+
+@pytest.mark.slow
+def test_demo_writes_report(pretrained_run, tmp_path, capsys):
+    """training.demo.main writes the report, the metrics, the pictures and the policy's GIF."""
+    out = tmp_path / "demo"
+    assert demo.main(["--episodes", "2", "--out", str(out)]) == 0
+    names = (
+        "report.md",
+        "metrics.json",
+        "trajectories_hard.png",
+        "trajectories_standard.png",
+        "condition_number_hard.png",
+        "policy_hard.gif",
+    )
+    for name in names:
+        assert (out / name).is_file(), f"{name} missing from {sorted(p.name for p in out.iterdir())}"
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics) == {
+        f"{agent} @ {targets}"
+        for agent in ("PPO policy", "resolved-rate", "singularity-aware")
+        for targets in ("standard", "hard")
+    }
+    assert all(m["episodes"] == 2 for m in metrics.values())
+    report = (out / "report.md").read_text()
+    assert "| PPO policy | hard |" in report and "| singularity-aware | standard |" in report
+    for name in names[2:5]:
+        with Image.open(out / name) as image:
+            assert image.format == "PNG"
+    with Image.open(out / "policy_hard.gif") as gif:
+        assert gif.format == "GIF" and gif.n_frames > 2
+    assert "report written to" in capsys.readouterr().out
