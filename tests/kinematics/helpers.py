@@ -81,9 +81,7 @@ def lesson_jacobians(robot: Planar3RPR, q: np.ndarray, x: np.ndarray) -> tuple[n
     return J_q, J_x
 
 
-def central_difference(
-    f: Callable[[np.ndarray], np.ndarray], z: np.ndarray, step: float | np.ndarray
-) -> np.ndarray:
+def central_difference(f: Callable[[np.ndarray], np.ndarray], z: np.ndarray, step: float | np.ndarray) -> np.ndarray:
     """Central finite-difference Jacobian of a batched map f: (N, 3) → (N, k), shape (N, k, 3)."""
     steps = np.broadcast_to(np.asarray(step, dtype=float), (3,))
     columns = []

@@ -19,9 +19,7 @@ N_STARTS = 3000
 def pose_distance(robot: Planar3RPR, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance between poses with φ wrapped and weighted by ℓ_c, broadcast over leading axes [m]."""
     dphi = wrap_angle(a[..., 2] - b[..., 2])
-    return np.hypot(
-        np.hypot(a[..., 0] - b[..., 0], a[..., 1] - b[..., 1]), robot.characteristic_length * dphi
-    )
+    return np.hypot(np.hypot(a[..., 0] - b[..., 0], a[..., 1] - b[..., 1]), robot.characteristic_length * dphi)
 
 
 def multi_start_solutions(robot: Planar3RPR, q: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -25,9 +25,7 @@ METHODS: dict[str, Method] = {
     "inverse_kinematics": lambda r, q, x, v: (r.inverse_kinematics(x),),
     "leg_vectors": lambda r, q, x, v: (r.leg_vectors(x),),
     "platform_points_in_base": lambda r, q, x, v: (r.platform_points_in_base(x),),
-    "forward_kinematics": lambda r, q, x, v: tuple(
-        np.asarray(a) for a in vars(r.forward_kinematics(q, x)).values()
-    ),
+    "forward_kinematics": lambda r, q, x, v: tuple(np.asarray(a) for a in vars(r.forward_kinematics(q, x)).values()),
     "instantaneous_dof": lambda r, q, x, v: (np.asarray(r.instantaneous_dof(q, x)),),
     "platform_mobility": lambda r, q, x, v: (np.asarray(r.platform_mobility(q, x)),),
     "actuator_forces": lambda r, q, x, v: (r.actuator_forces(q, x, v),),
@@ -83,9 +81,7 @@ def assert_batch_equals_stacked_singles(robot: Planar3RPR, name: str, q, x, v) -
     stacked = {key: np.broadcast_to(inputs[key], (*batch, 3)) for key in ARGUMENTS[name]}
     for index in np.ndindex(*batch):
         # Arguments a method does not read are passed as one arbitrary vector.
-        singles = method(
-            robot, *(stacked[k][index] if k in stacked else inputs[k].reshape(-1, 3)[0] for k in "qxv")
-        )
+        singles = method(robot, *(stacked[k][index] if k in stacked else inputs[k].reshape(-1, 3)[0] for k in "qxv"))
         for got, expected in zip(batched, singles, strict=True):
             assert got.shape == batch + expected.shape
             if expected.dtype.kind in "biu":
@@ -145,9 +141,7 @@ def test_validate_false_gives_the_same_results(name, robot, rng):
         "platform_mobility": lambda: (np.asarray(robot.platform_mobility(q, x, validate=False)),),
         "actuator_forces": lambda: (robot.actuator_forces(q, x, v, validate=False),),
         "platform_wrench": lambda: (robot.platform_wrench(q, x, v, validate=False),),
-        "inverse_condition_number": lambda: (
-            np.asarray(robot.inverse_condition_number(q, x, validate=False)),
-        ),
+        "inverse_condition_number": lambda: (np.asarray(robot.inverse_condition_number(q, x, validate=False)),),
         "raw_condition_number": lambda: (np.asarray(robot.raw_condition_number(q, x, validate=False)),),
     }[name]()
     for a, b in zip(checked, unchecked, strict=True):

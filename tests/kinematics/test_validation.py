@@ -107,9 +107,7 @@ def test_non_finite_values_are_found_in_batches_of_any_size(size, bad, robot):
     """Small and large batches (which take different fast paths) both catch one bad entry."""
     x = np.tile(X, (size, 1))
     x[-1, 0] = bad
-    with pytest.raises(
-        ValueError, match=rf"^x must be finite, got 1 non-finite .* at index \({size - 1}, 0\)"
-    ):
+    with pytest.raises(ValueError, match=rf"^x must be finite, got 1 non-finite .* at index \({size - 1}, 0\)"):
         robot.inverse_kinematics(x)
 
 
@@ -142,9 +140,7 @@ def test_non_real_inputs_raise_type_error(arg, name, call, value, message, robot
 
 def test_integer_and_boolean_arrays_are_accepted(robot):
     """Integer arrays are real numbers and are converted to float64."""
-    np.testing.assert_array_equal(
-        robot.inverse_kinematics([1, 1, 0]), robot.inverse_kinematics([1.0, 1.0, 0.0])
-    )
+    np.testing.assert_array_equal(robot.inverse_kinematics([1, 1, 0]), robot.inverse_kinematics([1.0, 1.0, 0.0]))
     assert robot.constraints(np.array([1, 1, 1]), X).dtype == np.float64
 
 
@@ -340,9 +336,7 @@ def test_batch_reports_failure_per_configuration(robot):
 
 def test_forward_kinematics_from_a_singular_guess_does_not_raise(robot):
     """A guess where J_x is exactly singular stops that configuration, unconverged, without raising."""
-    robot = Planar3RPR(
-        base=[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], platform=[[0.0, 0.0], [0.1, 0.0], [0.0, 0.1]]
-    )
+    robot = Planar3RPR(base=[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], platform=[[0.0, 0.0], [0.1, 0.0], [0.0, 0.1]])
     guess = np.array([0.0, 0.0, 0.0])  # leg 1 has zero length there: its J_x row vanishes
     result = robot.forward_kinematics([0.5, 0.6, 0.7], guess)
     assert not result.converged
@@ -375,9 +369,7 @@ def test_invalid_max_iterations(max_iterations, robot):
 
 def test_assembly_modes_rejects_a_batch(robot):
     """assembly_modes solves one set of leg lengths at a time."""
-    with pytest.raises(
-        ValueError, match=r"^assembly_modes takes one set of leg lengths, shape \(3,\), got \(2, 3\)"
-    ):
+    with pytest.raises(ValueError, match=r"^assembly_modes takes one set of leg lengths, shape \(3,\), got \(2, 3\)"):
         robot.assembly_modes(np.stack([Q, Q]))
 
 

@@ -26,7 +26,6 @@ from training.config import (
 REACH = "Planar3RPRReach-v0"
 
 
-
 def _write(tmp_path: Path, text: str, name: str = "hyper.yml") -> Path:
     """Write ``text`` to a YAML file under ``tmp_path`` and return its path."""
     path = tmp_path / name
