@@ -35,6 +35,9 @@ format: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m benchmarks.bench_kinematics
+	$(PY) -m benchmarks.bench_env_step
+	$(PY) -m benchmarks.bench_vector_env
+	$(PY) -m benchmarks.bench_sb3_ppo
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info
