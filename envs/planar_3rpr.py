@@ -18,11 +18,12 @@ from envs.tasks import is_safe, sample_reach, sample_track
 from envs.workspace import WorkspaceMap, WorkspaceSpec, certify_workspace
 from kinematics import Planar3RPR
 
-__all__ = ["Planar3RPRReachEnv", "Planar3RPRTrackEnv", "build_params"]
+__all__ = ["Planar3RPREnvBase", "Planar3RPRReachEnv", "Planar3RPRTrackEnv", "build_params"]
 
 _TARGET_MODES = ("standard", "hard")
 _INTEGRATORS = ("euler", "rk4")
-_TRAIL_LENGTH = 200
+#: Platform positions kept for the rendered trail.
+TRAIL_LENGTH = 200
 
 
 def _number(name: str, value: Any, *, positive: bool = True, allow_zero: bool = False) -> float:
@@ -199,12 +200,14 @@ def step_info(
     }
 
 
-class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
-    """Shared machinery of the 3-RPR environments; see the concrete classes for the documentation."""
+class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
+    """Shared machinery of the single-robot 3-RPR environments; see the concrete classes for the documentation."""
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
-    _with_velocity = False
-    _option_keys: tuple[str, ...] = ()
+    #: Whether the observation ends with the target velocity (Track).
+    with_velocity = False
+    #: The keys ``reset(options=...)`` accepts.
+    reset_options: tuple[str, ...] = ()
 
     def _setup(self, render_mode: str | None, params: EnvParams) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -214,11 +217,11 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / params.dt}
         self.workspace = workspace_for(params)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
-        low, high = core.observation_bounds(params, self._with_velocity)
+        low, high = core.observation_bounds(params, self.with_velocity)
         self.observation_space = spaces.Box(low.copy(), high.copy(), dtype=np.float32)
         self._state: State | None = None
         self._terminated = False
-        self._trail: deque[np.ndarray] = deque(maxlen=_TRAIL_LENGTH)
+        self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
         self._window: HumanWindow | None = None
 
     # -- the Gymnasium API ----------------------------------------------------------------------
@@ -229,10 +232,10 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
         options = {} if options is None else options
         if not isinstance(options, dict):
             raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
-        unknown = set(options) - set(self._option_keys)
+        unknown = set(options) - set(self.reset_options)
         if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self._option_keys)}")
-        start, reference = self._sample_task(options)
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self.reset_options)}")
+        start, reference = self.sample_task(options)
         self._state = initial_state(self.params, start, reference)
         self._terminated = False
         self._trail.clear()
@@ -306,7 +309,7 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
         return core.reference_pose(self.params, self._state.reference, self._state.t)
 
     def _observation(self, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        return core.observation(self.params, self._state, target, velocity, self._with_velocity)[0]
+        return core.observation(self.params, self._state, target, velocity, self.with_velocity)[0]
 
     def _info(self, target: np.ndarray, terms: dict[str, np.ndarray], reason: np.ndarray) -> dict[str, Any]:
         batched = step_info(self.params, self._state, target, terms, reason)
@@ -349,11 +352,19 @@ class _Planar3RPREnv(gym.Env[np.ndarray, np.ndarray]):
             )
         return pose
 
-    def _sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+    def sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+        """Draw a start pose and a target reference with ``self.np_random`` (validated ``options``).
+
+        Args:
+            options: The ``reset`` options (keys from ``reset_options``).
+
+        Returns:
+            (start pose of shape (1, 3), the target reference of one robot).
+        """
         raise NotImplementedError
 
 
-class Planar3RPRReachEnv(_Planar3RPREnv):
+class Planar3RPRReachEnv(Planar3RPREnvBase):
     r"""Reach a target pose with a planar 3-RPR parallel robot, and hold it, away from singularities.
 
     ## Description
@@ -452,7 +463,7 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
     * v0: Initial version.
     """
 
-    _option_keys = ("targets", "start", "target")
+    reset_options = ("targets", "start", "target")
 
     def __init__(
         self,
@@ -485,7 +496,8 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
         params = build_params(**_build_params_arguments(locals()))
         self._setup(render_mode, params)
 
-    def _sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+    def sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+        """A start and a fixed target (``sample_reach``), honouring the targets/start/target options."""
         mode = options.get("targets", self.targets)
         if mode not in _TARGET_MODES:
             raise ValueError(f"options['targets'] must be one of {_TARGET_MODES}, got {mode!r}")
@@ -509,7 +521,7 @@ class Planar3RPRReachEnv(_Planar3RPREnv):
         return starts, reference
 
 
-class Planar3RPRTrackEnv(_Planar3RPREnv):
+class Planar3RPRTrackEnv(Planar3RPREnvBase):
     """Follow a moving target pose with a planar 3-RPR parallel robot, away from singularities.
 
     ## Description
@@ -574,7 +586,7 @@ class Planar3RPRTrackEnv(_Planar3RPREnv):
     * v0: Initial version.
     """
 
-    _with_velocity = True
+    with_velocity = True
 
     def __init__(
         self,
@@ -604,7 +616,8 @@ class Planar3RPRTrackEnv(_Planar3RPREnv):
         params = build_params(**_build_params_arguments(locals()))
         self._setup(render_mode, params)
 
-    def _sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+    def sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
+        """A reference inside one safe region (``sample_track``); the start is its pose at t = 0."""
         reference = sample_track(self.params, self.workspace, self.np_random, 1)
         start, _ = core.reference_pose(self.params, reference, np.zeros(1, dtype=np.int64))
         return start, reference

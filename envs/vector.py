@@ -16,10 +16,10 @@ from gymnasium.vector.utils import batch_space
 from envs import core
 from envs.core import Reference, State
 from envs.planar_3rpr import (
-    _TRAIL_LENGTH,
+    TRAIL_LENGTH,
+    Planar3RPREnvBase,
     Planar3RPRReachEnv,
     Planar3RPRTrackEnv,
-    _Planar3RPREnv,
     initial_state,
     step_info,
 )
@@ -130,7 +130,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
     #: The single environment this class vectorises (set by the concrete classes).
-    single_env_class: ClassVar[type[_Planar3RPREnv] | None] = None
+    single_env_class: ClassVar[type[Planar3RPREnvBase] | None] = None
     #: Truncation length of the registered ids of this class.
     default_max_episode_steps: ClassVar[int] = 200
 
@@ -164,7 +164,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         # of every sub-environment, each with that sub-environment's generator.
         self._sampler = cls(render_mode=None, **kwargs)
         self.params = self._sampler.params
-        self._with_velocity = cls._with_velocity
+        self.with_velocity = cls.with_velocity
         self.metadata = {
             **type(self).metadata,
             "render_fps": 1.0 / self.params.dt,
@@ -172,7 +172,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         }
 
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
-        low, high = core.observation_bounds(self.params, self._with_velocity)
+        low, high = core.observation_bounds(self.params, self.with_velocity)
         self.single_observation_space = spaces.Box(low.copy(), high.copy(), dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -210,11 +210,11 @@ class Planar3RPRVectorEnv(VectorEnv):
         rows = np.arange(self.num_envs) if mask is None else self._mask_rows(mask)
         if mask is not None and self._state is None:
             raise gym.error.ResetNeeded("reset with a reset_mask needs a first reset of every sub-environment")
-        unknown = set(options) - set(self._sampler._option_keys)
+        unknown = set(options) - set(self._sampler.reset_options)
         if unknown:
             raise ValueError(
                 f"unknown reset option(s) {sorted(unknown)}; valid options are "
-                f"{[*self._sampler._option_keys, 'reset_mask']}"
+                f"{[*self._sampler.reset_options, 'reset_mask']}"
             )
         for i in rows:
             if seeds[i] is not None or self._generators[i] is None:
@@ -222,7 +222,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         fresh = self._start_episodes(rows, options)
         if mask is None:
             self._state = fresh
-            self._trails = [deque(maxlen=_TRAIL_LENGTH) for _ in range(self.num_envs)]
+            self._trails = [deque(maxlen=TRAIL_LENGTH) for _ in range(self.num_envs)]
         else:
             _put(self._state, rows, fresh)
         self._ended[rows] = False
@@ -417,7 +417,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         """Observations, reward terms and per-robot info arrays (fresh, writable) of a batched state."""
         target, velocity = core.reference_pose(self.params, state.reference, state.t)
         terms = core.reward_terms(self.params, state.x, target, state.inverse_condition, action, reason)
-        observations = core.observation(self.params, state, target, velocity, self._with_velocity)
+        observations = core.observation(self.params, state, target, velocity, self.with_velocity)
         info = {key: np.array(value) for key, value in step_info(self.params, state, target, terms, reason).items()}
         return observations, terms, info
 
@@ -426,7 +426,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         starts, references = [], []
         for i in rows:
             self._sampler.np_random = self._generators[i]
-            start, reference = self._sampler._sample_task(options)
+            start, reference = self._sampler.sample_task(options)
             starts.append(start)
             references.append(reference)
         reference = Reference(*(np.concatenate(field) for field in zip(*references)))

@@ -245,7 +245,7 @@ def evaluate_agent(
     if targets is not None:
         if targets not in TARGET_SETS:
             raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {targets!r}")
-        if "targets" not in type(env.unwrapped)._option_keys:
+        if "targets" not in type(env.unwrapped).reset_options:
             raise EvaluationError(f"--targets applies only to the Reach environments, not {env.spec.id}")
         options = {"targets": targets}
     records = []

@@ -34,7 +34,7 @@ def _observations(make_env, env_id: str, count: int, rng: np.random.Generator) -
     """Real observations of ``env_id``: resets (standard and, for Reach, hard targets) and random-action steps."""
     env = make_env(env_id)
     env.action_space.seed(int(rng.integers(1 << 31)))
-    hard = "targets" in type(env.unwrapped)._option_keys
+    hard = "targets" in type(env.unwrapped).reset_options
     obs_list = []
     episode = 0
     while len(obs_list) < count:
