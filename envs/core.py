@@ -25,6 +25,7 @@ __all__ = [
     "observation_bounds",
     "reference_pose",
     "reward_terms",
+    "substep_counts",
     "success",
     "transition",
     "wrap_angle",
@@ -67,6 +68,8 @@ class EnvParams:
         newton_max_iterations: Newton iterations allowed per step.
         jump_tolerance: Largest ‖(Δx, Δy, ℓ_c Δφ)‖ between prediction and correction [m] before the
             step counts as a change of assembly mode.
+        max_substep: Largest platform motion ‖(Δx, Δy, ℓ_c Δφ)‖ [m] predicted in one substep.
+        max_substeps: Largest number of substeps per control period.
         track_period: Period of the Track reference [s].
     """
 
@@ -89,6 +92,8 @@ class EnvParams:
     newton_tolerance: float = 1e-12
     newton_max_iterations: int = 8
     jump_tolerance: float = 0.02
+    max_substep: float = 0.01
+    max_substeps: int = 16
     track_period: float = 10.0
 
     @property
@@ -144,7 +149,8 @@ class StepOutcome(NamedTuple):
         action: The action actually applied (clipped to [−1, 1]), shape (N, 3).
         q_rate: Achieved stroke rates after the hard stops [m/s], shape (N, 3).
         reason: Termination reason code (index into ``TERMINATION_REASONS``), shape (N,).
-        jump: ‖(Δx, Δy, ℓ_c Δφ)‖ between prediction and Newton correction [m], shape (N,).
+        jump: Largest ‖(Δx, Δy, ℓ_c Δφ)‖ between a substep's prediction and its Newton correction [m],
+            shape (N,).
     """
 
     action: np.ndarray
@@ -191,9 +197,20 @@ def _pose_rate(robot: Planar3RPR, q: np.ndarray, x: np.ndarray, q_rate: np.ndarr
     return np.einsum("nij,nj->ni", J_f, q_rate)
 
 
-def _predict(params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray) -> np.ndarray:
-    """Integrate ẋ = J_f(q(τ), x) q̇ over one step with q(τ) = q + q̇ τ (Euler or classic RK4)."""
-    robot, h = params.robot, params.dt
+def _predict(params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Integrate ẋ = J_f(q(τ), x) q̇ over a time h with q(τ) = q + q̇ τ (Euler or classic RK4).
+
+    Args:
+        params: Environment constants (robot, integrator).
+        q: Strokes at the start [m], shape (M, 3).
+        x: Poses at the start, shape (M, 3).
+        q_rate: Stroke rates [m/s], shape (M, 3).
+        h: Time to integrate over [s], shape (M, 1).
+
+    Returns:
+        Predicted poses, shape (M, 3); NaN where J_x is exactly singular.
+    """
+    robot = params.robot
     if params.integrator == "euler":
         return x + h * _pose_rate(robot, q, x, q_rate)
     k1 = _pose_rate(robot, q, x, q_rate)
@@ -201,6 +218,27 @@ def _predict(params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray
     k3 = _pose_rate(robot, q + 0.5 * h * q_rate, x + 0.5 * h * k2, q_rate)
     k4 = _pose_rate(robot, q + h * q_rate, x + h * k3, q_rate)
     return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def substep_counts(params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray) -> np.ndarray:
+    """Substeps per robot so that each predicts at most ``max_substep`` of platform motion.
+
+    The motion is estimated from ẋ = J_f q̇ at the start of the step, in (x, y, ℓ_c φ) [m]; the count is
+    capped at ``max_substeps`` (near a singularity J_f is huge and the step fails anyway).
+
+    Args:
+        params: Environment constants.
+        q: Strokes [m], shape (N, 3).
+        x: Poses, shape (N, 3).
+        q_rate: Achieved stroke rates [m/s], shape (N, 3).
+
+    Returns:
+        Integer counts in [1, max_substeps], shape (N,).
+    """
+    with np.errstate(invalid="ignore", over="ignore"):
+        motion = np.linalg.norm(_pose_rate(params.robot, q, x, q_rate) * params.dt * params.pose_metric, axis=-1)
+        count = np.ceil(motion / params.max_substep)
+    return np.where(np.isfinite(count), np.clip(count, 1, params.max_substeps), params.max_substeps).astype(np.int64)
 
 
 def conditioning(params: EnvParams, q: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -223,12 +261,16 @@ def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[Sta
 
     1. a is clipped to [−1, 1]; strokes advance by a · max_rate · dt and are clamped to the stroke
        limits (hard stops), so the rate used is the achieved one, q̇ = (q' − q) / dt.
-    2. The pose is predicted with ẋ = J_f(q, x) q̇ (Euler, or RK4), then corrected onto Φ(q', x') = 0
-       by Newton's method warm-started at the prediction.
-    3. A robot whose correction fails is put back where it was (and terminates); the others are
-       checked, in this order, for a jump between prediction and correction (a change of assembly
-       mode), a flip of sign(det J_x) (a crossed Type II singularity), an inverse condition number
-       below ``hard_threshold``, and a pose outside the bounds.
+    2. The step is split into substeps so that each moves the platform by at most ``max_substep``
+       (``substep_counts``; one substep in most of the workspace). In each, the pose is predicted with
+       ẋ = J_f(q, x) q̇ (the lesson's Euler step, or RK4), then corrected onto Φ(q_k, x) = 0 by
+       Newton's method warm-started at the prediction: a path-following (continuation) scheme that
+       stays on the robot's branch of solutions.
+    3. A robot whose correction fails is put back where it was at the start of the step (and
+       terminates); the others are checked, in this order, for a jump between a prediction and its
+       correction larger than ``jump_tolerance`` (a change of assembly mode), a flip of sign(det J_x)
+       (a crossed Type II singularity), an inverse condition number below ``hard_threshold``, and a
+       pose outside the bounds.
 
     Args:
         params: Environment constants.
@@ -243,20 +285,33 @@ def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[Sta
     lo, hi = params.stroke_limits
     q_new = np.clip(state.q + a * (params.max_rate * params.dt), lo, hi)
     q_rate = (q_new - state.q) / params.dt
-    x_pred = _predict(params, state.q, state.x, q_rate)
-    with np.errstate(invalid="ignore", over="ignore"):
-        fk = robot.forward_kinematics(
-            q_new,
-            np.where(np.isfinite(x_pred), x_pred, state.x),
-            tolerance=params.newton_tolerance,
-            max_iterations=params.newton_max_iterations,
-            validate=False,
-        )
-    failed = ~(np.asarray(fk.converged) & np.isfinite(x_pred).all(axis=-1))
-    q_next = np.where(failed[:, None], state.q, q_new)
-    x_next = np.where(failed[:, None], state.x, fk.x)
-    residual = np.where(failed, state.residual, fk.residual)
-    jump = np.linalg.norm((np.where(failed[:, None], x_pred, fk.x) - x_pred) * params.pose_metric, axis=-1)
+    count = substep_counts(params, state.q, state.x, q_rate)
+    q_k, x_k, residual = state.q.copy(), state.x.copy(), state.residual.copy()
+    failed = np.zeros(len(count), dtype=bool)
+    jump = np.zeros(len(count))
+    for k in range(int(count.max())):
+        idx = np.flatnonzero((k < count) & ~failed)
+        if idx.size == 0:
+            break
+        n = count[idx][:, None]
+        q_to = state.q[idx] + (k + 1) / n * (q_new[idx] - state.q[idx])
+        x_pred = _predict(params, q_k[idx], x_k[idx], q_rate[idx], params.dt / n)
+        with np.errstate(invalid="ignore", over="ignore"):
+            fk = robot.forward_kinematics(
+                q_to,
+                np.where(np.isfinite(x_pred), x_pred, x_k[idx]),
+                tolerance=params.newton_tolerance,
+                max_iterations=params.newton_max_iterations,
+                validate=False,
+            )
+        ok = np.asarray(fk.converged) & np.isfinite(x_pred).all(axis=-1)
+        gap = np.linalg.norm((fk.x - x_pred) * params.pose_metric, axis=-1)
+        jump[idx] = np.maximum(jump[idx], np.where(ok, gap, 0.0))
+        failed[idx] = ~ok
+        q_k[idx[ok]], x_k[idx[ok]], residual[idx[ok]] = q_to[ok], fk.x[ok], fk.residual[ok]
+    q_next = np.where(failed[:, None], state.q, q_k)
+    x_next = np.where(failed[:, None], state.x, x_k)
+    residual = np.where(failed, state.residual, residual)
     inverse_condition, det_sign = conditioning(params, q_next, x_next)
     out = np.any((x_next < params.pose_low) | (x_next > params.pose_high), axis=-1)
     reason = np.select(

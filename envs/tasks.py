@@ -16,7 +16,10 @@ _MAX_ROUNDS = 200
 
 
 def is_safe(params: EnvParams, workspace: WorkspaceMap, x: np.ndarray) -> np.ndarray:
-    """Whether poses are in a sampled safe region: strokes within limits (with margin), k ≥ k_safe.
+    """Whether poses are in a sampled safe region (bounds and strokes with margins, k ≥ k_safe).
+
+    Inside the pose bounds and the stroke limits, each with its margin, k ≥ k_safe, and in a component
+    large enough to sample from.
 
     Args:
         params: Environment constants.
@@ -27,7 +30,8 @@ def is_safe(params: EnvParams, workspace: WorkspaceMap, x: np.ndarray) -> np.nda
         Boolean array, shape (M,).
     """
     spec = workspace.spec
-    inside = np.all((x >= spec.pose_low) & (x <= spec.pose_high), axis=-1)
+    margin = np.asarray(spec.bounds_margin)
+    inside = np.all((x >= np.asarray(spec.pose_low) + margin) & (x <= np.asarray(spec.pose_high) - margin), axis=-1)
     q = params.robot.inverse_kinematics(x, validate=False)
     lo, hi = spec.stroke_limits
     strokes_ok = (q.min(axis=-1) >= lo + spec.stroke_margin) & (q.max(axis=-1) <= hi - spec.stroke_margin)

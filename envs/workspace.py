@@ -33,6 +33,7 @@ class WorkspaceSpec:
         pose_high: Upper pose bounds (x [m], y [m], φ [rad]).
         safe_threshold: Inverse condition number a safe pose must reach.
         stroke_margin: Distance [m] a safe pose keeps from both stroke limits.
+        bounds_margin: Distance (Δx [m], Δy [m], Δφ [rad]) a sampled pose keeps from the pose bounds.
         cell: Grid spacing (Δx [m], Δy [m], Δφ [rad]).
         min_component_fraction: Components smaller than this share of safe nodes are not sampled.
     """
@@ -43,6 +44,7 @@ class WorkspaceSpec:
     pose_high: tuple[float, float, float]
     safe_threshold: float
     stroke_margin: float = 0.02
+    bounds_margin: tuple[float, float, float] = (0.05, 0.05, 0.1)
     cell: tuple[float, float, float] = (0.025, 0.025, 0.05)
     min_component_fraction: float = 0.02
 

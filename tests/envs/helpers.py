@@ -96,10 +96,17 @@ def best_node(workspace: WorkspaceMap, mask: np.ndarray) -> np.ndarray:
 
 
 def component_node(workspace: WorkspaceMap, component: int, rank: int = 0) -> np.ndarray:
-    """Pose of the ``rank``-th best-conditioned node of a sampled component, shape (3,)."""
+    """Pose of the ``rank``-th best-conditioned node of a sampled component, away from the pose bounds, shape (3,)."""
+    spec = workspace.spec
     flat = workspace.component_nodes[int(component)]
+    poses = workspace.nodes.reshape(-1, 3)[flat]
+    margin = np.asarray(spec.bounds_margin)
+    inside = np.all(
+        (poses >= np.asarray(spec.pose_low) + margin) & (poses <= np.asarray(spec.pose_high) - margin), axis=1
+    )
+    flat, poses = flat[inside], poses[inside]
     order = np.argsort(-workspace.inverse_condition.ravel()[flat], kind="stable")
-    return workspace.nodes.reshape(-1, 3)[flat[order[rank]]].copy()
+    return poses[order[rank]].copy()
 
 
 def pose_metric(params: Any) -> np.ndarray:

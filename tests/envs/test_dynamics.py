@@ -160,7 +160,10 @@ def test_rk4_prediction_is_closer_than_euler(seed, make_env, rng):
         corrected = euler_env.unwrapped.state.x[0]
         np.testing.assert_array_equal(corrected, after_euler.x[0])
         gap = np.linalg.norm((corrected - predicted) * pose_metric(euler_params))
-        assert gap == pytest.approx(euler.jump[0], rel=1e-6)
+        if core.substep_counts(euler_params, state.q, state.x, euler.q_rate)[0] == 1:
+            assert gap == pytest.approx(euler.jump[0], rel=1e-6)
+        else:  # substeps follow the path more closely than one Euler step
+            assert euler.jump[0] < gap
 
 
 def test_driving_into_a_singularity_terminates(make_env):
