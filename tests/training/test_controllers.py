@@ -135,7 +135,7 @@ def test_hard_targets_send_resolved_rate_into_singularities(hard_results):
     """Hard targets do what they promise: the straight line meets the ill-conditioned zone in most episodes."""
     rr = hard_results["resolved-rate"]
     assert rr["singularity_terminations"] >= 3, rr["terminations"]
-    assert rr["min_inverse_condition"]["mean"] < 0.05
+    assert rr["min_inverse_condition"]["mean"] < 0.08
 
 
 def test_singularity_aware_keeps_away_from_singularities(hard_results):

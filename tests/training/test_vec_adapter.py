@@ -52,7 +52,7 @@ def test_adapter_equals_dummy_vec_env(env_id):
     for i in range(N):
         assert_info_close(adapter.reset_infos[i], dummy.reset_infos[i], f"reset info {i}")
     rng = np.random.default_rng(21)
-    actions = np.repeat(rng.uniform(-3.0, 3.0, size=(10, N, 3)), 8, axis=0).astype(np.float32)
+    actions = np.repeat(rng.uniform(-3.0, 3.0, size=(20, N, 3)), 8, axis=0).astype(np.float32)
     ends = {"terminated": 0, "truncated": 0}
     for step, action in enumerate(actions):
         obs_a, rew_a, done_a, infos_a = adapter.step(action)
