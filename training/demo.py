@@ -37,13 +37,18 @@ __all__ = ["PRETRAINED_RUN", "main", "record_regression", "run_demo"]
 
 #: The run folder of the policy that ships with the project (trained by ``training.train``).
 PRETRAINED_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReach-v0")))
+#: A second shipped policy, trained on hard targets (Planar3RPRReachHard-v0), shown when present.
+PRETRAINED_HARD_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReachHard-v0")))
 
 
-def run_demo(run: Path, out: Path, episodes: int, seed: int = 1000, video_episodes: int = 3) -> dict:
+def run_demo(
+    run: Path, out: Path, episodes: int, seed: int = 1000, video_episodes: int = 3, hard_run: Path | None = None
+) -> dict:
     """Evaluate the policy of ``run`` and the two baselines on standard and hard targets; write the report.
 
     Args:
         run: Run folder of the policy.
+        hard_run: Run folder of a policy trained on hard targets, evaluated too (None: skip it).
         out: Report folder (created).
         episodes: Episodes per agent and target set.
         seed: Seed of the first episode (episode i resets with seed + i for every agent).
@@ -56,17 +61,19 @@ def run_demo(run: Path, out: Path, episodes: int, seed: int = 1000, video_episod
     policy, config = load_run(run)
     env_id = config["env_id"]
     env = gym.make(env_id, render_mode="rgb_array")
-    agents = {
-        f"{config['algo'].upper()} policy": policy,
-        "resolved-rate": load_controller("resolved-rate", env),
-        "singularity-aware": load_controller("singularity-aware", env),
-    }
+    agents = {f"{config['algo'].upper()} policy": policy}
+    if hard_run is not None:
+        hard_policy, hard_config = load_run(hard_run)
+        agents[f"{hard_config['algo'].upper()} policy (hard-trained)"] = hard_policy
+    agents["resolved-rate"] = load_controller("resolved-rate", env)
+    agents["singularity-aware"] = load_controller("singularity-aware", env)
     metrics, records = {}, {}
     frames = []
     for targets in ("standard", "hard"):
         records[targets] = {}
         for name, agent in agents.items():
-            film = frames if (targets == "hard" and name.endswith("policy")) else None
+            filmed = "PPO policy (hard-trained)" if hard_run is not None else next(iter(agents))
+            film = frames if (targets == "hard" and name == filmed) else None
             recs = evaluate_agent(agent, env, episodes, seed, targets, film, video_episodes)
             records[targets][name] = recs
             metrics[f"{name} @ {targets}"] = aggregate(recs)
@@ -79,7 +86,9 @@ def run_demo(run: Path, out: Path, episodes: int, seed: int = 1000, video_episod
     table = format_table(metrics)
     (out / "report.md").write_text(
         f"# Evaluation report\n\nEnvironment `{env_id}`, {episodes} episodes per row (reset seeds {seed}…"
-        f"{seed + episodes - 1}, identical for every agent). Policy: `{run}`.\n\n{table}\n"
+        f"{seed + episodes - 1}, identical for every agent). Policy: `{run}`"
+        + (f"; hard-trained policy: `{hard_run}`" if hard_run is not None else "")
+        + f".\n\n{table}\n"
         "Pictures: `trajectories_standard.png`, `trajectories_hard.png`, `condition_number_hard.png`, "
         "`policy_hard.gif`.\n"
     )
@@ -121,6 +130,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=50, help="episodes per agent and target set")
     parser.add_argument("--out", default="reports/demo", help="report folder")
     parser.add_argument("--run", default=str(PRETRAINED_RUN), help="run folder of the policy")
+    parser.add_argument(
+        "--hard-run",
+        default=str(PRETRAINED_HARD_RUN) if PRETRAINED_HARD_RUN.is_dir() else None,
+        help="run folder of a policy trained on hard targets (default: the shipped one, if any)",
+    )
     parser.add_argument("--seed", type=int, default=1000, help="seed of the first episode")
     parser.add_argument(
         "--record-regression", action="store_true", help="only write <run>/regression.json (for the test suite)"
@@ -136,7 +150,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.episodes < 1:
             raise EvaluationError(f"--episodes must be ≥ 1, got {args.episodes}")
-        metrics = run_demo(Path(args.run), Path(args.out), args.episodes, args.seed)
+        hard_run = Path(args.hard_run) if args.hard_run else None
+        metrics = run_demo(Path(args.run), Path(args.out), args.episodes, args.seed, hard_run=hard_run)
     except EvaluationError as exc:
         parser.error(str(exc))
     print_table(metrics)
