@@ -8,7 +8,7 @@ import numpy as np
 
 from kinematics._validation import FloatArray
 
-__all__ = ["batched_solve", "determinant", "hadamard_ratio", "singular_value_ratio"]
+__all__ = ["batched_solve", "determinant", "hadamard_ratio", "singular_value_ratio", "solve3_with_hadamard"]
 
 #: Batches at least this large use the closed-form 3×3 adjugate instead of LAPACK.
 _ADJUGATE_MIN_BATCH = 16
@@ -42,14 +42,37 @@ def _adjugate3(A: FloatArray) -> tuple[FloatArray, FloatArray]:
 
 def _solve3_single(A: FloatArray, B: FloatArray) -> FloatArray:
     """One 3×3 system by the closed-form adjugate on Python floats (faster than a LAPACK call)."""
+    return solve3_with_hadamard(A, B)[0]
+
+
+def solve3_with_hadamard(
+    A: FloatArray, B: FloatArray, column_scale: FloatArray | None = None
+) -> tuple[FloatArray, float]:
+    """Solve one 3×3 system A X = B and give the Hadamard ratio of A · diag(column_scale), sharing the work.
+
+    Args:
+        A: One matrix, shape (3, 3).
+        B: Right-hand sides, shape (3, r).
+        column_scale: Positive column factors for the ratio, shape (3,); default all ones.
+
+    Returns:
+        (X of shape (3, r), all-NaN if A is exactly singular; the ratio in [0, 1] as in ``hadamard_ratio``).
+    """
     (a, b, c), (d, e, f), (g, h, i) = A.tolist()
     c00, c01, c02 = e * i - f * h, c * h - b * i, b * f - c * e
     c10, c11, c12 = f * g - d * i, a * i - c * g, c * d - a * f
     c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
     det = a * c00 + b * c10 + c * c20
+    u, v, w = (1.0, 1.0, 1.0) if column_scale is None else column_scale.tolist()
+    norms = math.sqrt(
+        ((a * u) ** 2 + (b * v) ** 2 + (c * w) ** 2)
+        * ((d * u) ** 2 + (e * v) ** 2 + (f * w) ** 2)
+        * ((g * u) ** 2 + (h * v) ** 2 + (i * w) ** 2)
+    )
+    ratio = abs(det * u * v * w) / norms if norms > 0 else 0.0
     if det == 0.0 or not math.isfinite(det):
-        return np.full(B.shape, np.nan)
-    return np.array([[c00, c01, c02], [c10, c11, c12], [c20, c21, c22]]) @ B / det
+        return np.full(B.shape, np.nan), ratio
+    return np.array([[c00, c01, c02], [c10, c11, c12], [c20, c21, c22]]) @ B / det, ratio
 
 
 def determinant(A: FloatArray) -> FloatArray:

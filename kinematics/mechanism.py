@@ -15,7 +15,13 @@ from typing import Any
 import numpy as np
 
 from kinematics._validation import FloatArray, batch_vector, positive_scalar
-from kinematics.linalg import batched_solve, determinant, hadamard_ratio, singular_value_ratio
+from kinematics.linalg import (
+    batched_solve,
+    determinant,
+    hadamard_ratio,
+    singular_value_ratio,
+    solve3_with_hadamard,
+)
 
 __all__ = ["ForwardKinematicsResult", "ParallelMechanism", "SingularConfigurationError"]
 
@@ -199,8 +205,8 @@ class ParallelMechanism(abc.ABC):
         """Hadamard ratio of J_x with rotation columns scaled by 1/ℓ_c: 0 iff J_x is singular."""
         return hadamard_ratio(J_x, self._pose_scale)
 
-    def _raise_if_singular(self, J_x: FloatArray, what: str) -> None:
-        ratio = self._singularity_measure(J_x)
+    def _raise_if_singular(self, J_x: FloatArray, what: str, ratio: Any = None) -> None:
+        ratio = np.asarray(self._singularity_measure(J_x) if ratio is None else ratio)
         if ratio.size == 0 or ratio.min() >= self._singular_tolerance:
             return
         bad = ratio < self._singular_tolerance
@@ -229,6 +235,11 @@ class ParallelMechanism(abc.ABC):
         """
         q, x = self._qx(q, x, validate)
         J_q, J_x = self._jacobians(q, x)
+        if J_x.shape == (3, 3):  # one configuration: the solve and the check share the cofactors
+            J_f, ratio = solve3_with_hadamard(J_x, J_q, self._pose_scale)
+            if validate:
+                self._raise_if_singular(J_x, "J_f = −J_x⁻¹ J_q", ratio)
+            return -J_f
         if validate:
             self._raise_if_singular(J_x, "J_f = −J_x⁻¹ J_q")
         return -batched_solve(J_x, J_q)
