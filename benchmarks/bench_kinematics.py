@@ -148,7 +148,7 @@ def main(argv: list[str] | None = None) -> None:
     robot = Planar3RPR()
     Q, X = random_configurations(robot, args.n, args.seed)
     Q_lesson, X_lesson = Q[:lesson_n], X[:lesson_n]
-    pairs = list(zip(Q.tolist(), X.tolist(), strict=True))
+    pairs = list(zip(Q, X, strict=True))  # the same per-configuration rows the lesson's loop receives
 
     def lesson_loop() -> list:
         return [jacobians_3rpr(q, pose)[0] for q, pose in zip(Q_lesson, X_lesson, strict=True)]

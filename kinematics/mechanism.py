@@ -9,6 +9,7 @@ statics and conditioning.
 from __future__ import annotations
 
 import abc
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -150,10 +151,32 @@ class ParallelMechanism(abc.ABC):
         return batch_vector(name, x, self.n_pose, self.x_description)
 
     def _qx(self, q: Any, x: Any, validate: bool) -> tuple[FloatArray, FloatArray]:
+        if validate and self._valid_single(q, x):
+            return q, x
         if validate:
             q, x = self._q(q), self._x(x)
             _check_broadcast(q=q, x=x)
         return q, x
+
+    def _valid_single(self, q: Any, x: Any) -> bool:
+        """Fast acceptance of one well-formed configuration (float64 vectors); anything else goes the long way."""
+        if not (
+            type(q) is np.ndarray
+            and type(x) is np.ndarray
+            and q.dtype == np.float64
+            and x.dtype == np.float64
+            and q.shape == (self.n_actuators,)
+            and x.shape == (self.n_pose,)
+        ):
+            return False
+        values = q.tolist()
+        if not all(math.isfinite(v) for v in values + x.tolist()):
+            return False
+        try:
+            self._check_actuators(q)
+        except ValueError:
+            return False
+        return True
 
     # -- constraint level -------------------------------------------------------------------------
 
