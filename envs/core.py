@@ -197,7 +197,9 @@ def _pose_rate(robot: Planar3RPR, q: np.ndarray, x: np.ndarray, q_rate: np.ndarr
     return np.einsum("nij,nj->ni", J_f, q_rate)
 
 
-def _predict(params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray, h: np.ndarray) -> np.ndarray:
+def _predict(
+    params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray, h: np.ndarray, rate: np.ndarray | None = None
+) -> np.ndarray:
     """Integrate ẋ = J_f(q(τ), x) q̇ over a time h with q(τ) = q + q̇ τ (Euler or classic RK4).
 
     Args:
@@ -206,21 +208,24 @@ def _predict(params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray
         x: Poses at the start, shape (M, 3).
         q_rate: Stroke rates [m/s], shape (M, 3).
         h: Time to integrate over [s], shape (M, 1).
+        rate: ẋ = J_f(q, x) q̇ at the start if already known, shape (M, 3) (saves one J_f).
 
     Returns:
         Predicted poses, shape (M, 3); NaN where J_x is exactly singular.
     """
     robot = params.robot
+    k1 = _pose_rate(robot, q, x, q_rate) if rate is None else rate
     if params.integrator == "euler":
-        return x + h * _pose_rate(robot, q, x, q_rate)
-    k1 = _pose_rate(robot, q, x, q_rate)
+        return x + h * k1
     k2 = _pose_rate(robot, q + 0.5 * h * q_rate, x + 0.5 * h * k1, q_rate)
     k3 = _pose_rate(robot, q + 0.5 * h * q_rate, x + 0.5 * h * k2, q_rate)
     k4 = _pose_rate(robot, q + h * q_rate, x + h * k3, q_rate)
     return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
-def substep_counts(params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray) -> np.ndarray:
+def substep_counts(
+    params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray, rate: np.ndarray | None = None
+) -> np.ndarray:
     """Substeps per robot so that each predicts at most ``max_substep`` of platform motion.
 
     The motion is estimated from ẋ = J_f q̇ at the start of the step, in (x, y, ℓ_c φ) [m]; the count is
@@ -231,12 +236,15 @@ def substep_counts(params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.n
         q: Strokes [m], shape (N, 3).
         x: Poses, shape (N, 3).
         q_rate: Achieved stroke rates [m/s], shape (N, 3).
+        rate: ẋ = J_f(q, x) q̇ if already known, shape (N, 3).
 
     Returns:
         Integer counts in [1, max_substeps], shape (N,).
     """
+    if rate is None:
+        rate = _pose_rate(params.robot, q, x, q_rate)
     with np.errstate(invalid="ignore", over="ignore"):
-        motion = np.linalg.norm(_pose_rate(params.robot, q, x, q_rate) * params.dt * params.pose_metric, axis=-1)
+        motion = np.linalg.norm(rate * params.dt * params.pose_metric, axis=-1)
         count = np.ceil(motion / params.max_substep)
     return np.where(np.isfinite(count), np.clip(count, 1, params.max_substeps), params.max_substeps).astype(np.int64)
 
@@ -285,7 +293,8 @@ def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[Sta
     lo, hi = params.stroke_limits
     q_new = np.clip(state.q + a * (params.max_rate * params.dt), lo, hi)
     q_rate = (q_new - state.q) / params.dt
-    count = substep_counts(params, state.q, state.x, q_rate)
+    rate = _pose_rate(robot, state.q, state.x, q_rate)  # ẋ at the start: sizes the substeps, starts the first
+    count = substep_counts(params, state.q, state.x, q_rate, rate)
     q_k, x_k, residual = state.q.copy(), state.x.copy(), state.residual.copy()
     failed = np.zeros(len(count), dtype=bool)
     jump = np.zeros(len(count))
@@ -295,7 +304,7 @@ def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[Sta
             break
         n = count[idx][:, None]
         q_to = state.q[idx] + (k + 1) / n * (q_new[idx] - state.q[idx])
-        x_pred = _predict(params, q_k[idx], x_k[idx], q_rate[idx], params.dt / n)
+        x_pred = _predict(params, q_k[idx], x_k[idx], q_rate[idx], params.dt / n, rate[idx] if k == 0 else None)
         with np.errstate(invalid="ignore", over="ignore"):
             fk = robot.forward_kinematics(
                 q_to,
