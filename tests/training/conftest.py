@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import gymnasium as gym
@@ -22,21 +22,6 @@ def one_torch_thread() -> None:
     import torch
 
     torch.set_num_threads(1)
-
-
-@pytest.fixture
-def make_env() -> Iterator[Callable[..., gym.Env]]:
-    """Factory around ``gym.make`` whose environments are closed at teardown."""
-    made: list[gym.Env] = []
-
-    def _make(env_id: str = REACH, **kwargs) -> gym.Env:
-        env = gym.make(env_id, **kwargs)
-        made.append(env)
-        return env
-
-    yield _make
-    for env in made:
-        env.close()
 
 
 def write_run_folder(run: Path, algo: str, env_id: str = REACH, normalize: bool = True) -> Path:
