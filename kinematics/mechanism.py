@@ -118,6 +118,15 @@ class ParallelMechanism(abc.ABC):
     def _jacobians(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         """(J_q, J_x), shapes (..., k, n) and (..., k, m), no validation."""
 
+    def _forward_jacobian_batch(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """Optional fast path for a batch: (J_f of shape (..., m, n), Hadamard ratio of J_x·diag(pose_scale)).
+
+        A mechanism may override it to compute both from shared intermediate terms, without building
+        J_q and J_x; ``None`` (the default) selects the generic solve. Where J_x is exactly singular the
+        rows of J_f are NaN, as with ``batched_solve``.
+        """
+        return None
+
     def _newton_terms(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         """(Φ, J_x) at once, for Newton's method; override to share work between the two."""
         return self._constraints(q, x), self._jacobians(q, x)[1]
@@ -228,7 +237,7 @@ class ParallelMechanism(abc.ABC):
         """Hadamard ratio of J_x with rotation columns scaled by 1/ℓ_c: 0 iff J_x is singular."""
         return hadamard_ratio(J_x, self._pose_scale)
 
-    def _raise_if_singular(self, J_x: FloatArray, what: str, ratio: Any = None) -> None:
+    def _raise_if_singular(self, J_x: FloatArray | None, what: str, ratio: Any = None) -> None:
         ratio = np.asarray(self._singularity_measure(J_x) if ratio is None else ratio)
         if ratio.size == 0 or ratio.min() >= self._singular_tolerance:
             return
@@ -257,6 +266,13 @@ class ParallelMechanism(abc.ABC):
             SingularConfigurationError: If J_x is singular (a Type II singularity) and ``validate``.
         """
         q, x = self._qx(q, x, validate)
+        if q.ndim > 1 or x.ndim > 1:
+            fused = self._forward_jacobian_batch(q, x)
+            if fused is not None:  # the mechanism's own pipeline: J_f and the singularity check share work
+                J_f, ratio = fused
+                if validate:
+                    self._raise_if_singular(None, "J_f = −J_x⁻¹ J_q", ratio)
+                return J_f
         J_q, J_x = self._jacobians(q, x)
         if J_x.shape == (3, 3):  # one configuration: the solve and the check share the cofactors
             J_f, ratio = solve3_with_hadamard(J_x, J_q, self._pose_scale)

@@ -10,6 +10,9 @@ import numpy as np
 from kinematics._validation import FloatArray, point_set, positive_scalar
 from kinematics.mechanism import ParallelMechanism
 
+#: Configurations per block of the fused batched J_f (temporaries of 32 kB stay in cache).
+_FUSED_BLOCK = 4096
+
 __all__ = ["DEFAULT_BASE", "DEFAULT_PLATFORM", "Planar3RPR"]
 
 #: The lesson's base anchors B_i in {B} [m], shape (3, 2) (section 7).
@@ -205,6 +208,85 @@ class Planar3RPR(ParallelMechanism):
             # Row i: 2 (d_ix, d_iy, d_iᵀ S R P_i) with d_iᵀ S R P_i = d_iy (R P_i)_x − d_ix (R P_i)_y.
             rows += [2.0 * dx, 2.0 * dy, 2.0 * (dy * RPx - dx * RPy)]
         return self._assemble(single, rows, batch, (3, 3))
+
+    def _forward_jacobian_batch(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """J_f and the Hadamard ratio of a batch, straight from the leg components.
+
+        With J_q = −2 diag(L) and J_x = 2A, where row i of A is (d_ix, d_iy, m_i) and
+        m_i = d_iy (R P_i)_x − d_ix (R P_i)_y, the factors 2 cancel: J_f = −J_x⁻¹ J_q = A⁻¹ diag(L),
+        so J_f[j, i] = adj(A)[j, i] L_i / det A. The Hadamard ratio of J_x·diag(1, 1, 1/ℓ_c) is
+        |det A|/(ℓ_c ∏_i ‖(d_ix, d_iy, m_i/ℓ_c)‖), row-scale invariant. One pass over arrays of the
+        batch shape, without stacking J_q and J_x: the cofactors serve both the solve and the check.
+
+        Args:
+            q: Leg lengths [m], shape (..., 3).
+            x: Poses (x [m], y [m], φ [rad]) of {P} in {B}, shape (..., 3); broadcasts with q.
+
+        Returns:
+            (J_f of shape (..., 3, 3), NaN where det A = 0; the ratio in [0, 1], shape (...)).
+        """
+        shape = np.broadcast_shapes(q.shape[:-1], x.shape[:-1])
+        x = np.broadcast_to(x, shape + (3,)).reshape(-1, 3)
+        q = np.broadcast_to(q, shape + (3,)).reshape(-1, 3)
+        n = x.shape[0]
+        J_f, ratio = np.empty((n, 3, 3)), np.empty(n)
+        # Blocks small enough for every temporary to stay in cache (and off fresh, page-faulting memory).
+        for start in range(0, n, _FUSED_BLOCK):
+            block = slice(start, start + _FUSED_BLOCK)
+            self._forward_jacobian_block(q[block], x[block], J_f[block], ratio[block])
+        return J_f.reshape(shape + (3, 3)), ratio.reshape(shape)
+
+    def _forward_jacobian_block(self, q: FloatArray, x: FloatArray, J_f: FloatArray, ratio: FloatArray) -> None:
+        """Fill J_f (b, 3, 3) and ratio (b,) for q, x of shape (b, 3); see ``_forward_jacobian_batch``."""
+        px, py, phi = x.T
+        c, s = np.cos(phi), np.sin(phi)
+        inv_lc = 1.0 / self._l_c
+        rows, squared = [], None
+        for (Bx, By), (Px, Py) in zip(self._B_list, self._P_list):
+            RPx = c * Px
+            RPx -= s * Py
+            RPy = s * Px
+            RPy += c * Py
+            dx = px + RPx
+            dx -= Bx
+            dy = py + RPy
+            dy -= By
+            m = dy * RPx
+            m -= dx * RPy  # row i of A = J_x / 2: (d_ix, d_iy, m_i)
+            rows.append((dx, dy, m))
+            row_squared = dx * dx  # ‖(d_ix, d_iy, m_i/ℓ_c)‖², for the Hadamard ratio
+            row_squared += dy * dy
+            m_scaled = m * inv_lc
+            row_squared += m_scaled * m_scaled
+            squared = row_squared if squared is None else np.multiply(squared, row_squared, out=squared)
+        (a, b, c_), (d, e, f), (g, h, i) = rows
+
+        def minor(p: Any, q_: Any, r: Any, t: Any) -> Any:
+            out = p * q_
+            out -= r * t
+            return out
+
+        cof = (
+            (minor(e, i, f, h), minor(c_, h, b, i), minor(b, f, c_, e)),
+            (minor(f, g, d, i), minor(a, i, c_, g), minor(c_, d, a, f)),
+            (minor(d, h, e, g), minor(b, g, a, h), minor(a, e, b, d)),
+        )
+        det = a * cof[0][0]
+        det += b * cof[1][0]
+        det += c_ * cof[2][0]
+        np.sqrt(squared, out=squared)
+        abs_det = np.abs(det)
+        abs_det *= inv_lc
+        ratio[...] = 0.0
+        np.divide(abs_det, squared, out=ratio, where=squared > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):  # det A = 0 is marked NaN below
+            inv_det = 1.0 / det
+            for col in range(3):
+                weight = q[:, col] * inv_det  # L_i / det A
+                for row in range(3):
+                    np.multiply(cof[row][col], weight, out=J_f[:, row, col])
+        if len(ratio) and not ratio.min() > 0:  # the ratio is 0 where det A is: only then look for exact zeros
+            J_f[det == 0] = np.nan
 
     def _newton_terms(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         single, legs = self._legs(x)

@@ -242,3 +242,47 @@ def test_actuator_forces_invert_platform_wrench(any_robot, regular, rng):
     wrench = rng.normal(size=X.shape) * 10.0
     tau_balancing = any_robot.actuator_forces(Q, X, wrench)
     assert max_relative_error(any_robot.platform_wrench(Q, X, tau_balancing), wrench) <= 1e-9
+
+
+# -- the fused batched J_f (several blocks) against the generic solve ---------------------------------
+
+
+def generic_forward_jacobian(robot: Planar3RPR, Q: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """J_f = −J_x⁻¹ J_q by LAPACK on the stacked matrices, and the Hadamard ratio of the generic code."""
+    from kinematics.linalg import hadamard_ratio
+
+    J_q, J_x = robot.jacobians(Q, X)
+    return -np.linalg.solve(J_x, J_q), hadamard_ratio(J_x, robot.pose_scale)
+
+
+@pytest.mark.parametrize("seed", GEOMETRY_SEEDS[:2])
+def test_fused_batched_forward_jacobian_equals_the_generic_solve(seed, rng):
+    """More configurations than one block (4096), near-singular ones included: same J_f and ratio."""
+    robot = geometry(seed)
+    X = random_poses(robot, rng, 9001)
+    Q = robot.inverse_kinematics(X) + rng.normal(0.0, 1e-3, (9001, 3))  # J_f exists off the manifold too
+    J_f, ratio = robot._forward_jacobian_batch(Q, X)
+    ref_f, ref_ratio = generic_forward_jacobian(robot, Q, X)
+    assert J_f.shape == (9001, 3, 3) and ratio.shape == (9001,)
+    np.testing.assert_allclose(ratio, ref_ratio, rtol=1e-9, atol=1e-15)
+    well = ref_ratio > 1e-6  # far enough from det = 0 for both solves to agree to rounding
+    assert well.mean() > 0.9
+    assert max_relative_error(J_f[well], ref_f[well]) <= 1e-8
+    np.testing.assert_array_equal(robot.forward_jacobian(Q[well], X[well]), J_f[well])
+
+
+def test_fused_batched_forward_jacobian_broadcasts_and_marks_exact_singularity(robot):
+    """Leg lengths q (3,) against x (N, 3) and 2-D batches; det A = 0 exactly gives NaN or raises."""
+    X = np.array([[0.5, 0.3, 0.1], [0.45, 0.35, -0.2], [0.0, 0.2, 0.0]])  # last: d_1 = p + P_1 − B_1 = 0
+    q = np.array([0.6, 0.5, 0.55])
+    J_f = robot.forward_jacobian(q, X, validate=False)
+    assert J_f.shape == (3, 3, 3)
+    assert np.isnan(J_f[2]).all() and np.isfinite(J_f[:2]).all()
+    for k in range(2):
+        np.testing.assert_allclose(J_f[k], robot.forward_jacobian(q, X[k]), rtol=1e-12, atol=1e-14)
+    two_d = robot.forward_jacobian(np.broadcast_to(q, (2, 2, 3)), np.broadcast_to(X[:2], (2, 2, 3)))
+    np.testing.assert_array_equal(two_d, np.broadcast_to(J_f[:2], (2, 2, 3, 3)))
+    from kinematics import SingularConfigurationError
+
+    with pytest.raises(SingularConfigurationError, match=r"batch index \(2,\)"):
+        robot.forward_jacobian(q, X)
