@@ -3,6 +3,7 @@
 from gymnasium.envs.registration import register, registry
 
 from envs.planar_3rpr import Planar3RPRReachEnv, Planar3RPRTrackEnv
+from envs.shield import SingularityShield
 from envs.vector import Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv, Planar3RPRVectorEnv
 
 __all__ = [
@@ -12,6 +13,7 @@ __all__ = [
     "Planar3RPRTrackEnv",
     "Planar3RPRTrackVectorEnv",
     "Planar3RPRVectorEnv",
+    "SingularityShield",
 ]
 
 #: Every registered id, with its entry point, vector entry point, episode length and keyword arguments.

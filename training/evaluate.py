@@ -421,6 +421,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--video", action="store_true", help="write a GIF of the first episodes")
     parser.add_argument("--out", default=None, help="output folder; default: <run>/eval-<targets> or evals/...")
     parser.add_argument("--model", default="final", help="final (model.zip) or best (best_model.zip)")
+    parser.add_argument(
+        "--shield",
+        type=float,
+        default=None,
+        metavar="K_GUARD",
+        help="wrap the env in envs.SingularityShield with this guard level (for example 0.05)",
+    )
     return parser
 
 
@@ -441,16 +448,22 @@ def main(argv: list[str] | None = None) -> int:
         if args.targets is not None and args.targets not in TARGET_SETS:
             raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {args.targets!r}")
         env = gym.make(env_id, render_mode="rgb_array" if args.video else None)
+        if args.shield is not None:
+            if not 0.0 < args.shield < 1.0:
+                raise EvaluationError(f"--shield must be in (0, 1), got {args.shield}")
+            env = envs.SingularityShield(env, k_guard=args.shield)
         targets = args.targets or getattr(env.unwrapped, "targets", "standard")
         if args.run is not None:
             agent, _ = load_run(args.run, args.model)
             check_compatible(agent, env, f"run {args.run!r}")
-            name = f"{config['algo']} ({Path(args.run).name})"
+            name = f"{config['algo']} ({Path(args.run).name})" + (" + shield" if args.shield else "")
             out = Path(args.out) if args.out else Path(args.run) / f"eval-{env_id}-{targets}"
         else:
             agent = load_controller(args.controller, env)
-            name = args.controller
+            name = args.controller + (" + shield" if args.shield else "")
             out = Path(args.out) if args.out else Path("evals") / f"{args.controller}-{env_id}-{targets}"
+        if args.shield is not None and args.out is None:
+            out = out.with_name(f"{out.name}-shield")
         frames: list[np.ndarray] | None = [] if args.video else None
         records = evaluate_agent(agent, env, args.episodes, args.seed, args.targets, frames)
         label = f"{name} @ {targets}"

@@ -178,3 +178,15 @@ def test_evaluate_hard_env_id_uses_hard_targets(tmp_path):
     assert evaluate.main([*common, "--env", "Planar3RPRReachHard-v0", "--out", str(hard_id)]) == 0
     assert evaluate.main([*common, "--env", REACH, "--targets", "hard", "--out", str(hard_option)]) == 0
     assert (hard_id / "episodes.csv").read_text() == (hard_option / "episodes.csv").read_text()
+
+
+def test_evaluate_shield_removes_the_straight_line_singularity_terminations(tmp_path):
+    """On hard targets the straight line ends in singularities; with --shield it never does."""
+    common = ["--controller", "resolved-rate", "--episodes", "4", "--targets", "hard"]
+    plain, shielded = tmp_path / "plain", tmp_path / "shielded"
+    assert evaluate.main([*common, "--out", str(plain)]) == 0
+    assert evaluate.main([*common, "--shield", "0.05", "--out", str(shielded)]) == 0
+    assert json.loads((plain / "metrics.json").read_text())["singularity_terminations"] > 0
+    metrics = json.loads((shielded / "metrics.json").read_text())
+    assert metrics["singularity_terminations"] == 0
+    assert metrics["label"] == "resolved-rate + shield @ hard"

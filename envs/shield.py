@@ -1,0 +1,84 @@
+"""A one-step look-ahead safety filter ("shield") that keeps any agent out of Type II singularities.
+
+A learned policy reaches its targets, but near a fold of the forward kinematics one saturated action can
+cross a Type II singularity within a single control period (the inverse condition number drops from
+about 0.1 to 1e-5 inside the step). No integrator setting prevents that: the commanded strokes have no
+solution on the robot's branch. The shield (Alshiekh et al., *Safe reinforcement learning via shielding*,
+AAAI 2018) tries the proposed action on a copy of the state with the environment's own pure
+``envs.core.transition`` before it is applied, and replaces it when the step would terminate or would
+leave the robot below a guard level of the inverse condition number:
+
+    a, a/2, a/4, a/8, 0 — the first candidate that does not terminate and ends with k' ≥ min(k_guard, k).
+
+The zero action leaves strokes and pose unchanged, so a safe candidate always exists. Only the
+singularity guard runs twice; the dynamics, rewards and termination rules are those of the environment.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from envs import core
+
+__all__ = ["SHIELD_SCALES", "SingularityShield"]
+
+#: Action scales tried in order; the last (zero) is always safe.
+SHIELD_SCALES = (1.0, 0.5, 0.25, 0.125, 0.0)
+
+
+class SingularityShield(gym.Wrapper):
+    """Replace actions that would cross or approach a Type II singularity by scaled-down ones.
+
+    Works on the single Reach and Track environments (anything whose ``unwrapped`` has ``params`` and
+    a batched ``state`` of one robot). ``info["shield_scale"]`` is the scale applied to the proposed
+    action at that step (1.0: unchanged; 0.0: held still).
+
+    Args:
+        env: A planar 3-RPR environment, possibly wrapped (``gym.make`` output).
+        k_guard: Guard level of the inverse condition number in (0, 1): a step may end below it only if
+            it does not lower k. Default 0.05 (above the hard threshold 0.03 of the default env).
+    """
+
+    def __init__(self, env: gym.Env, k_guard: float = 0.05) -> None:
+        """Wrap ``env``; see the class docstring."""
+        super().__init__(env)
+        base = env.unwrapped
+        if not (hasattr(base, "params") and hasattr(base, "state")):
+            raise TypeError(f"SingularityShield needs a planar 3-RPR environment, got {type(base).__name__}")
+        if not (isinstance(k_guard, (int, float)) and 0.0 < float(k_guard) < 1.0):
+            raise ValueError(f"k_guard must be a number in (0, 1), got {k_guard!r}")
+        self.k_guard = float(k_guard)
+
+    def safe_action(self, action: Any) -> tuple[np.ndarray, float]:
+        """The action to apply instead of ``action`` and its scale.
+
+        Args:
+            action: Proposed normalised stroke rates, shape (3,), finite.
+
+        Returns:
+            (the action, shape (3,) float32; the scale in ``SHIELD_SCALES`` applied to it).
+        """
+        base = self.env.unwrapped
+        state = base.state
+        if state is None:
+            raise gym.error.ResetNeeded("Cannot call step() before reset()")
+        proposed = np.asarray(action, dtype=np.float64)
+        if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
+            return np.asarray(action), 1.0  # let the environment reject it with its own message
+        proposed = np.clip(proposed, -1.0, 1.0)
+        k_now = float(state.inverse_condition[0])
+        for scale in SHIELD_SCALES[:-1]:
+            new_state, outcome = core.transition(base.params, state, proposed[None] * scale)
+            if outcome.reason[0] == 0 and float(new_state.inverse_condition[0]) >= min(self.k_guard, k_now):
+                return (proposed * scale).astype(np.float32), scale
+        return np.zeros(3, dtype=np.float32), 0.0
+
+    def step(self, action: Any):
+        """Step with the shielded action; ``info["shield_scale"]`` records the scale used."""
+        safe, scale = self.safe_action(action)
+        obs, reward, terminated, truncated, info = self.env.step(safe)
+        info["shield_scale"] = scale
+        return obs, reward, terminated, truncated, info

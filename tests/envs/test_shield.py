@@ -1,0 +1,79 @@
+"""The singularity shield: a one-step look-ahead that keeps any agent from terminating in a singularity."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from envs import SingularityShield
+from envs.core import TERMINATION_REASONS
+from envs.shield import SHIELD_SCALES
+
+SINGULAR = {"newton_failed", "assembly_mode_change", "singularity_crossed", "singular"}
+
+
+def run_random(env: gym.Env, steps: int, seed: int) -> tuple[dict[str, int], list[float], list[float]]:
+    """Random saturated actions (fixed seed); returns termination counts, k per step and shield scales."""
+    rng = np.random.default_rng(seed)
+    ends: dict[str, int] = {}
+    ks, scales = [], []
+    env.reset(seed=seed)
+    for _ in range(steps):
+        action = np.sign(rng.uniform(-1.0, 1.0, 3)).astype(np.float32)
+        _, _, terminated, truncated, info = env.step(action)
+        ks.append(info["inverse_condition_number"])
+        scales.append(info.get("shield_scale", 1.0))
+        if terminated:
+            ends[info["termination_reason"]] = ends.get(info["termination_reason"], 0) + 1
+        if terminated or truncated:
+            env.reset()
+    return ends, ks, scales
+
+
+def test_random_saturated_actions_never_terminate_under_the_shield(make_env):
+    """Unshielded, these actions end episodes in singularities; shielded, nothing terminates and k ≥ guard."""
+    plain, _, _ = run_random(make_env(), 3000, seed=3)
+    assert sum(plain.get(reason, 0) for reason in SINGULAR) > 0  # the same actions do reach singularities
+    shielded, ks, scales = run_random(SingularityShield(make_env(), k_guard=0.05), 3000, seed=3)
+    assert shielded == {}
+    assert min(ks) >= 0.03
+    assert set(scales) <= set(SHIELD_SCALES) and min(scales) < 1.0 and np.mean(np.equal(scales, 1.0)) > 0.5
+
+
+def test_unchanged_action_gives_the_plain_step(make_env):
+    """Where the shield lets the action through, the step equals the unwrapped env's step."""
+    plain, shielded = make_env(), SingularityShield(make_env())
+    obs_a, _ = plain.reset(seed=7)
+    obs_b, _ = shielded.reset(seed=7)
+    np.testing.assert_array_equal(obs_a, obs_b)
+    action = np.array([0.1, -0.05, 0.02], dtype=np.float32)
+    out_a = plain.step(action)
+    out_b = shielded.step(action)
+    assert out_b[4]["shield_scale"] == 1.0
+    np.testing.assert_array_equal(out_a[0], out_b[0])
+    assert out_a[1:4] == out_b[1:4]
+
+
+def test_shield_works_on_track_and_reports_reasons(make_env):
+    """Track env is supported; the reason names used above exist."""
+    assert SINGULAR <= set(TERMINATION_REASONS)
+    env = SingularityShield(make_env("Planar3RPRTrack-v0"))
+    env.reset(seed=1)
+    for _ in range(20):
+        *_, info = env.step(np.ones(3, dtype=np.float32))
+        assert info["termination_reason"] not in SINGULAR
+
+
+def test_shield_bad_input(make_env):
+    """A bad guard, a foreign env and a step before reset are refused with clear errors."""
+    with pytest.raises(ValueError, match=r"k_guard must be a number in \(0, 1\), got 1.5"):
+        SingularityShield(make_env(), k_guard=1.5)
+    with pytest.raises(TypeError, match="needs a planar 3-RPR environment, got CartPoleEnv"):
+        SingularityShield(gym.make("CartPole-v1"))
+    with pytest.raises(gym.error.ResetNeeded):
+        SingularityShield(make_env()).step(np.zeros(3, dtype=np.float32))
+    env = SingularityShield(make_env())
+    env.reset(seed=0)
+    with pytest.raises(ValueError):
+        env.step(np.array([np.nan, 0.0, 0.0], dtype=np.float32))  # the env's own validation message
