@@ -21,7 +21,7 @@ from pathlib import Path
 
 import gymnasium as gym
 
-import envs  # noqa: F401  (registers the ids)
+import envs  # registers the ids
 from training import plots
 from training.evaluate import (
     EvaluationError,
@@ -41,8 +41,18 @@ PRETRAINED_RUN = Path(str(resources.files("training").joinpath("pretrained", "pp
 PRETRAINED_HARD_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReachHard-v0")))
 
 
+#: Guard level of the singularity shield in the demo's shielded rows.
+DEMO_SHIELD = 0.05
+
+
 def run_demo(
-    run: Path, out: Path, episodes: int, seed: int = 1000, video_episodes: int = 3, hard_run: Path | None = None
+    run: Path,
+    out: Path,
+    episodes: int,
+    seed: int = 1000,
+    video_episodes: int = 3,
+    hard_run: Path | None = None,
+    shield: float | None = DEMO_SHIELD,
 ) -> dict:
     """Evaluate the policy of ``run`` and the two baselines on standard and hard targets; write the report.
 
@@ -53,6 +63,8 @@ def run_demo(
         episodes: Episodes per agent and target set.
         seed: Seed of the first episode (episode i resets with seed + i for every agent).
         video_episodes: Hard episodes of the policy filmed into the GIF.
+        shield: Guard level of ``envs.SingularityShield``: every agent is also evaluated on the hard targets
+            behind the shield, rows "<agent> + shield" (None: skip them).
 
     Returns:
         Label → aggregated metrics.
@@ -77,6 +89,11 @@ def run_demo(
             recs = evaluate_agent(agent, env, episodes, seed, targets, film, video_episodes)
             records[targets][name] = recs
             metrics[f"{name} @ {targets}"] = aggregate(recs)
+    if shield is not None:
+        shielded = envs.SingularityShield(gym.make(env_id), k_guard=shield)
+        for name, agent in agents.items():
+            metrics[f"{name} + shield @ hard"] = aggregate(evaluate_agent(agent, shielded, episodes, seed, "hard"))
+        shielded.close()
     params, workspace = env.unwrapped.params, env.unwrapped.workspace
     for targets in ("standard", "hard"):
         plots.trajectories_figure(records[targets], params, workspace, out / f"trajectories_{targets}.png")
@@ -137,6 +154,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--seed", type=int, default=1000, help="seed of the first episode")
     parser.add_argument(
+        "--shield",
+        type=float,
+        default=DEMO_SHIELD,
+        help=f"guard level of the shielded rows on hard targets (default {DEMO_SHIELD}; 0 leaves them out)",
+    )
+    parser.add_argument(
         "--record-regression", action="store_true", help="only write <run>/regression.json (for the test suite)"
     )
     args = parser.parse_args(argv)
@@ -150,8 +173,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.episodes < 1:
             raise EvaluationError(f"--episodes must be ≥ 1, got {args.episodes}")
+        if not 0.0 <= args.shield < 1.0:
+            raise EvaluationError(f"--shield must be in [0, 1), got {args.shield}")
         hard_run = Path(args.hard_run) if args.hard_run else None
-        metrics = run_demo(Path(args.run), Path(args.out), args.episodes, args.seed, hard_run=hard_run)
+        shield = args.shield or None
+        metrics = run_demo(Path(args.run), Path(args.out), args.episodes, args.seed, hard_run=hard_run, shield=shield)
     except EvaluationError as exc:
         parser.error(str(exc))
     print_table(metrics)

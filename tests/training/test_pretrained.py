@@ -96,9 +96,13 @@ def test_demo_writes_report(pretrained_run, tmp_path, capsys):
     agents = ["PPO policy", "resolved-rate", "singularity-aware"]
     if demo.PRETRAINED_HARD_RUN.is_dir():
         agents.append("PPO policy (hard-trained)")
-    assert set(metrics) == {f"{agent} @ {targets}" for agent in agents for targets in ("standard", "hard")}
+    expected = {f"{agent} @ {targets}" for agent in agents for targets in ("standard", "hard")}
+    shielded = {f"{agent} + shield @ hard" for agent in agents}
+    assert set(metrics) == expected | shielded
+    assert all(metrics[label]["singularity_terminations"] == 0 for label in shielded)
     assert all(m["episodes"] == 2 for m in metrics.values())
     report = (out / "report.md").read_text()
+    assert "| PPO policy + shield | hard |" in report
     assert "| PPO policy | hard |" in report and "| singularity-aware | standard |" in report
     for name in names[2:5]:
         with Image.open(out / name) as image:
