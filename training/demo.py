@@ -63,8 +63,8 @@ def run_demo(
         episodes: Episodes per agent and target set.
         seed: Seed of the first episode (episode i resets with seed + i for every agent).
         video_episodes: Hard episodes of the policy filmed into the GIF.
-        shield: Guard level of ``envs.SingularityShield``: every agent is also evaluated on the hard targets
-            behind the shield, rows "<agent> + shield" (None: skip them).
+        shield: Guard level of ``envs.SingularityShield``: every agent is also evaluated behind the shield
+            on both target sets, rows "<agent> + shield" (None: skip them).
 
     Returns:
         Label → aggregated metrics.
@@ -91,8 +91,10 @@ def run_demo(
             metrics[f"{name} @ {targets}"] = aggregate(recs)
     if shield is not None:
         shielded = envs.SingularityShield(gym.make(env_id), k_guard=shield)
-        for name, agent in agents.items():
-            metrics[f"{name} + shield @ hard"] = aggregate(evaluate_agent(agent, shielded, episodes, seed, "hard"))
+        for targets in ("standard", "hard"):
+            for name, agent in agents.items():
+                recs = evaluate_agent(agent, shielded, episodes, seed, targets)
+                metrics[f"{name} + shield @ {targets}"] = aggregate(recs)
         shielded.close()
     params, workspace = env.unwrapped.params, env.unwrapped.workspace
     for targets in ("standard", "hard"):
@@ -157,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
         "--shield",
         type=float,
         default=DEMO_SHIELD,
-        help=f"guard level of the shielded rows on hard targets (default {DEMO_SHIELD}; 0 leaves them out)",
+        help=f"guard level of the shielded rows (default {DEMO_SHIELD}; 0 leaves them out)",
     )
     parser.add_argument(
         "--record-regression", action="store_true", help="only write <run>/regression.json (for the test suite)"

@@ -97,7 +97,7 @@ def test_demo_writes_report(pretrained_run, tmp_path, capsys):
     if demo.PRETRAINED_HARD_RUN.is_dir():
         agents.append("PPO policy (hard-trained)")
     expected = {f"{agent} @ {targets}" for agent in agents for targets in ("standard", "hard")}
-    shielded = {f"{agent} + shield @ hard" for agent in agents}
+    shielded = {f"{agent} + shield @ {targets}" for agent in agents for targets in ("standard", "hard")}
     assert set(metrics) == expected | shielded
     assert all(metrics[label]["singularity_terminations"] == 0 for label in shielded)
     assert all(m["episodes"] == 2 for m in metrics.values())
