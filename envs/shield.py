@@ -10,8 +10,9 @@ leave the robot below a guard level of the inverse condition number:
 
     a, a/2, a/4, a/8, 0 — the first candidate that does not terminate and ends with k' ≥ min(k_guard, k).
 
-The zero action leaves strokes and pose unchanged, so a safe candidate always exists. Only the
-singularity guard runs twice; the dynamics, rewards and termination rules are those of the environment.
+The zero action leaves strokes and pose unchanged, so a safe candidate always exists. The dynamics,
+rewards and termination rules are those of the environment; the cost is one to four extra
+``core.transition`` calls per step (the accepted candidate is computed again by ``env.step``).
 """
 
 from __future__ import annotations

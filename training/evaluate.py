@@ -448,21 +448,23 @@ def main(argv: list[str] | None = None) -> int:
         if args.targets is not None and args.targets not in TARGET_SETS:
             raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {args.targets!r}")
         env = gym.make(env_id, render_mode="rgb_array" if args.video else None)
-        if args.shield is not None:
-            if not 0.0 < args.shield < 1.0:
-                raise EvaluationError(f"--shield must be in (0, 1), got {args.shield}")
-            env = envs.SingularityShield(env, k_guard=args.shield)
+        shielded = " + shield" if args.shield is not None else ""
+        if shielded:
+            try:
+                env = envs.SingularityShield(env, k_guard=args.shield)
+            except ValueError as exc:
+                raise EvaluationError(f"--shield: {exc}") from None
         targets = args.targets or getattr(env.unwrapped, "targets", "standard")
         if args.run is not None:
             agent, _ = load_run(args.run, args.model)
             check_compatible(agent, env, f"run {args.run!r}")
-            name = f"{config['algo']} ({Path(args.run).name})" + (" + shield" if args.shield else "")
+            name = f"{config['algo']} ({Path(args.run).name}){shielded}"
             out = Path(args.out) if args.out else Path(args.run) / f"eval-{env_id}-{targets}"
         else:
             agent = load_controller(args.controller, env)
-            name = args.controller + (" + shield" if args.shield else "")
+            name = args.controller + shielded
             out = Path(args.out) if args.out else Path("evals") / f"{args.controller}-{env_id}-{targets}"
-        if args.shield is not None and args.out is None:
+        if shielded and args.out is None:
             out = out.with_name(f"{out.name}-shield")
         frames: list[np.ndarray] | None = [] if args.video else None
         records = evaluate_agent(agent, env, args.episodes, args.seed, args.targets, frames)

@@ -271,6 +271,16 @@ def test_fused_batched_forward_jacobian_equals_the_generic_solve(seed, rng):
     np.testing.assert_array_equal(robot.forward_jacobian(Q[well], X[well]), J_f[well])
 
 
+@pytest.mark.parametrize("n", [1, 4097])
+def test_fused_batched_forward_jacobian_with_one_configuration_in_a_block(robot, rng, n):
+    """A batch of one, and a last block of one, give the single-call result."""
+    X = random_poses(robot, rng, n)
+    Q = robot.inverse_kinematics(X)
+    J_f = robot.forward_jacobian(Q, X)
+    assert J_f.shape == (n, 3, 3)
+    np.testing.assert_allclose(J_f[-1], robot.forward_jacobian(Q[-1], X[-1]), rtol=1e-9, atol=1e-12)
+
+
 def test_fused_batched_forward_jacobian_broadcasts_and_marks_exact_singularity(robot):
     """Leg lengths q (3,) against x (N, 3) and 2-D batches; det A = 0 exactly gives NaN or raises."""
     X = np.array([[0.5, 0.3, 0.1], [0.45, 0.35, -0.2], [0.0, 0.2, 0.0]])  # last: d_1 = p + P_1 − B_1 = 0

@@ -124,6 +124,14 @@ def test_evaluate_unknown_controller(tmp_path, capsys, name):
     assert f"unknown controller {name!r}; valid choices: ['resolved-rate', 'singularity-aware']" in err
 
 
+@pytest.mark.parametrize("value", ["0", "1.5", "-0.1"])
+def test_evaluate_bad_shield_guard(tmp_path, capsys, value):
+    """A shield guard outside (0, 1) is refused with the expected range and the value given."""
+    argv = ["--controller", "resolved-rate", "--shield", value, "--episodes", "1", "--out", str(tmp_path)]
+    err = _exit_message(evaluate.main, argv, capsys)
+    assert f"--shield: k_guard must be a number in (0, 1), got {float(value)!r}" in err, err
+
+
 @pytest.mark.parametrize("env_id", ["Planar3RPRReach-v1", "CartPole-v1", "reach"])
 def test_evaluate_unknown_env(tmp_path, capsys, env_id):
     """An env id outside ENV_IDS (even one Gymnasium knows) lists the valid ids."""
