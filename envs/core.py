@@ -13,18 +13,23 @@ from typing import NamedTuple
 
 import numpy as np
 
+from envs import kernels
 from kinematics import Planar3RPR
 
 __all__ = [
+    "EVALUATION_COLUMNS",
+    "REWARD_TERMS",
     "TERMINATION_REASONS",
     "EnvParams",
     "Reference",
     "State",
     "StepOutcome",
+    "evaluate",
     "observation",
     "observation_bounds",
     "reference_pose",
     "reward_terms",
+    "step",
     "substep_counts",
     "success",
     "transition",
@@ -41,6 +46,25 @@ TERMINATION_REASONS = (
     "out_of_bounds",
 )
 NEWTON_FAILED, ASSEMBLY_MODE_CHANGE, SINGULARITY_CROSSED, SINGULAR, OUT_OF_BOUNDS = range(1, 6)
+#: Names of the reward terms, in the order they are summed.
+REWARD_TERMS = ("reward_tracking", "reward_singularity", "reward_action", "reward_termination")
+
+
+def _rows3(a: np.ndarray) -> np.ndarray:
+    """``a`` as a float64 array of shape (N, 3) (no copy when it already is one)."""
+    a = np.asarray(a, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"expected an array of shape (N, 3), got shape {a.shape}")
+    return a
+
+
+def _batch_size(**arrays: np.ndarray) -> int:
+    """The common leading dimension N of ``arrays`` (the kernels index them without bounds checks)."""
+    sizes = {name: np.shape(value)[0] if np.ndim(value) else None for name, value in arrays.items()}
+    n = next(iter(sizes.values()))
+    if n is None or any(size != n for size in sizes.values()):
+        raise ValueError(f"arrays must share their leading batch dimension N, got {sizes}")
+    return n
 
 
 @dataclass(frozen=True)
@@ -95,6 +119,16 @@ class EnvParams:
     max_substep: float = 0.01
     max_substeps: int = 16
     track_period: float = 10.0
+
+    @functools.cached_property
+    def packed(self) -> np.ndarray:
+        """Every constant as the compiled kernels' float64 vector (``envs.kernels.pack_params``), read-only."""
+        return kernels.pack_params(self)
+
+    @functools.cached_property
+    def observation_bounds(self) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """``observation_bounds`` without (index 0) and with (index 1) the target velocity."""
+        return _observation_bounds(self, False), _observation_bounds(self, True)
 
     @property
     def pose_metric(self) -> np.ndarray:
@@ -182,45 +216,18 @@ def reference_pose(params: EnvParams, reference: Reference, t: np.ndarray) -> tu
     Returns:
         (pose (N, 3) [m, m, rad], velocity (N, 3) [m/s, m/s, rad/s]).
     """
-    omega = 2.0 * np.pi / params.track_period
-    wt = omega * t * params.dt
-    angle = wt + reference.phase
-    r, a = reference.radius, reference.amplitude
-    pose = reference.center + np.stack([r * np.cos(angle), r * np.sin(angle), a * np.sin(wt)], axis=-1)
-    velocity = omega * np.stack([-r * np.sin(angle), r * np.cos(angle), a * np.cos(wt)], axis=-1)
-    return pose, velocity
-
-
-def _pose_rate(robot: Planar3RPR, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray) -> np.ndarray:
-    """ẋ = J_f(q, x) q̇, shape (N, 3); NaN where J_x is exactly singular."""
-    J_f = robot.forward_jacobian(q, x, validate=False)
-    return np.einsum("nij,nj->ni", J_f, q_rate)
-
-
-def _predict(
-    params: EnvParams, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray, h: np.ndarray, rate: np.ndarray | None = None
-) -> np.ndarray:
-    """Integrate ẋ = J_f(q(τ), x) q̇ over a time h with q(τ) = q + q̇ τ (Euler or classic RK4).
-
-    Args:
-        params: Environment constants (robot, integrator).
-        q: Strokes at the start [m], shape (M, 3).
-        x: Poses at the start, shape (M, 3).
-        q_rate: Stroke rates [m/s], shape (M, 3).
-        h: Time to integrate over [s], shape (M, 1).
-        rate: ẋ = J_f(q, x) q̇ at the start if already known, shape (M, 3) (saves one J_f).
-
-    Returns:
-        Predicted poses, shape (M, 3); NaN where J_x is exactly singular.
-    """
-    robot = params.robot
-    k1 = _pose_rate(robot, q, x, q_rate) if rate is None else rate
-    if params.integrator == "euler":
-        return x + h * k1
-    k2 = _pose_rate(robot, q + 0.5 * h * q_rate, x + 0.5 * h * k1, q_rate)
-    k3 = _pose_rate(robot, q + 0.5 * h * q_rate, x + 0.5 * h * k2, q_rate)
-    k4 = _pose_rate(robot, q + h * q_rate, x + h * k3, q_rate)
-    return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    t = np.atleast_1d(np.asarray(t, dtype=np.int64))
+    n = np.broadcast_shapes(t.shape, np.shape(reference.radius))
+    if len(n) != 1:
+        raise ValueError(f"t must have shape (N,) matching the reference's, got {t.shape}")
+    (n,) = n
+    center = _rows3(reference.center)
+    return kernels.reference_batch(
+        params.packed,
+        np.broadcast_to(t, (n,)),
+        np.broadcast_to(center, (n, 3)),
+        *(np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)) for v in reference[1:]),
+    )
 
 
 def substep_counts(
@@ -241,16 +248,16 @@ def substep_counts(
     Returns:
         Integer counts in [1, max_substeps], shape (N,).
     """
-    if rate is None:
-        rate = _pose_rate(params.robot, q, x, q_rate)
-    with np.errstate(invalid="ignore", over="ignore"):
-        motion = np.linalg.norm(rate * params.dt * params.pose_metric, axis=-1)
-        count = np.ceil(motion / params.max_substep)
-    return np.where(np.isfinite(count), np.clip(count, 1, params.max_substeps), params.max_substeps).astype(np.int64)
+    q, x, q_rate = _rows3(q), _rows3(x), _rows3(q_rate)
+    rate = None if rate is None else _rows3(rate)
+    _batch_size(q=q, x=x, q_rate=q_rate, **({} if rate is None else {"rate": rate}))
+    return kernels.substep_batch(params.packed, q, x, q_rate, rate)
 
 
 def conditioning(params: EnvParams, q: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Inverse condition number of the homogeneous Jacobian and sign(det J_x).
+
+    k = σ_min/σ_max of J_i diag(1, 1, 1/ℓ_c) (the robot's ``inverse_condition_number``).
 
     Args:
         params: Environment constants (the robot).
@@ -260,8 +267,9 @@ def conditioning(params: EnvParams, q: np.ndarray, x: np.ndarray) -> tuple[np.nd
     Returns:
         (inverse condition number (N,) in [0, 1], sign of det J_x (N,) in {−1, 0, 1}).
     """
-    inverse_condition, det = params.robot.singularity_measures(q, x, validate=False)
-    return inverse_condition, np.sign(det)
+    q, x = _rows3(q), _rows3(x)
+    _batch_size(q=q, x=x)
+    return kernels.singularity_batch(params.packed, q, x)
 
 
 def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[State, StepOutcome]:
@@ -280,6 +288,9 @@ def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[Sta
        (a crossed Type II singularity), an inverse condition number below ``hard_threshold``, and a
        pose outside the bounds.
 
+    The work is done per robot by the compiled kernel ``envs.kernels.transition_batch`` (on every core
+    for large N).
+
     Args:
         params: Environment constants.
         state: The robots' state.
@@ -288,58 +299,17 @@ def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[Sta
     Returns:
         (the new state, the step's outcome).
     """
-    robot = params.robot
-    a = np.clip(action, -1.0, 1.0)
-    lo, hi = params.stroke_limits
-    q_new = np.clip(state.q + a * (params.max_rate * params.dt), lo, hi)
-    q_rate = (q_new - state.q) / params.dt
-    rate = _pose_rate(robot, state.q, state.x, q_rate)  # ẋ at the start: sizes the substeps, starts the first
-    count = substep_counts(params, state.q, state.x, q_rate, rate)
-    q_k, x_k, residual = state.q.copy(), state.x.copy(), state.residual.copy()
-    failed = np.zeros(len(count), dtype=bool)
-    jump = np.zeros(len(count))
-    for k in range(int(count.max())):
-        idx = np.flatnonzero((k < count) & ~failed)
-        if idx.size == 0:
-            break
-        n = count[idx][:, None]
-        q_to = state.q[idx] + (k + 1) / n * (q_new[idx] - state.q[idx])
-        x_pred = _predict(params, q_k[idx], x_k[idx], q_rate[idx], params.dt / n, rate[idx] if k == 0 else None)
-        with np.errstate(invalid="ignore", over="ignore"):
-            fk = robot.forward_kinematics(
-                q_to,
-                np.where(np.isfinite(x_pred), x_pred, x_k[idx]),
-                tolerance=params.newton_tolerance,
-                max_iterations=params.newton_max_iterations,
-                validate=False,
-            )
-        ok = np.asarray(fk.converged) & np.isfinite(x_pred).all(axis=-1)
-        gap = np.linalg.norm((fk.x - x_pred) * params.pose_metric, axis=-1)
-        jump[idx] = np.maximum(jump[idx], np.where(ok, gap, 0.0))
-        failed[idx] = ~ok
-        q_k[idx[ok]], x_k[idx[ok]], residual[idx[ok]] = q_to[ok], fk.x[ok], fk.residual[ok]
-    q_next = np.where(failed[:, None], state.q, q_k)
-    x_next = np.where(failed[:, None], state.x, x_k)
-    residual = np.where(failed, state.residual, residual)
-    inverse_condition, det_sign = conditioning(params, q_next, x_next)
-    out = np.any((x_next < params.pose_low) | (x_next > params.pose_high), axis=-1)
-    reason = np.select(
-        [
-            failed,
-            jump > params.jump_tolerance,
-            det_sign != state.det_sign,
-            inverse_condition < params.hard_threshold,
-            out,
-        ],
-        [NEWTON_FAILED, ASSEMBLY_MODE_CHANGE, SINGULARITY_CROSSED, SINGULAR, OUT_OF_BOUNDS],
-        default=0,
+    action = _rows3(action)
+    _batch_size(q=state.q, x=state.x, det_sign=state.det_sign, residual=state.residual, action=action)
+    q, x, k, residual, a, q_rate, reason, jump = kernels.transition_batch(
+        params.packed, state.q, state.x, state.det_sign, state.residual, action
     )
     new_state = State(
-        q=q_next,
-        x=x_next,
+        q=q,
+        x=x,
         t=state.t + 1,
         det_sign=state.det_sign,
-        inverse_condition=inverse_condition,
+        inverse_condition=k,
         residual=residual,
         reference=state.reference,
     )
@@ -357,22 +327,9 @@ def tracking_errors(params: EnvParams, x: np.ndarray, target: np.ndarray) -> tup
     Returns:
         (position error (N,) [m], orientation error (N,) [rad]).
     """
-    delta = target - x
-    return np.hypot(delta[..., 0], delta[..., 1]), np.abs(wrap_angle(delta[..., 2]))
-
-
-def singularity_penalty(params: EnvParams, inverse_condition: np.ndarray) -> np.ndarray:
-    """((k_safe − k) / k_safe)² below the safe threshold k_safe, 0 above (C¹ at k_safe).
-
-    Args:
-        params: Environment constants (safe_threshold).
-        inverse_condition: k, any shape.
-
-    Returns:
-        Penalty in [0, 1], same shape.
-    """
-    gap = np.maximum(params.safe_threshold - inverse_condition, 0.0) / params.safe_threshold
-    return gap * gap
+    x, target = _rows3(x), _rows3(target)
+    _batch_size(x=x, target=target)
+    return kernels.errors_batch(x, target)
 
 
 def reward_terms(
@@ -386,7 +343,7 @@ def reward_terms(
     """Every term of the reward; the reward is their sum.
 
     reward = −(w_p ‖p* − p‖ + w_φ ℓ_c |wrap(φ* − φ)|)         tracking
-             − w_s ((k_safe − k)/k_safe)² [k < k_safe]           singularity
+             − w_s ((k_safe − k)/k_safe)² [k < k_safe]           singularity (C¹ at k_safe)
              − w_a ‖a‖²                                          action
              − P [terminated]                                    termination
 
@@ -401,16 +358,12 @@ def reward_terms(
     Returns:
         {"reward_tracking", "reward_singularity", "reward_action", "reward_termination"}, each (N,).
     """
-    position_error, orientation_error = tracking_errors(params, x, target)
-    l_c = params.robot.characteristic_length
-    return {
-        "reward_tracking": -(
-            params.position_weight * position_error + params.orientation_weight * l_c * orientation_error
-        ),
-        "reward_singularity": -params.singularity_weight * singularity_penalty(params, inverse_condition),
-        "reward_action": -params.action_weight * np.sum(action * action, axis=-1),
-        "reward_termination": -params.termination_penalty * (reason != 0),
-    }
+    x, target, action = _rows3(x), _rows3(target), _rows3(action)
+    inverse_condition = np.asarray(inverse_condition, dtype=np.float64)
+    reason = np.asarray(reason, dtype=np.int64)
+    _batch_size(x=x, target=target, inverse_condition=inverse_condition, action=action, reason=reason)
+    terms = kernels.terms_batch(params.packed, x, target, inverse_condition, action, reason)
+    return dict(zip(REWARD_TERMS, terms.T.copy()))
 
 
 def success(params: EnvParams, x: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -425,12 +378,9 @@ def success(params: EnvParams, x: np.ndarray, target: np.ndarray) -> np.ndarray:
         Boolean array, shape (N,).
     """
     position_error, orientation_error = tracking_errors(params, x, target)
-    return (position_error <= params.success_position_tolerance) & (
-        orientation_error <= params.success_orientation_tolerance
-    )
+    return kernels.success_batch(params.packed, position_error, orientation_error)
 
 
-@functools.lru_cache(maxsize=64)
 def observation_bounds(params: EnvParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
     """Finite bounds of the observation vector (see ``observation`` for the layout).
 
@@ -439,8 +389,12 @@ def observation_bounds(params: EnvParams, with_velocity: bool) -> tuple[np.ndarr
         with_velocity: Whether the target velocity is appended (Track).
 
     Returns:
-        (low, high), each float32 of shape (18,) or (21,), read-only (cached per params).
+        (low, high), each float32 of shape (18,) or (21,), read-only (computed once per params).
     """
+    return params.observation_bounds[bool(with_velocity)]
+
+
+def _observation_bounds(params: EnvParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
     low_p, high_p = np.array(params.pose_low), np.array(params.pose_high)
     span = high_p[:2] - low_p[:2]
     pose_lo = [low_p[0], low_p[1], -1.0, -1.0]
@@ -480,22 +434,134 @@ def observation(
     Returns:
         Observations, shape (N, 18) or (N, 21), float32.
     """
-    x = state.x
-    lo, hi = params.stroke_limits
-    parts = [
-        x[:, :2],
-        np.cos(x[:, 2:3]),
-        np.sin(x[:, 2:3]),
-        target[:, :2],
-        np.cos(target[:, 2:3]),
-        np.sin(target[:, 2:3]),
-        target[:, :2] - x[:, :2],
-        wrap_angle(target[:, 2:3] - x[:, 2:3]),
-        2.0 * (state.q - lo) / (hi - lo) - 1.0,
-        (params.robot.inverse_kinematics(target, validate=False) - state.q) / (hi - lo),
-        state.inverse_condition[:, None],
-    ]
-    if with_velocity:
-        parts.append(velocity)
     low, high = observation_bounds(params, with_velocity)
-    return np.clip(np.concatenate(parts, axis=-1), low, high).astype(np.float32)
+    target, velocity = _rows3(target), _rows3(velocity)
+    _batch_size(q=state.q, x=state.x, k=state.inverse_condition, target=target, velocity=velocity)
+    return kernels.observation_batch(
+        params.packed, low, high, with_velocity, state.q, state.x, state.inverse_condition, target, velocity
+    )
+
+
+#: Columns of the per-robot evaluation returned by ``evaluate`` and ``step`` (``envs.kernels.E_*``):
+#: the four reward terms, their sum, the errors, success, cost, and the target pose and velocity.
+EVALUATION_COLUMNS = {
+    "reward_tracking": kernels.E_TRACKING,
+    "reward_singularity": kernels.E_SINGULARITY,
+    "reward_action": kernels.E_ACTION,
+    "reward_termination": kernels.E_TERMINATION,
+    "reward": kernels.E_REWARD,
+    "position_error": kernels.E_POSITION_ERROR,
+    "orientation_error": kernels.E_ORIENTATION_ERROR,
+    "is_success": kernels.E_SUCCESS,
+    "cost": kernels.E_COST,
+    "target": slice(kernels.E_TARGET, kernels.E_TARGET + 3),
+    "target_velocity": slice(kernels.E_VELOCITY, kernels.E_VELOCITY + 3),
+}
+
+
+def _check_state(state: State, action: np.ndarray | None = None) -> int:
+    """N, after checking that every array of ``state`` (and ``action``) has the shape the kernels index."""
+    n = state.q.shape[0]
+    rows, flat = (n, 3), (n,)
+    ref = state.reference
+    if not (
+        state.q.shape == rows
+        and state.x.shape == rows
+        and ref.center.shape == rows
+        and state.t.shape == flat
+        and state.det_sign.shape == flat
+        and state.inverse_condition.shape == flat
+        and state.residual.shape == flat
+        and ref.radius.shape == flat
+        and ref.phase.shape == flat
+        and ref.amplitude.shape == flat
+        and (action is None or action.shape == rows)
+    ):
+        shapes = {name: np.shape(value) for name, value in zip(State._fields, state) if name != "reference"}
+        shapes.update({f"reference.{name}": np.shape(value) for name, value in zip(Reference._fields, ref)})
+        if action is not None:
+            shapes["action"] = action.shape
+        raise ValueError(f"state arrays must have shapes (N, 3) or (N,) with one N, got {shapes}")
+    return n
+
+
+def evaluate(
+    params: EnvParams, state: State, action: np.ndarray, reason: np.ndarray, with_velocity: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Everything the environments report about a state, in one compiled pass.
+
+    Equivalent to ``reference_pose``, ``reward_terms``, ``tracking_errors``, ``success`` (and reason == 0),
+    cost (k < safe_threshold) and ``observation``, which share its kernels.
+
+    Args:
+        params: Environment constants.
+        state: The robots' state.
+        action: The applied actions, shape (N, 3).
+        reason: Termination reason codes, shape (N,).
+        with_velocity: Whether the observation ends with the target velocity.
+
+    Returns:
+        (evaluation, shape (N, len(E)) float64 with the columns of ``EVALUATION_COLUMNS``;
+        observations, shape (N, 18) or (N, 21) float32).
+    """
+    action = _rows3(action)
+    reason = np.asarray(reason, dtype=np.int64)
+    n = _check_state(state, action)
+    if reason.shape != (n,):
+        raise ValueError(f"reason must have shape ({n},), got {reason.shape}")
+    low, high = params.observation_bounds[bool(with_velocity)]
+    ref = state.reference
+    return kernels.evaluate_batch(
+        params.packed,
+        low,
+        high,
+        bool(with_velocity),
+        state.q,
+        state.x,
+        state.t,
+        state.inverse_condition,
+        ref.center,
+        ref.radius,
+        ref.phase,
+        ref.amplitude,
+        action,
+        reason,
+    )
+
+
+def step(
+    params: EnvParams, state: State, action: np.ndarray, with_velocity: bool
+) -> tuple[State, StepOutcome, np.ndarray, np.ndarray]:
+    """``transition`` then ``evaluate`` of the new state, fused in one compiled pass (what the envs call).
+
+    Args:
+        params: Environment constants.
+        state: The robots' state.
+        action: Normalised stroke rates, shape (N, 3), float64, finite.
+        with_velocity: Whether the observation ends with the target velocity.
+
+    Returns:
+        (new state, outcome, evaluation (N, len(E)) float64, observations float32), as ``transition``
+        and ``evaluate``.
+    """
+    _check_state(state, action)
+    low, high = params.observation_bounds[bool(with_velocity)]
+    ref = state.reference
+    q, x, t, k, residual, a, q_rate, reason, jump, evaluation, observations = kernels.step_batch(
+        params.packed,
+        low,
+        high,
+        bool(with_velocity),
+        state.q,
+        state.x,
+        state.t,
+        state.det_sign,
+        state.residual,
+        ref.center,
+        ref.radius,
+        ref.phase,
+        ref.amplitude,
+        action,
+    )
+    new_state = State(q, x, t, state.det_sign, k, residual, ref)
+    return new_state, StepOutcome(a, q_rate, reason, jump), evaluation, observations

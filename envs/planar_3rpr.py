@@ -170,34 +170,46 @@ def initial_state(params: EnvParams, start: np.ndarray, reference: Reference) ->
     )
 
 
-def step_info(
-    params: EnvParams, state: State, target: np.ndarray, terms: dict[str, np.ndarray], reason: np.ndarray
-) -> dict[str, np.ndarray]:
-    """Per-robot diagnostics of a state (batched): errors, conditioning, success, cost, reward terms.
+def step_info(state: State, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-robot diagnostics of a state (batched): reward terms, errors, conditioning, success, cost.
 
     Args:
-        params: Environment constants.
         state: The robots' state after the step.
-        target: Target poses at the state's step, shape (N, 3).
-        terms: Reward terms of the step, each (N,).
+        evaluation: ``core.evaluate`` / ``core.step`` output for that state, shape (N, E).
         reason: Termination reason codes, shape (N,).
 
     Returns:
-        Arrays with a leading dimension N.
+        Fresh arrays with a leading dimension N, in the order of the single env's ``info``.
     """
-    position_error, orientation_error = core.tracking_errors(params, state.x, target)
-    return {
-        **terms,
-        "position_error": position_error,
-        "orientation_error": orientation_error,
-        "inverse_condition_number": state.inverse_condition,
-        "constraint_residual": state.residual,
-        "is_success": core.success(params, state.x, target) & (reason == 0),
-        "cost": (state.inverse_condition < params.safe_threshold).astype(np.float64),
-        "termination_reason": np.asarray(core.TERMINATION_REASONS, dtype=object)[reason],
-        "pose": state.x,
-        "target": target,
-    }
+    columns = core.EVALUATION_COLUMNS
+    info = {name: evaluation[:, columns[name]].copy() for name in INFO_FLOATS[:4]}
+    info.update(
+        position_error=evaluation[:, columns["position_error"]].copy(),
+        orientation_error=evaluation[:, columns["orientation_error"]].copy(),
+        inverse_condition_number=state.inverse_condition.copy(),
+        constraint_residual=state.residual.copy(),
+        is_success=evaluation[:, columns["is_success"]] != 0.0,
+        cost=evaluation[:, columns["cost"]].copy(),
+        termination_reason=_REASON_NAMES[reason],
+        pose=state.x.copy(),
+        target=evaluation[:, columns["target"]].copy(),
+    )
+    return info
+
+
+#: Termination reason names as an object array (indexed by reason codes).
+_REASON_NAMES = np.asarray(core.TERMINATION_REASONS, dtype=object)
+#: The float entries of a single env's ``info`` that come straight from the evaluation row.
+INFO_FLOATS = (
+    "reward_tracking",
+    "reward_singularity",
+    "reward_action",
+    "reward_termination",
+    "position_error",
+    "orientation_error",
+    "cost",
+)
+_INFO_COLUMNS = [core.EVALUATION_COLUMNS[name] for name in INFO_FLOATS]
 
 
 class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
@@ -241,14 +253,11 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._trail.clear()
         self._trail.append(self._state.x[0, :2].copy())
         reason = np.zeros(1, dtype=np.int64)
-        target, velocity = self._reference()
-        terms = core.reward_terms(
-            self.params, self._state.x, target, self._state.inverse_condition, np.zeros((1, 3)), reason
-        )
-        info = self._info(target, terms, reason)
+        evaluation, observations = core.evaluate(self.params, self._state, np.zeros((1, 3)), reason, self.with_velocity)
+        info = self._info(evaluation[0], 0)
         if self.render_mode == "human":
             self.render()
-        return self._observation(target, velocity), info
+        return observations[0], info
 
     def step(self, action: Any):
         """Apply normalised stroke rates for one period dt (see the class docstring)."""
@@ -257,17 +266,22 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
         if self._terminated:
             raise gym.error.ResetNeeded("The episode has terminated; call reset() before step()")
         a = self._check_action(action)
-        state, outcome = core.transition(self.params, self._state, a[None])
+        state, outcome, evaluation, observations = core.step(self.params, self._state, a, self.with_velocity)
         self._state = state
-        target, velocity = self._reference()
-        terms = core.reward_terms(self.params, state.x, target, state.inverse_condition, outcome.action, outcome.reason)
-        reward = float(sum(float(v[0]) for v in terms.values()))
-        terminated = bool(outcome.reason[0] != 0)
+        reason = int(outcome.reason[0])
+        terminated = reason != 0
         self._terminated = terminated
         self._trail.append(state.x[0, :2].copy())
         if self.render_mode == "human":
             self.render()
-        return self._observation(target, velocity), reward, terminated, False, self._info(target, terms, outcome.reason)
+        row = evaluation[0]
+        return (
+            observations[0],
+            float(row[core.EVALUATION_COLUMNS["reward"]]),
+            terminated,
+            False,
+            self._info(row, reason),
+        )
 
     def render(self):
         """An RGB frame (``rgb_array``), or a window update (``human``); None without a render mode."""
@@ -308,35 +322,34 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
     def _reference(self) -> tuple[np.ndarray, np.ndarray]:
         return core.reference_pose(self.params, self._state.reference, self._state.t)
 
-    def _observation(self, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        return core.observation(self.params, self._state, target, velocity, self.with_velocity)[0]
-
-    def _info(self, target: np.ndarray, terms: dict[str, np.ndarray], reason: np.ndarray) -> dict[str, Any]:
-        batched = step_info(self.params, self._state, target, terms, reason)
-        info: dict[str, Any] = {}
-        for key, value in batched.items():
-            item = value[0]
-            if isinstance(item, np.ndarray):
-                info[key] = item.copy()
-            elif isinstance(item, (bool, np.bool_)):
-                info[key] = bool(item)
-            elif isinstance(item, str):
-                info[key] = item
-            else:
-                info[key] = float(item)
+    def _info(self, row: np.ndarray, reason: int) -> dict[str, Any]:
+        """The single env's ``info`` from its evaluation row (same keys and values as ``step_info``)."""
+        state = self._state
+        values = row.tolist()
+        info: dict[str, Any] = {name: values[column] for name, column in zip(INFO_FLOATS[:4], _INFO_COLUMNS)}
+        info["position_error"] = values[_INFO_COLUMNS[4]]
+        info["orientation_error"] = values[_INFO_COLUMNS[5]]
+        info["inverse_condition_number"] = float(state.inverse_condition[0])
+        info["constraint_residual"] = float(state.residual[0])
+        info["is_success"] = values[core.EVALUATION_COLUMNS["is_success"]] != 0.0
+        info["cost"] = values[_INFO_COLUMNS[6]]
+        info["termination_reason"] = core.TERMINATION_REASONS[reason]
+        info["pose"] = state.x[0].copy()
+        info["target"] = row[core.EVALUATION_COLUMNS["target"]].copy()
         return info
 
     @staticmethod
     def _check_action(action: Any) -> np.ndarray:
+        """``action`` as a float64 array of shape (1, 3), or a clear error (not finite, wrong shape, not numbers)."""
         try:
             a = np.asarray(action, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise TypeError(f"action must be an array of 3 real numbers, got {action!r}") from exc
         if a.shape != (3,):
             raise ValueError(f"action must have shape (3,), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not math.isfinite(a[0] + a[1] + a[2]):  # one scalar test; NaN and ±inf propagate into the sum
             raise ValueError(f"action must be finite, got {a.tolist()}")
-        return a
+        return a.reshape(1, 3)
 
     def _check_pose(self, name: str, value: Any) -> np.ndarray:
         try:

@@ -55,15 +55,15 @@ class Planar3RPRVectorEnv(VectorEnv):
     Every sub-environment is exactly the single environment of the same id (`Planar3RPRReach-v0`,
     `Planar3RPRReachHard-v0` or `Planar3RPRTrack-v0`, see their docstrings); this class holds the
     state of the N robots as arrays with a leading dimension N and advances them with the very
-    functions the single environment calls with N = 1 (`core.transition`, `core.reward_terms`,
-    `core.reference_pose`, `core.observation`, `planar_3rpr.initial_state`, `planar_3rpr.step_info`,
-    and the single environment's own task sampling). Nothing of the dynamics, reward, sampling or
-    info is copied here, so the two cannot drift apart: sub-environment i of
-    `reset(seed=s)` behaves as `gym.make(id)` reset with seed s + i (up to floating-point rounding,
-    since a batch of ≥ 16 robots uses a closed-form 3×3 solve where one robot uses LAPACK).
+    functions the single environment calls with N = 1 (`core.step` and `core.evaluate`, whose compiled
+    kernels do the dynamics, reward and observation robot by robot, on every core for large N;
+    `planar_3rpr.initial_state`, `planar_3rpr.step_info`, and the single environment's own task
+    sampling). Nothing of the dynamics, reward, sampling or info is copied here, so the two cannot
+    drift apart: sub-environment i of `reset(seed=s)` behaves exactly as `gym.make(id)` reset with
+    seed s + i, to the last bit.
 
-    The step is fully vectorised; only starting new episodes loops over the robots that start one
-    (each draws its task from its own generator, as the single env does).
+    The step is one compiled pass over the robots; only starting new episodes loops in Python over the
+    robots that start one (each draws its task from its own generator, as the single env does).
 
     ## Action Space
     `Box(-1, 1, (N, 3), float32)`: row i is the action of sub-environment i (stroke rates
@@ -226,7 +226,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         else:
             _put(self._state, rows, fresh)
         self._ended[rows] = False
-        observations, _, info = self._evaluate(fresh, np.zeros((rows.size, 3)), np.zeros(rows.size, dtype=np.int64))
+        observations, info = self._evaluate(fresh, np.zeros((rows.size, 3)), np.zeros(rows.size, dtype=np.int64))
         if self._observations is None:
             self._observations = observations
         else:
@@ -253,12 +253,10 @@ class Planar3RPRVectorEnv(VectorEnv):
                 f"sub-environment(s) {ended[:10]} have ended and autoreset_mode is DISABLED; "
                 "reset them with reset(options={'reset_mask': mask})"
             )
-        state, outcome = core.transition(self.params, self._state, a)
+        state, outcome, evaluation, observations = core.step(self.params, self._state, a, self.with_velocity)
         self._state = state
-        observations, terms, info = self._evaluate(state, outcome.action, outcome.reason)
-        rewards = np.zeros(self.num_envs)
-        for term in terms.values():  # the single env's order of summation: same rounding
-            rewards += term
+        info = step_info(state, evaluation, outcome.reason)
+        rewards = evaluation[:, core.EVALUATION_COLUMNS["reward"]].copy()
         terminations = outcome.reason != 0
         truncations = state.t >= self.max_episode_steps
         extra: dict[str, Any] = {}
@@ -413,13 +411,10 @@ class Planar3RPRVectorEnv(VectorEnv):
 
     def _evaluate(
         self, state: State, action: np.ndarray, reason: np.ndarray
-    ) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
-        """Observations, reward terms and per-robot info arrays (fresh, writable) of a batched state."""
-        target, velocity = core.reference_pose(self.params, state.reference, state.t)
-        terms = core.reward_terms(self.params, state.x, target, state.inverse_condition, action, reason)
-        observations = core.observation(self.params, state, target, velocity, self.with_velocity)
-        info = {key: np.array(value) for key, value in step_info(self.params, state, target, terms, reason).items()}
-        return observations, terms, info
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Observations and per-robot info arrays (fresh, writable) of a batched state."""
+        evaluation, observations = core.evaluate(self.params, state, action, reason, self.with_velocity)
+        return observations, step_info(state, evaluation, reason)
 
     def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> State:
         """Draw a task for each sub-environment of ``rows`` with its own generator; their state at t = 0."""
@@ -439,7 +434,7 @@ class Planar3RPRVectorEnv(VectorEnv):
                 self._generators[i], self._seeds[i] = seeding.np_random()
         fresh = self._start_episodes(rows, {})
         _put(self._state, rows, fresh)
-        new_obs, _, new_info = self._evaluate(fresh, np.zeros((rows.size, 3)), np.zeros(rows.size, dtype=np.int64))
+        new_obs, new_info = self._evaluate(fresh, np.zeros((rows.size, 3)), np.zeros(rows.size, dtype=np.int64))
         observations[rows] = new_obs
         for key, value in new_info.items():
             info[key][rows] = value

@@ -1,0 +1,947 @@
+"""Compiled (Numba) kernels: the one implementation of the 3-RPR environments' step, reward and observation.
+
+Every function here works on one robot at a time, on scalars, so a batch is a loop that Numba compiles
+to machine code (and, for large batches, spreads over the cores). ``envs.core`` wraps them in the pure,
+batched functions that the single environment (N = 1), the native vector environment, the shield, the
+controllers' harness and the tests call; nothing else computes the dynamics.
+
+The constraint math is the lesson's, written out for the planar 3-RPR (see ``kinematics``): with the leg
+vectors d_i = p + R(φ) P_i − B_i,
+
+    Φ_i = d_iᵀ d_i − L_i²,   J_x = 2 A,   A_i = (d_ix, d_iy, d_iyᵀ (R P_i)_x − d_ix (R P_i)_y),
+    J_q = −2 diag(L),        J_f = −J_x⁻¹ J_q = A⁻¹ diag(L),   J_i = −J_q⁻¹ J_x = diag(1/L) A.
+
+3 × 3 systems are solved with the adjugate (Cramer's rule); the inverse condition number of the
+homogeneous inverse Jacobian J_i diag(1, 1, 1/ℓ_c) comes from a one-sided Jacobi SVD (Hestenes), which
+gets small singular values to high relative accuracy. ``kinematics.Planar3RPR`` (NumPy, checked against
+SymPy and finite differences) is the reference these kernels are tested against.
+
+The constants of an environment travel as one float64 vector (``pack_params``), indexed by the ``C_*``
+offsets below.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = [
+    "C_SIZE",
+    "errors_batch",
+    "evaluate_batch",
+    "observation_batch",
+    "pack_params",
+    "reference_batch",
+    "singularity_batch",
+    "substep_batch",
+    "success_batch",
+    "terms_batch",
+    "transition_batch",
+]
+
+# Offsets into the packed constants vector.
+C_B = 0  # base anchors B_i (x, y) [m], 6 entries
+C_P = 6  # platform points P_i (x, y) in {P} [m], 6 entries
+C_LC = 12  # characteristic length ℓ_c [m]
+C_LMIN = 13
+C_LMAX = 14
+C_DT = 15
+C_RATE = 16
+C_RK4 = 17  # 1.0 for RK4, 0.0 for Euler
+C_LOW = 18  # pose_low, 3 entries
+C_HIGH = 21  # pose_high, 3 entries
+C_SAFE = 24
+C_HARD = 25
+C_WP = 26
+C_WO = 27
+C_WS = 28
+C_WA = 29
+C_PENALTY = 30
+C_SUCC_P = 31
+C_SUCC_O = 32
+C_NEWTON_TOL = 33
+C_NEWTON_IT = 34
+C_JUMP = 35
+C_MAX_SUBSTEP = 36
+C_MAX_SUBSTEPS = 37
+C_PERIOD = 38
+C_SCALE = 39  # pose_scale of the homogeneous Jacobian, 3 entries
+C_SIZE = 42
+
+# Termination reason codes (same order as ``core.TERMINATION_REASONS``).
+_NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
+
+#: Batches at least this large run on every core (``numba.prange``); smaller ones stay on one thread,
+#: where starting the thread pool would cost more than it saves.
+PARALLEL_MIN_BATCH = 2048
+
+_TWO_PI = 2.0 * math.pi
+
+
+def _jit(fn):
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+
+
+def _jit_inline(fn):
+    # Inlined into its callers at Numba's IR level: per-robot helpers take many array arguments,
+    # which an out-of-line call would pass field by field.
+    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
+
+
+def _jit_parallel(fn):
+    return numba.njit(cache=True, nogil=True, error_model="numpy", parallel=True)(fn)
+
+
+def pack_params(params) -> np.ndarray:
+    """The constants of ``params`` (an ``envs.core.EnvParams``) as the kernels' float64 vector, shape (C_SIZE,).
+
+    Args:
+        params: Environment constants.
+
+    Returns:
+        Read-only float64 vector indexed by the ``C_*`` offsets.
+    """
+    robot = params.robot
+    c = np.zeros(C_SIZE)
+    c[C_B : C_B + 6] = np.asarray(robot.base, dtype=np.float64).ravel()
+    c[C_P : C_P + 6] = np.asarray(robot.platform, dtype=np.float64).ravel()
+    c[C_LC] = robot.characteristic_length
+    c[C_LMIN], c[C_LMAX] = params.stroke_limits
+    c[C_DT], c[C_RATE] = params.dt, params.max_rate
+    c[C_RK4] = 1.0 if params.integrator == "rk4" else 0.0
+    c[C_LOW : C_LOW + 3] = params.pose_low
+    c[C_HIGH : C_HIGH + 3] = params.pose_high
+    c[C_SAFE], c[C_HARD] = params.safe_threshold, params.hard_threshold
+    c[C_WP], c[C_WO] = params.position_weight, params.orientation_weight
+    c[C_WS], c[C_WA] = params.singularity_weight, params.action_weight
+    c[C_PENALTY] = params.termination_penalty
+    c[C_SUCC_P], c[C_SUCC_O] = params.success_position_tolerance, params.success_orientation_tolerance
+    c[C_NEWTON_TOL], c[C_NEWTON_IT] = params.newton_tolerance, params.newton_max_iterations
+    c[C_JUMP], c[C_MAX_SUBSTEP], c[C_MAX_SUBSTEPS] = params.jump_tolerance, params.max_substep, params.max_substeps
+    c[C_PERIOD] = params.track_period
+    c[C_SCALE : C_SCALE + 3] = robot.pose_scale
+    c.setflags(write=False)
+    return c
+
+
+# -- scalar building blocks ---------------------------------------------------------------------------
+
+
+@_jit
+def _rows(c, px, py, phi):
+    """Rows of A = J_x / 2 and the squared leg lengths d_iᵀ d_i at the pose (px, py, phi)."""
+    cs = math.cos(phi)
+    sn = math.sin(phi)
+    rpx = cs * c[C_P + 0] - sn * c[C_P + 1]
+    rpy = sn * c[C_P + 0] + cs * c[C_P + 1]
+    dx0 = px + rpx - c[C_B + 0]
+    dy0 = py + rpy - c[C_B + 1]
+    m0 = dy0 * rpx - dx0 * rpy
+    rpx = cs * c[C_P + 2] - sn * c[C_P + 3]
+    rpy = sn * c[C_P + 2] + cs * c[C_P + 3]
+    dx1 = px + rpx - c[C_B + 2]
+    dy1 = py + rpy - c[C_B + 3]
+    m1 = dy1 * rpx - dx1 * rpy
+    rpx = cs * c[C_P + 4] - sn * c[C_P + 5]
+    rpy = sn * c[C_P + 4] + cs * c[C_P + 5]
+    dx2 = px + rpx - c[C_B + 4]
+    dy2 = py + rpy - c[C_B + 5]
+    m2 = dy2 * rpx - dx2 * rpy
+    return (
+        dx0,
+        dy0,
+        m0,
+        dx1,
+        dy1,
+        m1,
+        dx2,
+        dy2,
+        m2,
+        dx0 * dx0 + dy0 * dy0,
+        dx1 * dx1 + dy1 * dy1,
+        dx2 * dx2 + dy2 * dy2,
+    )
+
+
+@_jit
+def _solve3(a00, a01, a02, a10, a11, a12, a20, a21, a22, r0, r1, r2):
+    """Solve A u = r by the adjugate; returns (u0, u1, u2, det A); u is NaN when det A = 0."""
+    c00 = a11 * a22 - a12 * a21
+    c01 = a12 * a20 - a10 * a22
+    c02 = a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    if det == 0.0:
+        return np.nan, np.nan, np.nan, det
+    c10 = a02 * a21 - a01 * a22
+    c11 = a00 * a22 - a02 * a20
+    c12 = a01 * a20 - a00 * a21
+    c20 = a01 * a12 - a02 * a11
+    c21 = a02 * a10 - a00 * a12
+    c22 = a00 * a11 - a01 * a10
+    return (
+        (c00 * r0 + c10 * r1 + c20 * r2) / det,
+        (c01 * r0 + c11 * r1 + c21 * r2) / det,
+        (c02 * r0 + c12 * r1 + c22 * r2) / det,
+        det,
+    )
+
+
+@_jit
+def _max_abs3(a, b, c):
+    """max(|a|, |b|, |c|), NaN if any is NaN (as ``np.max``)."""
+    a, b, c = abs(a), abs(b), abs(c)
+    if a != a or b != b or c != c:
+        return np.nan
+    return max(a, max(b, c))
+
+
+@_jit
+def _pose_rate(c, q0, q1, q2, x0, x1, x2, r0, r1, r2):
+    """ẋ = J_f(q, x) q̇ = A⁻¹ (L ∘ q̇) [m/s, m/s, rad/s]; NaN where J_x is exactly singular."""
+    a = _rows(c, x0, x1, x2)
+    u0, u1, u2, _ = _solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], q0 * r0, q1 * r1, q2 * r2)
+    return u0, u1, u2
+
+
+@_jit
+def _jacobi_pair(a0, a1, a2, b0, b1, b2):
+    """One Hestenes rotation making columns a and b orthogonal; returns the new columns and whether it rotated."""
+    alpha = a0 * a0 + a1 * a1 + a2 * a2
+    beta = b0 * b0 + b1 * b1 + b2 * b2
+    gamma = a0 * b0 + a1 * b1 + a2 * b2
+    if abs(gamma) <= 2.220446049250313e-16 * math.sqrt(alpha * beta):
+        return a0, a1, a2, b0, b1, b2, False
+    zeta = (beta - alpha) / (2.0 * gamma)
+    if abs(zeta) > 1e150:
+        t = 0.5 / zeta
+    else:
+        t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+    cs = 1.0 / math.sqrt(1.0 + t * t)
+    sn = cs * t
+    return (
+        cs * a0 - sn * b0,
+        cs * a1 - sn * b1,
+        cs * a2 - sn * b2,
+        sn * a0 + cs * b0,
+        sn * a1 + cs * b1,
+        sn * a2 + cs * b2,
+        True,
+    )
+
+
+@_jit
+def _singular_value_ratio(m00, m01, m02, m10, m11, m12, m20, m21, m22):
+    """σ_min/σ_max of a 3 × 3 matrix by one-sided Jacobi SVD; 0 for the zero matrix, NaN if not finite."""
+    u0, u1, u2 = m00, m10, m20
+    v0, v1, v2 = m01, m11, m21
+    w0, w1, w2 = m02, m12, m22
+    for _ in range(60):
+        u0, u1, u2, v0, v1, v2, r1 = _jacobi_pair(u0, u1, u2, v0, v1, v2)
+        u0, u1, u2, w0, w1, w2, r2 = _jacobi_pair(u0, u1, u2, w0, w1, w2)
+        v0, v1, v2, w0, w1, w2, r3 = _jacobi_pair(v0, v1, v2, w0, w1, w2)
+        if not (r1 or r2 or r3):
+            break
+    s0 = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    s1 = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    s2 = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if s0 != s0 or s1 != s1 or s2 != s2:
+        return np.nan
+    top = max(s0, max(s1, s2))
+    if top == 0.0:
+        return 0.0
+    return min(s0, min(s1, s2)) / top
+
+
+@_jit
+def _singular_value_ratio_closed(m00, m01, m02, m10, m11, m12, m20, m21, m22):
+    """σ_min/σ_max of a 3 × 3 matrix M in closed form; 0 for a singular or zero M, NaN if not finite.
+
+    σ_max² ≥ σ_mid² are the two largest eigenvalues of G = MᵀM, from the trigonometric solution of its
+    characteristic cubic (both have full relative accuracy); σ_min = |det M| / (σ_max σ_mid), so the
+    ratio |det M| / (σ_max² σ_mid) keeps the relative accuracy of det M instead of losing it in λ_min(G).
+    """
+    g00 = m00 * m00 + m10 * m10 + m20 * m20
+    g11 = m01 * m01 + m11 * m11 + m21 * m21
+    g22 = m02 * m02 + m12 * m12 + m22 * m22
+    g01 = m00 * m01 + m10 * m11 + m20 * m21
+    g02 = m00 * m02 + m10 * m12 + m20 * m22
+    g12 = m01 * m02 + m11 * m12 + m21 * m22
+    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)
+    if not math.isfinite(det + g00 + g11 + g22):
+        return np.nan
+    mean = (g00 + g11 + g22) / 3.0
+    off = g01 * g01 + g02 * g02 + g12 * g12
+    d0, d1, d2 = g00 - mean, g11 - mean, g22 - mean
+    p = math.sqrt((d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * off) / 6.0)
+    if p == 0.0:  # G = mean · I: all singular values equal
+        return 1.0 if mean > 0.0 else 0.0
+    # r = det((G − mean I) / p) / 2, in [−1, 1]
+    r = (d0 * (d1 * d2 - g12 * g12) - g01 * (g01 * d2 - g12 * g02) + g02 * (g01 * g12 - d1 * g02)) / (2.0 * p * p * p)
+    r = min(max(r, -1.0), 1.0)
+    angle = math.acos(r) / 3.0
+    top = mean + 2.0 * p * math.cos(angle)
+    low = mean + 2.0 * p * math.cos(angle + 2.0 * math.pi / 3.0)
+    mid = 3.0 * mean - top - low
+    if 1.0 - abs(r) < 1e-6 or not mid >= 1e-4 * top:
+        # Two eigenvalues of G (nearly) coincide, where the cubic's roots lose accuracy, or the two
+        # smallest singular values are both tiny: take the one-sided Jacobi SVD instead.
+        return _singular_value_ratio(m00, m01, m02, m10, m11, m12, m20, m21, m22)
+    return min(abs(det) / (top * math.sqrt(mid)), 1.0)
+
+
+@_jit
+def _singularity_rows(c, q0, q1, q2, a):
+    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``a`` of A at x."""
+    s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
+    k = _singular_value_ratio_closed(
+        a[0] / q0 * s0,
+        a[1] / q0 * s1,
+        a[2] / q0 * s2,
+        a[3] / q1 * s0,
+        a[4] / q1 * s1,
+        a[5] / q1 * s2,
+        a[6] / q2 * s0,
+        a[7] / q2 * s1,
+        a[8] / q2 * s2,
+    )
+    det = a[0] * (a[4] * a[8] - a[5] * a[7]) + a[1] * (a[5] * a[6] - a[3] * a[8]) + a[2] * (a[3] * a[7] - a[4] * a[6])
+    sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
+    return k, sign
+
+
+@_jit
+def _singularity(c, q0, q1, q2, x0, x1, x2):
+    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) at (q, x)."""
+    return _singularity_rows(c, q0, q1, q2, _rows(c, x0, x1, x2))
+
+
+@_jit
+def _newton(c, q0, q1, q2, x0, x1, x2, tolerance, max_iterations):
+    """Newton's method on Φ(q, x) = 0 from x (as ``Planar3RPR.forward_kinematics``).
+
+    Each step solves J_x δ = Φ and sets x ← x − δ; it stops once max_i |Φ_i| ≤ tolerance, at a
+    non-finite residual or iterate, or after ``max_iterations`` steps.
+
+    Returns:
+        (x0, x1, x2, residual, rows of A at the returned x (as ``_rows``)).
+    """
+    a = _rows(c, x0, x1, x2)
+    residual = _max_abs3(a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2)
+    for _ in range(max_iterations):
+        if not residual > tolerance:  # NaN stops too
+            break
+        # J_x δ = Φ with J_x = 2A.
+        f0, f1, f2 = a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2
+        d0, d1, d2, _ = _solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], f0, f1, f2)
+        n0, n1, n2 = x0 - 0.5 * d0, x1 - 0.5 * d1, x2 - 0.5 * d2
+        if not (math.isfinite(n0) and math.isfinite(n1) and math.isfinite(n2)):
+            break
+        x0, x1, x2 = n0, n1, n2
+        a = _rows(c, x0, x1, x2)
+        residual = _max_abs3(a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2)
+    return x0, x1, x2, residual, a
+
+
+@_jit
+def _substeps(c, r0, r1, r2):
+    """Substeps so that each predicts at most ``max_substep`` of motion ‖(Δx, Δy, ℓ_c Δφ)‖ [m]."""
+    dt = c[C_DT]
+    m0 = r0 * dt
+    m1 = r1 * dt
+    m2 = r2 * dt * c[C_LC]
+    count = np.ceil(math.sqrt(m0 * m0 + m1 * m1 + m2 * m2) / c[C_MAX_SUBSTEP])
+    cap = c[C_MAX_SUBSTEPS]
+    if not math.isfinite(count):
+        return int(cap)
+    return int(min(max(count, 1.0), cap))
+
+
+@_jit_inline
+def _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
+    """Advance robot i by one control period (see ``core.transition``); writes row i of the outputs."""
+    dt = c[C_DT]
+    lo, hi = c[C_LMIN], c[C_LMAX]
+    lc = c[C_LC]
+    q0, q1, q2 = q[i, 0], q[i, 1], q[i, 2]
+    x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
+    a0 = min(max(action[i, 0], -1.0), 1.0)
+    a1 = min(max(action[i, 1], -1.0), 1.0)
+    a2 = min(max(action[i, 2], -1.0), 1.0)
+    stroke = c[C_RATE] * dt
+    n0 = min(max(q0 + a0 * stroke, lo), hi)
+    n1 = min(max(q1 + a1 * stroke, lo), hi)
+    n2 = min(max(q2 + a2 * stroke, lo), hi)
+    r0, r1, r2 = (n0 - q0) / dt, (n1 - q1) / dt, (n2 - q2) / dt
+    v0, v1, v2 = _pose_rate(c, q0, q1, q2, x0, x1, x2, r0, r1, r2)
+    count = _substeps(c, v0, v1, v2)
+    h = dt / count
+    rk4 = c[C_RK4] != 0.0
+    tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])
+    kq0, kq1, kq2, kx0, kx1, kx2 = q0, q1, q2, x0, x1, x2
+    res = residual[i]
+    jump = 0.0
+    failed = False
+    for k in range(count):
+        frac = (k + 1) / count
+        t0, t1, t2 = q0 + frac * (n0 - q0), q1 + frac * (n1 - q1), q2 + frac * (n2 - q2)
+        if k > 0:
+            v0, v1, v2 = _pose_rate(c, kq0, kq1, kq2, kx0, kx1, kx2, r0, r1, r2)
+        if rk4:
+            hh = 0.5 * h
+            m0, m1, m2 = kq0 + hh * r0, kq1 + hh * r1, kq2 + hh * r2
+            b0, b1, b2 = _pose_rate(c, m0, m1, m2, kx0 + hh * v0, kx1 + hh * v1, kx2 + hh * v2, r0, r1, r2)
+            e0, e1, e2 = _pose_rate(c, m0, m1, m2, kx0 + hh * b0, kx1 + hh * b1, kx2 + hh * b2, r0, r1, r2)
+            f0, f1, f2 = _pose_rate(
+                c, kq0 + h * r0, kq1 + h * r1, kq2 + h * r2, kx0 + h * e0, kx1 + h * e1, kx2 + h * e2, r0, r1, r2
+            )
+            s = h / 6.0
+            p0 = kx0 + s * (v0 + 2.0 * b0 + 2.0 * e0 + f0)
+            p1 = kx1 + s * (v1 + 2.0 * b1 + 2.0 * e1 + f1)
+            p2 = kx2 + s * (v2 + 2.0 * b2 + 2.0 * e2 + f2)
+        else:
+            p0, p1, p2 = kx0 + h * v0, kx1 + h * v1, kx2 + h * v2
+        if not (math.isfinite(p0) and math.isfinite(p1) and math.isfinite(p2)):
+            failed = True
+            break
+        y0, y1, y2, fres, rows = _newton(c, t0, t1, t2, p0, p1, p2, tolerance, iterations)
+        if not fres <= tolerance:
+            failed = True
+            break
+        g0, g1, g2 = y0 - p0, y1 - p1, lc * (y2 - p2)
+        jump = max(jump, math.sqrt(g0 * g0 + g1 * g1 + g2 * g2))
+        kq0, kq1, kq2, kx0, kx1, kx2, res = t0, t1, t2, y0, y1, y2, fres
+    if failed or count == 0:
+        kq0, kq1, kq2, kx0, kx1, kx2, res = q0, q1, q2, x0, x1, x2, residual[i]
+        rows = _rows(c, kx0, kx1, kx2)
+    k_new, sign = _singularity_rows(c, kq0, kq1, kq2, rows)
+    out = False
+    for j, value in enumerate((kx0, kx1, kx2)):
+        if value < c[C_LOW + j] or value > c[C_HIGH + j]:
+            out = True
+    if failed:
+        reason = _NEWTON_FAILED
+    elif jump > c[C_JUMP]:
+        reason = _ASSEMBLY_MODE_CHANGE
+    elif sign != det_sign[i]:
+        reason = _SINGULARITY_CROSSED
+    elif k_new < c[C_HARD]:
+        reason = _SINGULAR
+    elif out:
+        reason = _OUT_OF_BOUNDS
+    else:
+        reason = 0
+    o_q[i, 0], o_q[i, 1], o_q[i, 2] = kq0, kq1, kq2
+    o_x[i, 0], o_x[i, 1], o_x[i, 2] = kx0, kx1, kx2
+    o_k[i] = k_new
+    o_res[i] = res
+    o_a[i, 0], o_a[i, 1], o_a[i, 2] = a0, a1, a2
+    o_qr[i, 0], o_qr[i, 1], o_qr[i, 2] = r0, r1, r2
+    o_reason[i] = reason
+    o_jump[i] = jump
+
+
+@_jit
+def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
+    for i in range(q.shape[0]):
+        _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+
+
+@_jit_parallel
+def _transition_parallel(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
+    for i in numba.prange(q.shape[0]):
+        _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+
+
+def transition_batch(c, q, x, det_sign, residual, action):
+    """Advance N robots by one control period (the algorithm of ``core.transition``).
+
+    Args:
+        c: Packed constants (``pack_params``), shape (C_SIZE,).
+        q: Strokes [m], shape (N, 3), float64, C-contiguous.
+        x: Poses (x [m], y [m], φ [rad]), shape (N, 3), float64, C-contiguous.
+        det_sign: Working mode sign(det J_x) of each episode, shape (N,).
+        residual: Constraint residual at (q, x) [m²], shape (N,).
+        action: Normalised stroke rates, shape (N, 3), finite.
+
+    Returns:
+        (q', x', k', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
+    """
+    n = q.shape[0]
+    o_q, o_x, o_a, o_qr = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    o_k, o_res, o_jump = np.empty(n), np.empty(n), np.empty(n)
+    o_reason = np.empty(n, dtype=np.int64)
+    kernel = _transition_parallel if n >= PARALLEL_MIN_BATCH else _transition_serial
+    kernel(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+    return o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+
+
+@_jit
+def _singularity_loop(c, q, x, o_k, o_sign):
+    for i in range(q.shape[0]):
+        o_k[i], o_sign[i] = _singularity(c, q[i, 0], q[i, 1], q[i, 2], x[i, 0], x[i, 1], x[i, 2])
+
+
+def singularity_batch(c, q, x):
+    """Inverse condition number and sign(det J_x) of N configurations, each shape (N,).
+
+    Args:
+        c: Packed constants.
+        q: Strokes [m], shape (N, 3), float64.
+        x: Poses, shape (N, 3), float64.
+
+    Returns:
+        (k (N,) in [0, 1], sign (N,) in {−1, 0, 1}).
+    """
+    o_k, o_sign = np.empty(q.shape[0]), np.empty(q.shape[0])
+    _singularity_loop(c, q, x, o_k, o_sign)
+    return o_k, o_sign
+
+
+@_jit
+def _substep_loop(c, q, x, q_rate, o_count):
+    for i in range(q.shape[0]):
+        v0, v1, v2 = _pose_rate(
+            c, q[i, 0], q[i, 1], q[i, 2], x[i, 0], x[i, 1], x[i, 2], q_rate[i, 0], q_rate[i, 1], q_rate[i, 2]
+        )
+        o_count[i] = _substeps(c, v0, v1, v2)
+
+
+@_jit
+def _substep_loop_rate(c, rate, o_count):
+    for i in range(rate.shape[0]):
+        o_count[i] = _substeps(c, rate[i, 0], rate[i, 1], rate[i, 2])
+
+
+def substep_batch(c, q, x, q_rate, rate=None):
+    """Substeps per robot (see ``core.substep_counts``), int64 shape (N,).
+
+    Args:
+        c: Packed constants.
+        q: Strokes [m], shape (N, 3).
+        x: Poses, shape (N, 3).
+        q_rate: Achieved stroke rates [m/s], shape (N, 3).
+        rate: ẋ = J_f q̇ if already known, shape (N, 3).
+
+    Returns:
+        Counts in [1, max_substeps], shape (N,).
+    """
+    o_count = np.empty(q.shape[0], dtype=np.int64)
+    if rate is None:
+        _substep_loop(c, q, x, q_rate, o_count)
+    else:
+        _substep_loop_rate(c, rate, o_count)
+    return o_count
+
+
+# -- targets, reward, observation ---------------------------------------------------------------------
+
+
+@_jit
+def _wrap(angle):
+    """Wrap to [−π, π) (Python's floating modulo, as ``np.mod``)."""
+    return (angle + math.pi) % _TWO_PI - math.pi
+
+
+@_jit_inline
+def _reference_row(c, t, center, radius, phase, amplitude, i):
+    """Target pose and velocity of robot i at step t[i]: 6 scalars."""
+    omega = _TWO_PI / c[C_PERIOD]
+    wt = omega * t[i] * c[C_DT]
+    r, a = radius[i], amplitude[i]
+    p0, p1, p2 = center[i, 0], center[i, 1], center[i, 2]
+    v0 = v1 = v2 = 0.0
+    if r != 0.0:  # a fixed target (Reach) has r = a = 0: no trigonometry
+        angle = wt + phase[i]
+        ca, sa = math.cos(angle), math.sin(angle)
+        p0, p1 = p0 + r * ca, p1 + r * sa
+        v0, v1 = omega * (-r * sa), omega * (r * ca)
+    if a != 0.0:
+        p2 = p2 + a * math.sin(wt)
+        v2 = omega * (a * math.cos(wt))
+    return p0, p1, p2, v0, v1, v2
+
+
+@_jit
+def _reference_loop(c, t, center, radius, phase, amplitude, o_pose, o_velocity):
+    for i in range(t.shape[0]):
+        p0, p1, p2, v0, v1, v2 = _reference_row(c, t, center, radius, phase, amplitude, i)
+        o_pose[i, 0], o_pose[i, 1], o_pose[i, 2] = p0, p1, p2
+        o_velocity[i, 0], o_velocity[i, 1], o_velocity[i, 2] = v0, v1, v2
+
+
+def reference_batch(c, t, center, radius, phase, amplitude):
+    """Target poses and velocities at steps t, each shape (N, 3) (see ``core.reference_pose``).
+
+    Args:
+        c: Packed constants.
+        t: Step index, shape (N,) (int).
+        center: c = (c_x, c_y, c_φ), shape (N, 3).
+        radius: r [m], shape (N,).
+        phase: θ [rad], shape (N,).
+        amplitude: a [rad], shape (N,).
+
+    Returns:
+        (pose (N, 3), velocity (N, 3)).
+    """
+    n = t.shape[0]
+    o_pose, o_velocity = np.empty((n, 3)), np.empty((n, 3))
+    _reference_loop(c, t, center, radius, phase, amplitude, o_pose, o_velocity)
+    return o_pose, o_velocity
+
+
+#: Columns of the per-robot evaluation written by ``evaluate_batch``.
+E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION = 0, 1, 2, 3
+E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_REWARD = 4, 5, 6, 7, 8
+E_TARGET = 9  # target pose, 3 columns
+E_VELOCITY = 12  # target velocity, 3 columns
+E_SIZE = 15
+
+
+@_jit
+def _errors(x0, x1, x2, g0, g1, g2):
+    """(‖p* − p‖ [m], |wrap(φ* − φ)| [rad])."""
+    return math.hypot(g0 - x0, g1 - x1), abs(_wrap(g2 - x2))
+
+
+@_jit
+def _errors_loop(x, target, o_position, o_orientation):
+    for i in range(x.shape[0]):
+        o_position[i], o_orientation[i] = _errors(x[i, 0], x[i, 1], x[i, 2], target[i, 0], target[i, 1], target[i, 2])
+
+
+def errors_batch(x, target):
+    """Position error ‖p* − p‖ [m] and orientation error |wrap(φ* − φ)| [rad] of N poses, each (N,).
+
+    Args:
+        x: Poses, shape (N, 3).
+        target: Target poses, shape (N, 3).
+
+    Returns:
+        (position errors (N,), orientation errors (N,)).
+    """
+    o_position, o_orientation = np.empty(x.shape[0]), np.empty(x.shape[0])
+    _errors_loop(x, target, o_position, o_orientation)
+    return o_position, o_orientation
+
+
+@_jit
+def _is_success(c, position_error, orientation_error):
+    """Whether the errors are within the success tolerances."""
+    return position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
+
+
+@_jit
+def _success_loop(c, position_error, orientation_error, o_success):
+    for i in range(position_error.shape[0]):
+        o_success[i] = _is_success(c, position_error[i], orientation_error[i])
+
+
+def success_batch(c, position_error, orientation_error):
+    """Whether each robot is within the success tolerances, bool shape (N,).
+
+    Args:
+        c: Packed constants.
+        position_error: Position errors [m], shape (N,).
+        orientation_error: Orientation errors [rad], shape (N,).
+
+    Returns:
+        Booleans, shape (N,).
+    """
+    o_success = np.empty(position_error.shape[0], dtype=np.bool_)
+    _success_loop(c, position_error, orientation_error, o_success)
+    return o_success
+
+
+@_jit_inline
+def _terms(c, x0, x1, x2, g0, g1, g2, k, a0, a1, a2, reason):
+    """(tracking, singularity, action, termination) reward terms and the two errors."""
+    ep, eo = _errors(x0, x1, x2, g0, g1, g2)
+    tracking = -(c[C_WP] * ep + c[C_WO] * c[C_LC] * eo)
+    gap = max(c[C_SAFE] - k, 0.0) / c[C_SAFE]
+    singular = -c[C_WS] * (gap * gap)
+    act = -c[C_WA] * (a0 * a0 + a1 * a1 + a2 * a2)
+    term = -c[C_PENALTY] * (1.0 if reason != 0 else 0.0)
+    return tracking, singular, act, term, ep, eo
+
+
+@_jit
+def _terms_loop(c, x, target, k, action, reason, o_terms):
+    for i in range(x.shape[0]):
+        tr, si, ac, te, _, _ = _terms(
+            c,
+            x[i, 0],
+            x[i, 1],
+            x[i, 2],
+            target[i, 0],
+            target[i, 1],
+            target[i, 2],
+            k[i],
+            action[i, 0],
+            action[i, 1],
+            action[i, 2],
+            reason[i],
+        )
+        o_terms[i, 0], o_terms[i, 1], o_terms[i, 2], o_terms[i, 3] = tr, si, ac, te
+
+
+def terms_batch(c, x, target, k, action, reason):
+    """Reward terms (tracking, singularity, action, termination), shape (N, 4) (see ``core.reward_terms``).
+
+    Args:
+        c: Packed constants.
+        x: Poses, shape (N, 3).
+        target: Target poses, shape (N, 3).
+        k: Inverse condition numbers, shape (N,).
+        action: Applied actions, shape (N, 3).
+        reason: Termination reason codes, shape (N,) (int).
+
+    Returns:
+        Terms, shape (N, 4).
+    """
+    o_terms = np.empty((x.shape[0], 4))
+    _terms_loop(c, x, target, k, action, reason, o_terms)
+    return o_terms
+
+
+@_jit_inline
+def _clip32(o_obs, i, j, value, low, high):
+    """o_obs[i, j] = float32(clip(value, low[j], high[j])) (the clip in float64, as ``np.clip``)."""
+    o_obs[i, j] = np.float32(min(max(value, np.float64(low[j])), np.float64(high[j])))
+
+
+@_jit_inline
+def _observation_row(c, low, high, with_velocity, q, x, k, g0, g1, g2, v0, v1, v2, i, o_obs):
+    """Row i of the observation (layout in ``core.observation``), clipped to [low, high], float32."""
+    x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
+    lo, hi = c[C_LMIN], c[C_LMAX]
+    span = hi - lo
+    legs = _rows(c, g0, g1, g2)  # the target's inverse kinematics: L_j* = ‖d_j(x*)‖
+    _clip32(o_obs, i, 0, x0, low, high)
+    _clip32(o_obs, i, 1, x1, low, high)
+    _clip32(o_obs, i, 2, math.cos(x2), low, high)
+    _clip32(o_obs, i, 3, math.sin(x2), low, high)
+    _clip32(o_obs, i, 4, g0, low, high)
+    _clip32(o_obs, i, 5, g1, low, high)
+    _clip32(o_obs, i, 6, math.cos(g2), low, high)
+    _clip32(o_obs, i, 7, math.sin(g2), low, high)
+    _clip32(o_obs, i, 8, g0 - x0, low, high)
+    _clip32(o_obs, i, 9, g1 - x1, low, high)
+    _clip32(o_obs, i, 10, _wrap(g2 - x2), low, high)
+    for j in range(3):
+        _clip32(o_obs, i, 11 + j, 2.0 * (q[i, j] - lo) / span - 1.0, low, high)
+    _clip32(o_obs, i, 14, (math.sqrt(legs[9]) - q[i, 0]) / span, low, high)
+    _clip32(o_obs, i, 15, (math.sqrt(legs[10]) - q[i, 1]) / span, low, high)
+    _clip32(o_obs, i, 16, (math.sqrt(legs[11]) - q[i, 2]) / span, low, high)
+    _clip32(o_obs, i, 17, k[i], low, high)
+    if with_velocity:
+        _clip32(o_obs, i, 18, v0, low, high)
+        _clip32(o_obs, i, 19, v1, low, high)
+        _clip32(o_obs, i, 20, v2, low, high)
+
+
+@_jit
+def _observation_loop(c, low, high, with_velocity, q, x, k, target, velocity, o_obs):
+    for i in range(x.shape[0]):
+        _observation_row(
+            c,
+            low,
+            high,
+            with_velocity,
+            q,
+            x,
+            k,
+            target[i, 0],
+            target[i, 1],
+            target[i, 2],
+            velocity[i, 0],
+            velocity[i, 1],
+            velocity[i, 2],
+            i,
+            o_obs,
+        )
+
+
+def observation_batch(c, low, high, with_velocity, q, x, k, target, velocity):
+    """Observations of N robots, float32 (see ``core.observation``).
+
+    Args:
+        c: Packed constants.
+        low: Observation lower bounds, float32 (18,) or (21,).
+        high: Observation upper bounds, same shape.
+        with_velocity: Whether the target velocity is appended.
+        q: Strokes [m], shape (N, 3).
+        x: Poses, shape (N, 3).
+        k: Inverse condition numbers, shape (N,).
+        target: Target poses, shape (N, 3).
+        velocity: Target velocities, shape (N, 3).
+
+    Returns:
+        Observations, shape (N, 18) or (N, 21), float32.
+    """
+    o_obs = np.empty((x.shape[0], low.shape[0]), dtype=np.float32)
+    _observation_loop(c, low, high, with_velocity, q, x, k, target, velocity, o_obs)
+    return o_obs
+
+
+@_jit_inline
+def _evaluate_row(
+    c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, i, o_eval, o_obs
+):
+    p0, p1, p2, w0, w1, w2 = _reference_row(c, t, center, radius, phase, amplitude, i)
+    tr, si, ac, te, ep, eo = _terms(
+        c, x[i, 0], x[i, 1], x[i, 2], p0, p1, p2, k[i], action[i, 0], action[i, 1], action[i, 2], reason[i]
+    )
+    e = o_eval
+    e[i, E_TRACKING], e[i, E_SINGULARITY], e[i, E_ACTION], e[i, E_TERMINATION] = tr, si, ac, te
+    e[i, E_REWARD] = tr + si + ac + te
+    e[i, E_POSITION_ERROR], e[i, E_ORIENTATION_ERROR] = ep, eo
+    ok = reason[i] == 0 and _is_success(c, ep, eo)
+    e[i, E_SUCCESS] = 1.0 if ok else 0.0
+    e[i, E_COST] = 1.0 if k[i] < c[C_SAFE] else 0.0
+    e[i, E_TARGET], e[i, E_TARGET + 1], e[i, E_TARGET + 2] = p0, p1, p2
+    e[i, E_VELOCITY], e[i, E_VELOCITY + 1], e[i, E_VELOCITY + 2] = w0, w1, w2
+    _observation_row(c, low, high, with_velocity, q, x, k, p0, p1, p2, w0, w1, w2, i, o_obs)
+
+
+@_jit
+def _evaluate_serial(
+    c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, o_eval, o_obs
+):
+    for i in range(x.shape[0]):
+        _evaluate_row(
+            c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, i, o_eval, o_obs
+        )
+
+
+@_jit_parallel
+def _evaluate_parallel(
+    c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, o_eval, o_obs
+):
+    for i in numba.prange(x.shape[0]):
+        _evaluate_row(
+            c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, i, o_eval, o_obs
+        )
+
+
+def evaluate_batch(c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason):
+    """Everything an environment reports after a transition, for N robots, in one pass.
+
+    Args:
+        c: Packed constants.
+        low: Observation lower bounds, float32 (D,).
+        high: Observation upper bounds, float32 (D,).
+        with_velocity: Whether the observation ends with the target velocity (D = 21, else 18).
+        q: Strokes [m], shape (N, 3).
+        x: Poses, shape (N, 3).
+        t: Steps taken, shape (N,) (int).
+        k: Inverse condition numbers, shape (N,).
+        center: Reference centres, shape (N, 3).
+        radius: Reference radii [m], shape (N,).
+        phase: Reference phases [rad], shape (N,).
+        amplitude: Reference orientation amplitudes [rad], shape (N,).
+        action: Applied actions, shape (N, 3).
+        reason: Termination reason codes, shape (N,) (int).
+
+    Returns:
+        (evaluation (N, E_SIZE) float64 with the ``E_*`` columns, observations (N, D) float32).
+    """
+    n = x.shape[0]
+    o_eval = np.empty((n, E_SIZE))
+    o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
+    kernel = _evaluate_parallel if n >= PARALLEL_MIN_BATCH else _evaluate_serial
+    kernel(c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, o_eval, o_obs)
+    return o_eval, o_obs
+
+
+# -- a whole environment step -------------------------------------------------------------------------
+
+
+@_jit_inline
+def _step_row(
+    c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action, i,
+    o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
+):  # fmt: skip
+    _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+    o_t[i] = t[i] + 1
+    _evaluate_row(
+        c,
+        low,
+        high,
+        with_velocity,
+        o_q,
+        o_x,
+        o_t,
+        o_k,
+        center,
+        radius,
+        phase,
+        amplitude,
+        o_a,
+        o_reason,
+        i,
+        o_eval,
+        o_obs,
+    )
+
+
+@_jit
+def _step_serial(
+    c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action,
+    o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
+):  # fmt: skip
+    for i in range(q.shape[0]):
+        _step_row(
+            c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action, i,
+            o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
+        )  # fmt: skip
+
+
+@_jit_parallel
+def _step_parallel(
+    c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action,
+    o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
+):  # fmt: skip
+    for i in numba.prange(q.shape[0]):
+        _step_row(
+            c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action, i,
+            o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
+        )  # fmt: skip
+
+
+def step_batch(c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action):
+    """Transition N robots, then evaluate them (``transition_batch`` followed by ``evaluate_batch``), in one pass.
+
+    Args:
+        c: Packed constants.
+        low: Observation lower bounds, float32 (D,).
+        high: Observation upper bounds, float32 (D,).
+        with_velocity: Whether the observation ends with the target velocity.
+        q: Strokes [m], shape (N, 3).
+        x: Poses, shape (N, 3).
+        t: Steps taken, shape (N,) (int).
+        det_sign: Working mode sign(det J_x), shape (N,).
+        residual: Constraint residuals [m²], shape (N,).
+        center: Reference centres, shape (N, 3).
+        radius: Reference radii [m], shape (N,).
+        phase: Reference phases [rad], shape (N,).
+        amplitude: Reference orientation amplitudes [rad], shape (N,).
+        action: Normalised stroke rates, shape (N, 3), finite.
+
+    Returns:
+        (q', x', t', k', residual', applied action, stroke rates, reasons, jumps, evaluation (N, E_SIZE),
+        observations (N, D) float32).
+    """
+    n = q.shape[0]
+    o_q, o_x, o_a, o_qr = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    o_k, o_res, o_jump = np.empty(n), np.empty(n), np.empty(n)
+    o_t, o_reason = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    o_eval = np.empty((n, E_SIZE))
+    o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
+    kernel = _step_parallel if n >= PARALLEL_MIN_BATCH else _step_serial
+    kernel(
+        c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action,
+        o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
+    )  # fmt: skip
+    return o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs

@@ -1,0 +1,273 @@
+"""The compiled kernels (``envs.kernels``) against NumPy oracles built on the kinematics library.
+
+``envs.core`` runs the dynamics, reward and observation through Numba kernels written per robot on
+scalars. Here they are checked against straightforward NumPy versions of the same algorithm that call
+``kinematics.Planar3RPR`` (itself checked against the lesson, SymPy and finite differences) and LAPACK.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from envs import core, kernels
+from envs.core import EnvParams, Reference, State
+from envs.planar_3rpr import build_params, initial_state
+from kinematics import Planar3RPR
+
+# -- NumPy oracles (the pre-kernel implementation of core.transition, on the kinematics library) ------
+
+
+def _oracle_predict(params, q, x, q_rate, h, rate):
+    robot = params.robot
+
+    def pose_rate(q_, x_):
+        return np.einsum("nij,nj->ni", robot.forward_jacobian(q_, x_, validate=False), q_rate)
+
+    k1 = rate
+    if params.integrator == "euler":
+        return x + h * k1
+    k2 = pose_rate(q + 0.5 * h * q_rate, x + 0.5 * h * k1)
+    k3 = pose_rate(q + 0.5 * h * q_rate, x + 0.5 * h * k2)
+    k4 = pose_rate(q + h * q_rate, x + h * k3)
+    return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def oracle_transition(params: EnvParams, state: State, action: np.ndarray):
+    """core.transition as NumPy array code on Planar3RPR's forward_jacobian / forward_kinematics / SVD."""
+    robot = params.robot
+    metric = params.pose_metric
+    a = np.clip(action, -1.0, 1.0)
+    lo, hi = params.stroke_limits
+    q_new = np.clip(state.q + a * (params.max_rate * params.dt), lo, hi)
+    q_rate = (q_new - state.q) / params.dt
+    n_robots = len(state.q)
+    q_next, x_next = state.q.copy(), state.x.copy()
+    residual = state.residual.copy()
+    reason = np.zeros(n_robots, dtype=np.int64)
+    jumps = np.zeros(n_robots)
+    for i in range(n_robots):
+        q0, x0 = state.q[i : i + 1], state.x[i : i + 1]
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            rate = np.einsum("nij,nj->ni", robot.forward_jacobian(q0, x0, validate=False), q_rate[i : i + 1])
+            motion = np.linalg.norm(rate * params.dt * metric)
+            count = np.ceil(motion / params.max_substep)
+        n = int(np.clip(count, 1, params.max_substeps)) if np.isfinite(count) else params.max_substeps
+        q_k, x_k, res, failed, jump = q0, x0, residual[i], False, 0.0
+        for k in range(n):
+            q_to = q0 + (k + 1) / n * (q_new[i : i + 1] - q0)
+            with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+                if k > 0:
+                    rate = np.einsum("nij,nj->ni", robot.forward_jacobian(q_k, x_k, validate=False), q_rate[i : i + 1])
+                x_pred = _oracle_predict(params, q_k, x_k, q_rate[i : i + 1], params.dt / n, rate)
+                if not np.isfinite(x_pred).all():
+                    failed = True
+                    break
+                fk = robot.forward_kinematics(
+                    q_to,
+                    x_pred,
+                    tolerance=params.newton_tolerance,
+                    max_iterations=params.newton_max_iterations,
+                    validate=False,
+                )
+            if not bool(np.all(fk.converged)):
+                failed = True
+                break
+            jump = max(jump, float(np.linalg.norm((fk.x - x_pred) * metric)))
+            q_k, x_k, res = q_to, fk.x, float(np.asarray(fk.residual).ravel()[0])
+        if failed:
+            q_k, x_k, res = q0, x0, residual[i]
+        k_new, det = robot.singularity_measures(q_k[0], x_k[0], validate=False)
+        out = bool(np.any((x_k[0] < params.pose_low) | (x_k[0] > params.pose_high)))
+        if failed:
+            reason[i] = core.NEWTON_FAILED
+        elif jump > params.jump_tolerance:
+            reason[i] = core.ASSEMBLY_MODE_CHANGE
+        elif np.sign(det) != state.det_sign[i]:
+            reason[i] = core.SINGULARITY_CROSSED
+        elif k_new < params.hard_threshold:
+            reason[i] = core.SINGULAR
+        elif out:
+            reason[i] = core.OUT_OF_BOUNDS
+        q_next[i], x_next[i], residual[i], jumps[i] = q_k[0], x_k[0], res, jump
+    return q_next, x_next, residual, a, q_rate, reason, jumps
+
+
+def _random_states(params: EnvParams, rng: np.random.Generator, n: int) -> State:
+    """n reachable configurations spread over the pose bounds (many near singularities), t = 0."""
+    low, high = np.array(params.pose_low), np.array(params.pose_high)
+    x = rng.uniform(low, high, size=(20 * n, 3))
+    q = params.robot.inverse_kinematics(x, validate=False)
+    lo, hi = params.stroke_limits
+    keep = np.flatnonzero((q.min(axis=-1) > lo) & (q.max(axis=-1) < hi))[:n]
+    assert keep.size == n
+    reference = Reference(center=x[keep], radius=np.zeros(n), phase=np.zeros(n), amplitude=np.zeros(n))
+    return initial_state(params, x[keep], reference)
+
+
+@pytest.fixture(scope="module")
+def params() -> EnvParams:
+    return build_params()
+
+
+@pytest.mark.parametrize("integrator", ["euler", "rk4"])
+def test_transition_matches_numpy_oracle(integrator, rng):
+    """2000 random states and saturated-ish actions: same reasons, poses to 1e-12, same stroke rates."""
+    p = build_params(integrator=integrator)
+    state = _random_states(p, rng, 2000)
+    action = rng.uniform(-1.5, 1.5, size=(2000, 3))
+    new, outcome = core.transition(p, state, action)
+    q, x, residual, a, q_rate, reason, jump = oracle_transition(p, state, action)
+    np.testing.assert_array_equal(outcome.action, a)
+    np.testing.assert_allclose(outcome.q_rate, q_rate, rtol=0, atol=1e-15)
+    agree = outcome.reason == reason
+    assert agree.mean() >= 0.995, f"reasons differ for {np.flatnonzero(~agree)[:10]}"
+    both_ok = agree & (reason == 0)
+    assert both_ok.sum() > 500  # many ordinary steps are compared, not just terminations
+    np.testing.assert_allclose(new.x[both_ok], x[both_ok], rtol=0, atol=1e-11)
+    np.testing.assert_allclose(new.q[both_ok], q[both_ok], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(outcome.jump[both_ok], jump[both_ok], rtol=1e-6, atol=1e-12)
+    assert np.all(new.residual[both_ok] <= p.newton_tolerance)
+    k_ref, det_ref = p.robot.singularity_measures(new.q, new.x, validate=False)
+    np.testing.assert_allclose(new.inverse_condition, k_ref, rtol=1e-9)
+    np.testing.assert_array_equal(np.sign(det_ref)[both_ok], new.det_sign[both_ok])
+    assert set(np.unique(reason)) > {0}  # the sample reaches terminations too
+
+
+def test_conditioning_matches_lapack_svd(params, rng):
+    """k = σ_min/σ_max of the homogeneous J_i and sign(det J_x) against the library (LAPACK SVD)."""
+    state = _random_states(params, rng, 5000)
+    k, sign = core.conditioning(params, state.q, state.x)
+    k_ref, det = params.robot.singularity_measures(state.q, state.x, validate=False)
+    assert k_ref.min() < 1e-3 and k_ref.max() > 0.7  # near-singular and well-conditioned poses alike
+    np.testing.assert_allclose(k, k_ref, rtol=1e-10)
+    np.testing.assert_array_equal(sign, np.sign(det))
+
+
+@pytest.mark.parametrize("case", ["random", "near_singular", "top_two_equal", "bottom_two_equal", "isotropic"])
+def test_singular_value_ratio_against_lapack(case, rng):
+    """The closed form (with its Jacobi fallback) against LAPACK, including (nearly) repeated singular values."""
+    closed, jacobi = kernels._singular_value_ratio_closed, kernels._singular_value_ratio
+    for _ in range(3000):
+        u, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        v, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        s = np.sort(rng.uniform(0.1, 10.0, size=3))[::-1]
+        if case == "near_singular":
+            s[2] = s[0] * 10 ** rng.uniform(-6, -1)
+        elif case == "top_two_equal":
+            s[1] = s[0] * (1 - 10 ** rng.uniform(-16, -3))
+        elif case == "bottom_two_equal":
+            s[2] = s[1] * (1 - 10 ** rng.uniform(-16, -3))
+        elif case == "isotropic":
+            s[:] = s[0] * (1 - 10 ** rng.uniform(-16, -3, size=3))
+        m = (u * s) @ v.T
+        sv = np.linalg.svd(m, compute_uv=False)
+        expected = sv[-1] / sv[0]
+        tol = 1e-12 + 64 * np.finfo(float).eps / expected  # LAPACK's σ_min is accurate to eps·σ_max
+        assert closed(*m.ravel()) == pytest.approx(expected, rel=tol)
+        assert jacobi(*m.ravel()) == pytest.approx(expected, rel=tol)
+    assert closed(*np.zeros(9)) == 0.0
+    assert closed(*np.eye(3).ravel()) == 1.0
+    assert np.isnan(closed(*np.full(9, np.nan)))
+
+
+def test_observation_and_rewards_match_numpy_formulas(params, rng):
+    """Observation layout, reward terms, errors and success against direct NumPy formulas."""
+    state = _random_states(params, rng, 500)
+    target = state.x[rng.permutation(500)]
+    velocity = rng.normal(scale=0.01, size=(500, 3))
+    action = rng.uniform(-1, 1, size=(500, 3))
+    reason = rng.integers(0, 3, size=500)
+    lo, hi = params.stroke_limits
+    delta = target - state.x
+    wrapped = (delta[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    expected = np.concatenate(
+        [
+            state.x[:, :2],
+            np.cos(state.x[:, 2:3]),
+            np.sin(state.x[:, 2:3]),
+            target[:, :2],
+            np.cos(target[:, 2:3]),
+            np.sin(target[:, 2:3]),
+            delta[:, :2],
+            wrapped[:, None],
+            2.0 * (state.q - lo) / (hi - lo) - 1.0,
+            (params.robot.inverse_kinematics(target, validate=False) - state.q) / (hi - lo),
+            state.inverse_condition[:, None],
+            velocity,
+        ],
+        axis=-1,
+    )
+    for with_velocity, size in ((False, 18), (True, 21)):
+        low, high = core.observation_bounds(params, with_velocity)
+        got = core.observation(params, state, target, velocity, with_velocity)
+        assert got.dtype == np.float32 and got.shape == (500, size)
+        np.testing.assert_allclose(got, np.clip(expected[:, :size], low, high).astype(np.float32), rtol=2e-7, atol=1e-7)
+    terms = core.reward_terms(params, state.x, target, state.inverse_condition, action, reason)
+    position = np.hypot(delta[:, 0], delta[:, 1])
+    l_c = params.robot.characteristic_length
+    gap = np.maximum(params.safe_threshold - state.inverse_condition, 0.0) / params.safe_threshold
+    np.testing.assert_allclose(terms["reward_tracking"], -(position + l_c * np.abs(wrapped)), rtol=1e-14)
+    np.testing.assert_allclose(terms["reward_singularity"], -(gap**2), rtol=1e-14)
+    np.testing.assert_allclose(terms["reward_action"], -0.01 * np.sum(action**2, axis=-1), rtol=1e-14)
+    np.testing.assert_array_equal(terms["reward_termination"], -50.0 * (reason != 0))
+    ok = core.success(params, state.x, target)
+    np.testing.assert_array_equal(ok, (position <= 0.02) & (np.abs(wrapped) <= 0.1))
+
+
+def test_parallel_kernel_equals_serial(params, rng, monkeypatch):
+    """Large batches run on every core (prange); the result is bit-identical to the one-thread loop."""
+    n = kernels.PARALLEL_MIN_BATCH + 7
+    state = _random_states(params, rng, n)
+    action = rng.uniform(-1, 1, size=(n, 3))
+    parallel = core.step(params, state, action, False)
+    monkeypatch.setattr(kernels, "PARALLEL_MIN_BATCH", 10**9)
+    serial = core.step(params, state, action, False)
+    for a, b in zip([*parallel[0][:-1], *parallel[1], *parallel[2:]], [*serial[0][:-1], *serial[1], *serial[2:]]):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_step_equals_transition_then_evaluate(params, rng):
+    """The fused step is transition followed by evaluate, to the last bit."""
+    state = _random_states(params, rng, 300)
+    action = rng.uniform(-1, 1, size=(300, 3))
+    new, outcome, evaluation, obs = core.step(params, state, action, True)
+    new2, outcome2 = core.transition(params, state, action)
+    evaluation2, obs2 = core.evaluate(params, new2, outcome2.action, outcome2.reason, True)
+    for a, b in zip([*new[:-1], *outcome, evaluation, obs], [*new2[:-1], *outcome2, evaluation2, obs2]):
+        np.testing.assert_array_equal(a, b)
+    terms = core.reward_terms(
+        params,
+        new.x,
+        evaluation[:, kernels.E_TARGET : kernels.E_TARGET + 3],
+        new.inverse_condition,
+        outcome.action,
+        outcome.reason,
+    )
+    total = sum(terms.values())
+    np.testing.assert_array_equal(evaluation[:, core.EVALUATION_COLUMNS["reward"]], total)
+
+
+def test_mismatched_batches_are_refused(params, rng):
+    """The kernels index without bounds checks, so core refuses arrays of different N with a clear error."""
+    state = _random_states(params, rng, 4)
+    with pytest.raises(ValueError, match="leading batch dimension"):
+        core.transition(params, state._replace(residual=state.residual[:3]), np.zeros((4, 3)))
+    with pytest.raises(ValueError, match=r"shape \(N, 3\)"):
+        core.transition(params, state, np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="state arrays must have shapes"):
+        core.step(params, state, np.zeros((3, 3)), False)
+    with pytest.raises(ValueError, match="leading batch dimension"):
+        core.tracking_errors(params, state.x, state.x[:2])
+
+
+def test_packed_constants_follow_params():
+    """Every constant the kernels read comes from the params (a changed weight changes the reward)."""
+    robot = Planar3RPR()
+    p = build_params(position_weight=2.0, termination_penalty=7.0, stroke_limits=(0.25, 1.1))
+    c = p.packed
+    assert c[kernels.C_WP] == 2.0 and c[kernels.C_PENALTY] == 7.0
+    assert (c[kernels.C_LMIN], c[kernels.C_LMAX]) == (0.25, 1.1)
+    np.testing.assert_array_equal(c[kernels.C_B : kernels.C_B + 6], robot.base.ravel())
+    np.testing.assert_array_equal(c[kernels.C_SCALE : kernels.C_SCALE + 3], robot.pose_scale)
+    assert not c.flags.writeable
