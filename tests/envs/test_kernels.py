@@ -94,7 +94,7 @@ def oracle_transition(params: EnvParams, state: State, action: np.ndarray):
 
 
 def _random_states(params: EnvParams, rng: np.random.Generator, n: int) -> State:
-    """n reachable configurations spread over the pose bounds (many near singularities), t = 0."""
+    """Draw n reachable configurations spread over the pose bounds (many near singularities), t = 0."""
     low, high = np.array(params.pose_low), np.array(params.pose_high)
     x = rng.uniform(low, high, size=(20 * n, 3))
     q = params.robot.inverse_kinematics(x, validate=False)
@@ -107,6 +107,7 @@ def _random_states(params: EnvParams, rng: np.random.Generator, n: int) -> State
 
 @pytest.fixture(scope="module")
 def params() -> EnvParams:
+    """The default environment constants."""
     return build_params()
 
 
@@ -117,7 +118,7 @@ def test_transition_matches_numpy_oracle(integrator, rng):
     state = _random_states(p, rng, 2000)
     action = rng.uniform(-1.5, 1.5, size=(2000, 3))
     new, outcome = core.transition(p, state, action)
-    q, x, residual, a, q_rate, reason, jump = oracle_transition(p, state, action)
+    q, x, _, a, q_rate, reason, jump = oracle_transition(p, state, action)
     np.testing.assert_array_equal(outcome.action, a)
     np.testing.assert_allclose(outcome.q_rate, q_rate, rtol=0, atol=1e-15)
     agree = outcome.reason == reason
@@ -135,7 +136,7 @@ def test_transition_matches_numpy_oracle(integrator, rng):
 
 
 def test_conditioning_matches_lapack_svd(params, rng):
-    """k = σ_min/σ_max of the homogeneous J_i and sign(det J_x) against the library (LAPACK SVD)."""
+    """Inverse condition number of the homogeneous J_i and sign(det J_x) against the library (LAPACK)."""
     state = _random_states(params, rng, 5000)
     k, sign = core.conditioning(params, state.q, state.x)
     k_ref, det = params.robot.singularity_measures(state.q, state.x, validate=False)
