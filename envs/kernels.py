@@ -945,3 +945,345 @@ def step_batch(c, low, high, with_velocity, q, x, t, det_sign, residual, center,
         o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
     )  # fmt: skip
     return o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs
+
+
+# -- task sampling ------------------------------------------------------------------------------------
+
+# Offsets into the packed workspace constants (``pack_workspace``).
+W_LMIN, W_LMAX, W_STROKE_MARGIN, W_SAFE = 0, 1, 2, 3
+W_MARGIN = 4  # bounds margin (Δx, Δy, Δφ), 3 entries
+W_LOW = 7  # pose bounds of the grid, 3 + 3 entries
+W_HIGH = 10
+W_CELL = 13  # grid spacing, 3 entries
+W_SIZE = 16
+
+
+def pack_workspace(workspace) -> tuple:
+    """A certified ``envs.workspace.WorkspaceMap`` as the tuple of arrays the sampling kernels read.
+
+    Args:
+        workspace: The certified grid.
+
+    Returns:
+        (constants (W_SIZE,), labels (n_x, n_y, n_φ), sampled-label lookup (max label + 1,) bool,
+        component ids (c,), cumulative sampling weights (c,), concatenated node indices of the sampled
+        components, their offsets (c + 1,), axis x (n_x,), axis y (n_y,), axis φ (n_φ,)).
+    """
+    spec = workspace.spec
+    w = np.zeros(W_SIZE)
+    w[W_LMIN], w[W_LMAX] = spec.stroke_limits
+    w[W_STROKE_MARGIN], w[W_SAFE] = spec.stroke_margin, spec.safe_threshold
+    w[W_MARGIN : W_MARGIN + 3] = spec.bounds_margin
+    w[W_LOW : W_LOW + 3] = spec.pose_low
+    w[W_HIGH : W_HIGH + 3] = spec.pose_high
+    w[W_CELL : W_CELL + 3] = spec.cell
+    labels = np.ascontiguousarray(workspace.labels, dtype=np.int64)
+    ids = np.asarray(workspace.component_ids, dtype=np.int64)
+    sampled = np.zeros(int(labels.max()) + 1, dtype=np.bool_)
+    sampled[ids] = True
+    cumulative = np.cumsum(np.asarray(workspace.component_weights, dtype=np.float64))
+    nodes = [np.asarray(workspace.component_nodes[int(i)], dtype=np.int64) for i in ids]
+    offsets = np.concatenate([[0], np.cumsum([len(n) for n in nodes])]).astype(np.int64)
+    axes = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in workspace.axes)
+    packed = (w, labels, sampled, ids, cumulative, np.concatenate(nodes), offsets, *axes)
+    for array in packed:
+        array.setflags(write=False)
+    return packed
+
+
+@_jit
+def _node_index(values, v):
+    """Index of the grid value nearest to v along one axis, clipped to the axis (as ``node_index``)."""
+    i = np.rint((v - values[0]) / (values[1] - values[0]))
+    if not i > 0.0:  # also NaN
+        return 0
+    last = values.shape[0] - 1
+    if i > last:
+        return last
+    return int(i)
+
+
+@_jit
+def _label(ws, x0, x1, x2):
+    """Component id of the grid node nearest to the pose (0: not in a safe region)."""
+    return ws[1][_node_index(ws[7], x0), _node_index(ws[8], x1), _node_index(ws[9], x2)]
+
+
+@_jit
+def _safe(c, ws, x0, x1, x2):
+    """``envs.tasks.is_safe`` for one pose: bounds and strokes with margins, k ≥ k_safe, in a sampled region."""
+    w = ws[0]
+    for j, v in enumerate((x0, x1, x2)):
+        if not (w[W_LOW + j] + w[W_MARGIN + j] <= v <= w[W_HIGH + j] - w[W_MARGIN + j]):
+            return False
+    a = _rows(c, x0, x1, x2)
+    l0, l1, l2 = math.sqrt(a[9]), math.sqrt(a[10]), math.sqrt(a[11])
+    if min(l0, min(l1, l2)) < w[W_LMIN] + w[W_STROKE_MARGIN] or max(l0, max(l1, l2)) > w[W_LMAX] - w[W_STROKE_MARGIN]:
+        return False
+    k, _ = _singularity_rows(c, max(l0, 1e-9), max(l1, 1e-9), max(l2, 1e-9), a)
+    if not k >= w[W_SAFE]:
+        return False
+    return ws[2][_label(ws, x0, x1, x2)]
+
+
+@_jit
+def _safe_loop(c, ws, x, out):
+    for i in range(x.shape[0]):
+        out[i] = _safe(c, ws, x[i, 0], x[i, 1], x[i, 2])
+
+
+def safe_batch(c, ws, x):
+    """Whether each pose is in a sampled safe region (see ``envs.tasks.is_safe``), bool (M,).
+
+    Args:
+        c: Packed constants.
+        ws: Packed workspace (``pack_workspace``).
+        x: Poses, shape (M, 3), finite.
+
+    Returns:
+        Booleans, shape (M,).
+    """
+    out = np.empty(x.shape[0], dtype=np.bool_)
+    _safe_loop(c, ws, x, out)
+    return out
+
+
+@_jit
+def _segment_min_k(c, s0, s1, s2, t0, t1, t2, n):
+    """Smallest inverse condition number at n points of the straight line s → t in pose space (ends included)."""
+    k_min = np.inf
+    for j in range(n):
+        f = j / (n - 1)
+        p0, p1, p2 = s0 + f * (t0 - s0), s1 + f * (t1 - s1), s2 + f * (t2 - s2)
+        a = _rows(c, p0, p1, p2)
+        l0, l1, l2 = max(math.sqrt(a[9]), 1e-9), max(math.sqrt(a[10]), 1e-9), max(math.sqrt(a[11]), 1e-9)
+        k, _ = _singularity_rows(c, l0, l1, l2, a)
+        if k < k_min or k != k:
+            k_min = k
+    return k_min
+
+
+@_jit
+def _segment_loop(c, start, target, n, out):
+    for i in range(start.shape[0]):
+        out[i] = _segment_min_k(c, start[i, 0], start[i, 1], start[i, 2], target[i, 0], target[i, 1], target[i, 2], n)
+
+
+def segment_batch(c, start, target, n):
+    """Smallest inverse condition number along each straight segment (see ``envs.tasks.segment_min_condition``).
+
+    Args:
+        c: Packed constants.
+        start: Poses, shape (M, 3).
+        target: Poses, shape (M, 3).
+        n: Points per segment (≥ 2), ends included.
+
+    Returns:
+        min k along each segment, shape (M,).
+    """
+    out = np.empty(start.shape[0])
+    _segment_loop(c, start, target, n, out)
+    return out
+
+
+@_jit
+def _pose_in_component(c, ws, rng, j, tries):
+    """A safe pose in sampled component j: a random node of it jittered within its cell.
+
+    Returns:
+        (found, x0, x1, x2); found is False after ``tries`` rejected candidates.
+    """
+    w, labels, comp = ws[0], ws[1], ws[3][j]
+    nodes, offsets = ws[5], ws[6]
+    size = offsets[j + 1] - offsets[j]
+    ny, nphi = labels.shape[1], labels.shape[2]
+    for _ in range(tries):
+        flat = nodes[offsets[j] + min(int(rng.random() * size), size - 1)]
+        ix, rest = divmod(flat, ny * nphi)
+        iy, iphi = divmod(rest, nphi)
+        x0 = ws[7][ix] + (rng.random() - 0.5) * w[W_CELL]
+        x1 = ws[8][iy] + (rng.random() - 0.5) * w[W_CELL + 1]
+        x2 = ws[9][iphi] + (rng.random() - 0.5) * w[W_CELL + 2]
+        if _safe(c, ws, x0, x1, x2) and _label(ws, x0, x1, x2) == comp:
+            return True, x0, x1, x2
+    return False, 0.0, 0.0, 0.0
+
+
+@_jit
+def _choose_component(ws, rng):
+    """Index of a sampled component, drawn with probability proportional to its size."""
+    cumulative = ws[4]
+    u = rng.random() * cumulative[-1]
+    for j in range(cumulative.shape[0] - 1):
+        if u < cumulative[j]:
+            return j
+    return cumulative.shape[0] - 1
+
+
+@_jit
+def _component_index(ws, x0, x1, x2):
+    """Index (into the sampled components) of the region of a pose, −1 if it is in none."""
+    label = _label(ws, x0, x1, x2)
+    ids = ws[3]
+    for j in range(ids.shape[0]):
+        if ids[j] == label:
+            return j
+    return -1
+
+
+#: Candidates a sampler may reject (per pose or pair) before it reports failure.
+SAMPLER_TRIES = 6400
+
+
+@_jit
+def _sample_reach(c, ws, rng, hard, min_distance, fixed_kind, f0, f1, f2, segment_points, o_start, o_target):
+    """Fill o_start / o_target (M, 3) with pairs in one region; fixed_kind 1 (2) keeps the start (target) f.
+
+    Returns:
+        True on success, False when ``SAMPLER_TRIES`` candidates were rejected for one pair.
+    """
+    lc = c[C_LC]
+    fixed_j = -1
+    if fixed_kind != 0:
+        fixed_j = _component_index(ws, f0, f1, f2)
+        if fixed_j < 0:
+            return False
+    for i in range(o_start.shape[0]):
+        done = False
+        for _ in range(SAMPLER_TRIES):
+            if fixed_kind == 0:
+                j = _choose_component(ws, rng)
+                ok, s0, s1, s2 = _pose_in_component(c, ws, rng, j, SAMPLER_TRIES)
+                ok2, t0, t1, t2 = _pose_in_component(c, ws, rng, j, SAMPLER_TRIES)
+                if not (ok and ok2):
+                    return False
+            else:
+                ok, o0, o1, o2 = _pose_in_component(c, ws, rng, fixed_j, SAMPLER_TRIES)
+                if not ok:
+                    return False
+                if fixed_kind == 1:
+                    s0, s1, s2, t0, t1, t2 = f0, f1, f2, o0, o1, o2
+                else:
+                    s0, s1, s2, t0, t1, t2 = o0, o1, o2, f0, f1, f2
+            d0, d1, d2 = t0 - s0, t1 - s1, lc * (t2 - s2)
+            if not math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) >= min_distance:
+                continue
+            if hard and not _segment_min_k(c, s0, s1, s2, t0, t1, t2, segment_points) < c[C_HARD]:
+                continue
+            o_start[i, 0], o_start[i, 1], o_start[i, 2] = s0, s1, s2
+            o_target[i, 0], o_target[i, 1], o_target[i, 2] = t0, t1, t2
+            done = True
+            break
+        if not done:
+            return False
+    return True
+
+
+def sample_reach_batch(c, ws, rng, n, hard, min_distance, fixed_kind, fixed, segment_points):
+    """Draw n start/target pairs (see ``envs.tasks.sample_reach``) with the generator ``rng``.
+
+    Args:
+        c: Packed constants.
+        ws: Packed workspace.
+        rng: A NumPy ``Generator`` (its state advances exactly as if NumPy drew the same numbers).
+        n: Number of pairs.
+        hard: Whether the straight line must dip below the hard threshold.
+        min_distance: Smallest ‖(Δx, Δy, ℓ_c Δφ)‖ between start and target [m].
+        fixed_kind: 0 (none), 1 (``fixed`` is the start) or 2 (``fixed`` is the target).
+        fixed: The fixed pose, shape (3,) (ignored when fixed_kind is 0).
+        segment_points: Points checked along a hard pair's segment.
+
+    Returns:
+        (starts (n, 3), targets (n, 3)), or None if no pair was found.
+    """
+    o_start, o_target = np.empty((n, 3)), np.empty((n, 3))
+    f0, f1, f2 = (float(v) for v in fixed)
+    if not _sample_reach(c, ws, rng, hard, min_distance, fixed_kind, f0, f1, f2, segment_points, o_start, o_target):
+        return None
+    return o_start, o_target
+
+
+@_jit
+def _sample_track(c, ws, rng, r_lo, r_hi, a_lo, a_hi, n_check, o_center, o_radius, o_phase, o_amplitude):
+    """Fill the M references (centre, radius, phase, amplitude) whose every step pose is safe in one region."""
+    omega_dt = _TWO_PI / c[C_PERIOD] * c[C_DT]
+    for i in range(o_radius.shape[0]):
+        done = False
+        for _ in range(SAMPLER_TRIES):
+            j = _choose_component(ws, rng)
+            ok, c0, c1, c2 = _pose_in_component(c, ws, rng, j, SAMPLER_TRIES)
+            if not ok:
+                return False
+            r = r_lo + rng.random() * (r_hi - r_lo)
+            th = -math.pi + rng.random() * _TWO_PI
+            a = a_lo + rng.random() * (a_hi - a_lo)
+            comp = ws[3][j]
+            good = True
+            for step in range(n_check):
+                wt = omega_dt * step
+                p0 = c0 + r * math.cos(wt + th)
+                p1 = c1 + r * math.sin(wt + th)
+                p2 = c2 + a * math.sin(wt)
+                if not (_safe(c, ws, p0, p1, p2) and _label(ws, p0, p1, p2) == comp):
+                    good = False
+                    break
+            if good:
+                o_center[i, 0], o_center[i, 1], o_center[i, 2] = c0, c1, c2
+                o_radius[i], o_phase[i], o_amplitude[i] = r, th, a
+                done = True
+                break
+        if not done:
+            return False
+    return True
+
+
+def sample_track_batch(c, ws, rng, n, radius_range, amplitude_range, n_check):
+    """Draw n reference trajectories (see ``envs.tasks.sample_track``) with the generator ``rng``.
+
+    Args:
+        c: Packed constants.
+        ws: Packed workspace.
+        rng: A NumPy ``Generator``.
+        n: Number of references.
+        radius_range: (r_min, r_max) [m].
+        amplitude_range: (a_min, a_max) [rad].
+        n_check: Steps of one period checked for safety.
+
+    Returns:
+        (centres (n, 3), radii (n,), phases (n,), amplitudes (n,)), or None if none was found.
+    """
+    center, radius, phase, amplitude = np.empty((n, 3)), np.empty(n), np.empty(n), np.empty(n)
+    r_lo, r_hi = (float(v) for v in radius_range)
+    a_lo, a_hi = (float(v) for v in amplitude_range)
+    if not _sample_track(c, ws, rng, r_lo, r_hi, a_lo, a_hi, n_check, center, radius, phase, amplitude):
+        return None
+    return center, radius, phase, amplitude
+
+
+# -- the state at the start of an episode -------------------------------------------------------------
+
+
+@_jit
+def _initial_loop(c, x, o_q, o_k, o_sign, o_res):
+    for i in range(x.shape[0]):
+        a = _rows(c, x[i, 0], x[i, 1], x[i, 2])
+        q0, q1, q2 = math.sqrt(a[9]), math.sqrt(a[10]), math.sqrt(a[11])
+        o_q[i, 0], o_q[i, 1], o_q[i, 2] = q0, q1, q2
+        o_k[i], o_sign[i] = _singularity_rows(c, q0, q1, q2, a)
+        o_res[i] = _max_abs3(a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2)
+
+
+def initial_batch(c, x):
+    """Strokes (inverse kinematics), k, sign(det J_x) and constraint residual of N robots at rest at x.
+
+    Args:
+        c: Packed constants.
+        x: Poses, shape (N, 3).
+
+    Returns:
+        (q (N, 3) [m], k (N,), sign (N,), residual (N,) [m²]).
+    """
+    n = x.shape[0]
+    o_q, o_k, o_sign, o_res = np.empty((n, 3)), np.empty(n), np.empty(n), np.empty(n)
+    _initial_loop(c, x, o_q, o_k, o_sign, o_res)
+    return o_q, o_k, o_sign, o_res

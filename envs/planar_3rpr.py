@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs import core
+from envs import core, kernels
 from envs.core import EnvParams, Reference, State
 from envs.rendering import HumanWindow, render_frame
 from envs.tasks import is_safe, sample_reach, sample_track
@@ -156,9 +156,8 @@ def initial_state(params: EnvParams, start: np.ndarray, reference: Reference) ->
     Returns:
         The state at t = 0.
     """
-    q = params.robot.inverse_kinematics(start, validate=False)
-    k, det_sign = core.conditioning(params, q, start)
-    residual = np.max(np.abs(params.robot.constraints(q, start, validate=False)), axis=-1)
+    start = np.ascontiguousarray(start, dtype=np.float64)
+    q, k, det_sign, residual = kernels.initial_batch(params.packed, start)
     return State(
         q=q,
         x=start.copy(),

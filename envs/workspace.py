@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from envs.kernels import pack_workspace
 from kinematics import Planar3RPR
 from kinematics.linalg import determinant
 
@@ -77,6 +78,11 @@ class WorkspaceMap:
     def nodes(self) -> np.ndarray:
         """Pose of every node, shape (n_x, n_y, n_φ, 3)."""
         return np.stack(np.meshgrid(*self.axes, indexing="ij"), axis=-1)
+
+    @functools.cached_property
+    def packed(self) -> tuple[np.ndarray, ...]:
+        """The grid as the compiled sampling kernels read it (``envs.kernels.pack_workspace``)."""
+        return pack_workspace(self)
 
     @functools.cached_property
     def component_nodes(self) -> dict[int, np.ndarray]:
