@@ -23,6 +23,7 @@ __all__ = [
     "EnvParams",
     "Reference",
     "State",
+    "StepBuffers",
     "StepOutcome",
     "evaluate",
     "observation",
@@ -443,7 +444,8 @@ def observation(
 
 
 #: Columns of the per-robot evaluation returned by ``evaluate`` and ``step`` (``envs.kernels.E_*``):
-#: the four reward terms, their sum, the errors, success, cost, and the target pose and velocity.
+#: the four reward terms, their sum, the errors, success, cost, the target pose and velocity, the
+#: inverse condition number, the constraint residual and the pose.
 EVALUATION_COLUMNS = {
     "reward_tracking": kernels.E_TRACKING,
     "reward_singularity": kernels.E_SINGULARITY,
@@ -456,6 +458,9 @@ EVALUATION_COLUMNS = {
     "cost": kernels.E_COST,
     "target": slice(kernels.E_TARGET, kernels.E_TARGET + 3),
     "target_velocity": slice(kernels.E_VELOCITY, kernels.E_VELOCITY + 3),
+    "inverse_condition_number": kernels.E_K,
+    "constraint_residual": kernels.E_RESIDUAL,
+    "pose": slice(kernels.E_POSE, kernels.E_POSE + 3),
 }
 
 
@@ -464,18 +469,19 @@ def _check_state(state: State, action: np.ndarray | None = None) -> int:
     n = state.q.shape[0]
     rows, flat = (n, 3), (n,)
     ref = state.reference
-    if not (
-        state.q.shape == rows
-        and state.x.shape == rows
-        and ref.center.shape == rows
-        and state.t.shape == flat
-        and state.det_sign.shape == flat
-        and state.inverse_condition.shape == flat
-        and state.residual.shape == flat
-        and ref.radius.shape == flat
-        and ref.phase.shape == flat
-        and ref.amplitude.shape == flat
-        and (action is None or action.shape == rows)
+    if (
+        (state.q.shape, state.x.shape, ref.center.shape) != (rows, rows, rows)
+        or (
+            state.t.shape,
+            state.det_sign.shape,
+            state.inverse_condition.shape,
+            state.residual.shape,
+            ref.radius.shape,
+            ref.phase.shape,
+            ref.amplitude.shape,
+        )
+        != (flat, flat, flat, flat, flat, flat, flat)
+        or (action is not None and action.shape != rows)
     ):
         shapes = {name: np.shape(value) for name, value in zip(State._fields, state) if name != "reference"}
         shapes.update({f"reference.{name}": np.shape(value) for name, value in zip(Reference._fields, ref)})
@@ -520,6 +526,7 @@ def evaluate(
         state.x,
         state.t,
         state.inverse_condition,
+        state.residual,
         ref.center,
         ref.radius,
         ref.phase,
@@ -529,8 +536,37 @@ def evaluate(
     )
 
 
+class StepBuffers:
+    """Output arrays of ``step`` for N robots, allocated once and overwritten by every ``step(..., out=self)``.
+
+    An environment that owns two of them and alternates (``step`` must not write over its input
+    state) steps without allocating; what it hands out (observations, infos, ``state``) it copies.
+
+    Args:
+        n: Number of robots.
+        with_velocity: Whether the observations end with the target velocity.
+    """
+
+    def __init__(self, n: int, with_velocity: bool) -> None:
+        """Allocate the arrays; see the class docstring."""
+        self.arrays = kernels.allocate_step(n, 21 if with_velocity else 18)
+        q, x, t, k, residual, a, q_rate, reason, jump, evaluation, observations = self.arrays
+        self.outcome = StepOutcome(a, q_rate, reason, jump)
+        self.evaluation, self.observations = evaluation, observations
+        self._fields = (q, x, t, k, residual)
+        self._state: State | None = None
+
+    def state(self, det_sign: np.ndarray, reference: Reference) -> State:
+        """The State over these arrays with the episode's ``det_sign`` and ``reference`` (built once per episode)."""
+        state = self._state
+        if state is None or state.det_sign is not det_sign or state.reference is not reference:
+            q, x, t, k, residual = self._fields
+            state = self._state = State(q, x, t, det_sign, k, residual, reference)
+        return state
+
+
 def step(
-    params: EnvParams, state: State, action: np.ndarray, with_velocity: bool
+    params: EnvParams, state: State, action: np.ndarray, with_velocity: bool, out: StepBuffers | None = None
 ) -> tuple[State, StepOutcome, np.ndarray, np.ndarray]:
     """``transition`` then ``evaluate`` of the new state, fused in one compiled pass (what the envs call).
 
@@ -539,19 +575,26 @@ def step(
         state: The robots' state.
         action: Normalised stroke rates, shape (N, 3), float64, finite.
         with_velocity: Whether the observation ends with the target velocity.
+        out: Arrays to write the results into (overwritten; none of them may belong to ``state``), or
+            None for fresh ones.
 
     Returns:
         (new state, outcome, evaluation (N, len(E)) float64, observations float32), as ``transition``
         and ``evaluate``.
+
+    Raises:
+        ValueError: If an action is not finite (``state`` is untouched; ``out`` holds garbage).
     """
-    _check_state(state, action)
-    low, high = params.observation_bounds[bool(with_velocity)]
+    n = _check_state(state, action)
+    if out is None:
+        out = StepBuffers(n, with_velocity)
+    elif out.evaluation.shape[0] != n or out.observations.shape[1] != (21 if with_velocity else 18):
+        raise ValueError(f"out holds {out.evaluation.shape[0]} robots of {out.observations.shape[1]} observations")
     ref = state.reference
-    q, x, t, k, residual, a, q_rate, reason, jump, evaluation, observations = kernels.step_batch(
+    bad = kernels.step_batch(
         params.packed,
-        low,
-        high,
-        bool(with_velocity),
+        *params.observation_bounds[with_velocity],
+        with_velocity,
         state.q,
         state.x,
         state.t,
@@ -562,6 +605,10 @@ def step(
         ref.phase,
         ref.amplitude,
         action,
+        out.arrays,
     )
-    new_state = State(q, x, t, state.det_sign, k, residual, ref)
-    return new_state, StepOutcome(a, q_rate, reason, jump), evaluation, observations
+    if bad:
+        rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
+        where = f" (row(s) {rows[:10].tolist()} of {n})" if n > 1 else ""
+        raise ValueError(f"action must be finite, got {action[rows[0]].tolist()}{where}")
+    return out.state(state.det_sign, ref), out.outcome, out.evaluation, out.observations

@@ -596,7 +596,9 @@ E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION = 0, 1, 2, 3
 E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_REWARD = 4, 5, 6, 7, 8
 E_TARGET = 9  # target pose, 3 columns
 E_VELOCITY = 12  # target velocity, 3 columns
-E_SIZE = 15
+E_K, E_RESIDUAL = 15, 16  # inverse condition number, constraint residual [m²]
+E_POSE = 17  # pose (x, y, φ), 3 columns
+E_SIZE = 20
 
 
 @_jit
@@ -787,7 +789,24 @@ def observation_batch(c, low, high, with_velocity, q, x, k, target, velocity):
 
 @_jit_inline
 def _evaluate_row(
-    c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, i, o_eval, o_obs
+    c,
+    low,
+    high,
+    with_velocity,
+    q,
+    x,
+    t,
+    k,
+    residual,
+    center,
+    radius,
+    phase,
+    amplitude,
+    action,
+    reason,
+    i,
+    o_eval,
+    o_obs,
 ):
     p0, p1, p2, w0, w1, w2 = _reference_row(c, t, center, radius, phase, amplitude, i)
     tr, si, ac, te, ep, eo = _terms(
@@ -802,30 +821,66 @@ def _evaluate_row(
     e[i, E_COST] = 1.0 if k[i] < c[C_SAFE] else 0.0
     e[i, E_TARGET], e[i, E_TARGET + 1], e[i, E_TARGET + 2] = p0, p1, p2
     e[i, E_VELOCITY], e[i, E_VELOCITY + 1], e[i, E_VELOCITY + 2] = w0, w1, w2
+    e[i, E_K], e[i, E_RESIDUAL] = k[i], residual[i]
+    e[i, E_POSE], e[i, E_POSE + 1], e[i, E_POSE + 2] = x[i, 0], x[i, 1], x[i, 2]
     _observation_row(c, low, high, with_velocity, q, x, k, p0, p1, p2, w0, w1, w2, i, o_obs)
 
 
 @_jit
 def _evaluate_serial(
-    c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, o_eval, o_obs
+    c, low, high, with_velocity, q, x, t, k, residual, center, radius, phase, amplitude, action, reason, o_eval, o_obs
 ):
     for i in range(x.shape[0]):
         _evaluate_row(
-            c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, i, o_eval, o_obs
+            c,
+            low,
+            high,
+            with_velocity,
+            q,
+            x,
+            t,
+            k,
+            residual,
+            center,
+            radius,
+            phase,
+            amplitude,
+            action,
+            reason,
+            i,
+            o_eval,
+            o_obs,
         )
 
 
 @_jit_parallel
 def _evaluate_parallel(
-    c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, o_eval, o_obs
+    c, low, high, with_velocity, q, x, t, k, residual, center, radius, phase, amplitude, action, reason, o_eval, o_obs
 ):
     for i in numba.prange(x.shape[0]):
         _evaluate_row(
-            c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, i, o_eval, o_obs
+            c,
+            low,
+            high,
+            with_velocity,
+            q,
+            x,
+            t,
+            k,
+            residual,
+            center,
+            radius,
+            phase,
+            amplitude,
+            action,
+            reason,
+            i,
+            o_eval,
+            o_obs,
         )
 
 
-def evaluate_batch(c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason):
+def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, radius, phase, amplitude, action, reason):
     """Everything an environment reports after a transition, for N robots, in one pass.
 
     Args:
@@ -837,6 +892,7 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, center, radius, phas
         x: Poses, shape (N, 3).
         t: Steps taken, shape (N,) (int).
         k: Inverse condition numbers, shape (N,).
+        residual: Constraint residuals [m²], shape (N,).
         center: Reference centres, shape (N, 3).
         radius: Reference radii [m], shape (N,).
         phase: Reference phases [rad], shape (N,).
@@ -851,7 +907,25 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, center, radius, phas
     o_eval = np.empty((n, E_SIZE))
     o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
     kernel = _evaluate_parallel if n >= PARALLEL_MIN_BATCH else _evaluate_serial
-    kernel(c, low, high, with_velocity, q, x, t, k, center, radius, phase, amplitude, action, reason, o_eval, o_obs)
+    kernel(
+        c,
+        low,
+        high,
+        with_velocity,
+        q,
+        x,
+        t,
+        k,
+        residual,
+        center,
+        radius,
+        phase,
+        amplitude,
+        action,
+        reason,
+        o_eval,
+        o_obs,
+    )
     return o_eval, o_obs
 
 
@@ -874,6 +948,7 @@ def _step_row(
         o_x,
         o_t,
         o_k,
+        o_res,
         center,
         radius,
         phase,
@@ -891,11 +966,15 @@ def _step_serial(
     c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action,
     o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
 ):  # fmt: skip
+    bad = 0
     for i in range(q.shape[0]):
+        if not math.isfinite(action[i, 0] + action[i, 1] + action[i, 2]):  # ±inf and NaN alike
+            bad += 1
         _step_row(
             c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action, i,
             o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
         )  # fmt: skip
+    return bad
 
 
 @_jit_parallel
@@ -903,14 +982,43 @@ def _step_parallel(
     c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action,
     o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
 ):  # fmt: skip
+    bad = 0
     for i in numba.prange(q.shape[0]):
+        if not math.isfinite(action[i, 0] + action[i, 1] + action[i, 2]):  # ±inf and NaN alike
+            bad += 1
         _step_row(
             c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action, i,
             o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
         )  # fmt: skip
+    return bad
 
 
-def step_batch(c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action):
+def allocate_step(n, obs_dim):
+    """Output arrays of ``step_batch`` for n robots and observations of obs_dim entries.
+
+    Args:
+        n: Number of robots.
+        obs_dim: Observation size (18 or 21).
+
+    Returns:
+        (q', x', t', k', residual', applied action, stroke rates, reasons, jumps, evaluation, observations).
+    """
+    return (
+        np.empty((n, 3)),
+        np.empty((n, 3)),
+        np.empty(n, dtype=np.int64),
+        np.empty(n),
+        np.empty(n),
+        np.empty((n, 3)),
+        np.empty((n, 3)),
+        np.empty(n, dtype=np.int64),
+        np.empty(n),
+        np.empty((n, E_SIZE)),
+        np.empty((n, obs_dim), dtype=np.float32),
+    )
+
+
+def step_batch(c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action, out):
     """Transition N robots, then evaluate them (``transition_batch`` followed by ``evaluate_batch``), in one pass.
 
     Args:
@@ -927,24 +1035,16 @@ def step_batch(c, low, high, with_velocity, q, x, t, det_sign, residual, center,
         radius: Reference radii [m], shape (N,).
         phase: Reference phases [rad], shape (N,).
         amplitude: Reference orientation amplitudes [rad], shape (N,).
-        action: Normalised stroke rates, shape (N, 3), finite.
+        action: Normalised stroke rates, shape (N, 3).
+        out: The output arrays (``allocate_step``), none of them an input.
 
     Returns:
-        (q', x', t', k', residual', applied action, stroke rates, reasons, jumps, evaluation (N, E_SIZE),
-        observations (N, D) float32).
+        The number of robots whose action is not finite (their outputs are meaningless, never a crash).
     """
-    n = q.shape[0]
-    o_q, o_x, o_a, o_qr = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-    o_k, o_res, o_jump = np.empty(n), np.empty(n), np.empty(n)
-    o_t, o_reason = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
-    o_eval = np.empty((n, E_SIZE))
-    o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
-    kernel = _step_parallel if n >= PARALLEL_MIN_BATCH else _step_serial
-    kernel(
-        c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action,
-        o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
-    )  # fmt: skip
-    return o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs
+    kernel = _step_parallel if q.shape[0] >= PARALLEL_MIN_BATCH else _step_serial
+    return kernel(
+        c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action, *out
+    )
 
 
 # -- task sampling ------------------------------------------------------------------------------------

@@ -181,34 +181,41 @@ def step_info(state: State, evaluation: np.ndarray, reason: np.ndarray) -> dict[
         Fresh arrays with a leading dimension N, in the order of the single env's ``info``.
     """
     columns = core.EVALUATION_COLUMNS
-    info = {name: evaluation[:, columns[name]].copy() for name in INFO_FLOATS[:4]}
-    info.update(
-        position_error=evaluation[:, columns["position_error"]].copy(),
-        orientation_error=evaluation[:, columns["orientation_error"]].copy(),
-        inverse_condition_number=state.inverse_condition.copy(),
-        constraint_residual=state.residual.copy(),
-        is_success=evaluation[:, columns["is_success"]] != 0.0,
-        cost=evaluation[:, columns["cost"]].copy(),
-        termination_reason=_REASON_NAMES[reason],
-        pose=state.x.copy(),
-        target=evaluation[:, columns["target"]].copy(),
-    )
+    info = {name: evaluation[:, columns[name]].copy() for name in INFO_KEYS[:8]}
+    info["is_success"] = evaluation[:, columns["is_success"]] != 0.0
+    info["cost"] = evaluation[:, columns["cost"]].copy()
+    info["termination_reason"] = _REASON_NAMES[reason]
+    info["pose"] = evaluation[:, columns["pose"]].copy()
+    info["target"] = evaluation[:, columns["target"]].copy()
     return info
 
 
 #: Termination reason names as an object array (indexed by reason codes).
 _REASON_NAMES = np.asarray(core.TERMINATION_REASONS, dtype=object)
-#: The float entries of a single env's ``info`` that come straight from the evaluation row.
-INFO_FLOATS = (
+#: The keys of an env's ``info``, in order.
+INFO_KEYS = (
     "reward_tracking",
     "reward_singularity",
     "reward_action",
     "reward_termination",
     "position_error",
     "orientation_error",
+    "inverse_condition_number",
+    "constraint_residual",
+    "is_success",
     "cost",
+    "termination_reason",
+    "pose",
+    "target",
 )
-_INFO_COLUMNS = [core.EVALUATION_COLUMNS[name] for name in INFO_FLOATS]
+# Evaluation columns the single env reads (module constants: the step reads them without lookups).
+_E_TRACKING, _E_SINGULARITY, _E_ACTION, _E_TERMINATION = (core.EVALUATION_COLUMNS[k] for k in INFO_KEYS[:4])
+_E_POSITION_ERROR, _E_ORIENTATION_ERROR = kernels.E_POSITION_ERROR, kernels.E_ORIENTATION_ERROR
+_E_K, _E_RESIDUAL, _E_SUCCESS, _E_COST = kernels.E_K, kernels.E_RESIDUAL, kernels.E_SUCCESS, kernels.E_COST
+_E_REWARD = kernels.E_REWARD
+_E_POSE = slice(kernels.E_POSE, kernels.E_POSE + 3)
+_E_TARGET = slice(kernels.E_TARGET, kernels.E_TARGET + 3)
+_E_XY = slice(kernels.E_POSE, kernels.E_POSE + 2)
 
 
 class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
@@ -231,6 +238,9 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
         low, high = core.observation_bounds(params, self.with_velocity)
         self.observation_space = spaces.Box(low.copy(), high.copy(), dtype=np.float32)
         self._state: State | None = None
+        # Two sets of step outputs, used in turn: a step never writes over the state it starts from.
+        self._buffers = (core.StepBuffers(1, self.with_velocity), core.StepBuffers(1, self.with_velocity))
+        self._next = 0
         self._terminated = False
         self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
         self._window: HumanWindow | None = None
@@ -265,22 +275,19 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
         if self._terminated:
             raise gym.error.ResetNeeded("The episode has terminated; call reset() before step()")
         a = self._check_action(action)
-        state, outcome, evaluation, observations = core.step(self.params, self._state, a, self.with_velocity)
+        out = self._buffers[self._next]  # not the one holding self._state
+        state, outcome, evaluation, observations = core.step(self.params, self._state, a, self.with_velocity, out)
+        self._next ^= 1
         self._state = state
         reason = int(outcome.reason[0])
         terminated = reason != 0
         self._terminated = terminated
-        self._trail.append(state.x[0, :2].copy())
+        row = evaluation[0]
+        info = self._info(row, reason)
+        self._trail.append(info["pose"][:2])
         if self.render_mode == "human":
             self.render()
-        row = evaluation[0]
-        return (
-            observations[0],
-            float(row[core.EVALUATION_COLUMNS["reward"]]),
-            terminated,
-            False,
-            self._info(row, reason),
-        )
+        return observations[0].copy(), float(row[_E_REWARD]), terminated, False, info
 
     def render(self):
         """An RGB frame (``rgb_array``), or a window update (``human``); None without a render mode."""
@@ -315,39 +322,50 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
 
     @property
     def state(self) -> State | None:
-        """The current batched state (N = 1), or None before the first reset."""
-        return self._state
+        """A copy of the current batched state (N = 1), or None before the first reset.
+
+        The environment reuses its own arrays from step to step; the copy is yours to keep.
+        """
+        state = self._state
+        if state is None:
+            return None
+        reference = Reference(*(field.copy() for field in state.reference))
+        return State(*(field.copy() for field in state[:-1]), reference)
 
     def _reference(self) -> tuple[np.ndarray, np.ndarray]:
         return core.reference_pose(self.params, self._state.reference, self._state.t)
 
     def _info(self, row: np.ndarray, reason: int) -> dict[str, Any]:
         """The single env's ``info`` from its evaluation row (same keys and values as ``step_info``)."""
-        state = self._state
-        values = row.tolist()
-        info: dict[str, Any] = {name: values[column] for name, column in zip(INFO_FLOATS[:4], _INFO_COLUMNS)}
-        info["position_error"] = values[_INFO_COLUMNS[4]]
-        info["orientation_error"] = values[_INFO_COLUMNS[5]]
-        info["inverse_condition_number"] = float(state.inverse_condition[0])
-        info["constraint_residual"] = float(state.residual[0])
-        info["is_success"] = values[core.EVALUATION_COLUMNS["is_success"]] != 0.0
-        info["cost"] = values[_INFO_COLUMNS[6]]
-        info["termination_reason"] = core.TERMINATION_REASONS[reason]
-        info["pose"] = state.x[0].copy()
-        info["target"] = row[core.EVALUATION_COLUMNS["target"]].copy()
-        return info
+        v = row.tolist()
+        return {
+            "reward_tracking": v[_E_TRACKING],
+            "reward_singularity": v[_E_SINGULARITY],
+            "reward_action": v[_E_ACTION],
+            "reward_termination": v[_E_TERMINATION],
+            "position_error": v[_E_POSITION_ERROR],
+            "orientation_error": v[_E_ORIENTATION_ERROR],
+            "inverse_condition_number": v[_E_K],
+            "constraint_residual": v[_E_RESIDUAL],
+            "is_success": v[_E_SUCCESS] != 0.0,
+            "cost": v[_E_COST],
+            "termination_reason": core.TERMINATION_REASONS[reason],
+            "pose": row[_E_POSE].copy(),
+            "target": row[_E_TARGET].copy(),
+        }
 
     @staticmethod
     def _check_action(action: Any) -> np.ndarray:
-        """``action`` as a float64 array of shape (1, 3), or a clear error (not finite, wrong shape, not numbers)."""
+        """``action`` as a float64 array of shape (1, 3), or a clear error (wrong shape, not numbers).
+
+        Finiteness is checked by ``core.step`` (in the compiled pass), which raises a ValueError.
+        """
         try:
             a = np.asarray(action, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise TypeError(f"action must be an array of 3 real numbers, got {action!r}") from exc
         if a.shape != (3,):
             raise ValueError(f"action must have shape (3,), got shape {a.shape}")
-        if not math.isfinite(a[0] + a[1] + a[2]):  # one scalar test; NaN and ±inf propagate into the sum
-            raise ValueError(f"action must be finite, got {a.tolist()}")
         return a.reshape(1, 3)
 
     def _check_pose(self, name: str, value: Any) -> np.ndarray:
