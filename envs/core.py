@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -464,9 +464,25 @@ EVALUATION_COLUMNS = {
 }
 
 
+class _BufferState(State):
+    """A State over the arrays of a ``StepBuffers``, consistent by construction.
+
+    Its own arrays are allocated for N robots; det_sign and reference come from a state that passed
+    ``_check_state``. ``_replace`` (and ``_make``) give a plain State, which is checked again.
+    """
+
+    __slots__ = ()
+
+    @classmethod
+    def _make(cls, iterable: Any) -> State:
+        return State._make(iterable)
+
+
 def _check_state(state: State, action: np.ndarray | None = None) -> int:
     """N, after checking that every array of ``state`` (and ``action``) has the shape the kernels index."""
     n = state.q.shape[0]
+    if type(state) is _BufferState and (action is None or action.shape == (n, 3)):
+        return n
     rows, flat = (n, 3), (n,)
     ref = state.reference
     if (
@@ -561,7 +577,7 @@ class StepBuffers:
         state = self._state
         if state is None or state.det_sign is not det_sign or state.reference is not reference:
             q, x, t, k, residual = self._fields
-            state = self._state = State(q, x, t, det_sign, k, residual, reference)
+            state = self._state = _BufferState(q, x, t, det_sign, k, residual, reference)
         return state
 
 

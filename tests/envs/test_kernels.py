@@ -272,3 +272,40 @@ def test_packed_constants_follow_params():
     np.testing.assert_array_equal(c[kernels.C_B : kernels.C_B + 6], robot.base.ravel())
     np.testing.assert_array_equal(c[kernels.C_SCALE : kernels.C_SCALE + 3], robot.pose_scale)
     assert not c.flags.writeable
+
+
+def test_step_buffers_give_the_fresh_result(params, rng):
+    """Stepping into reused buffers (as the single env does) equals stepping into fresh arrays."""
+    state = _random_states(params, rng, 5)
+    action = rng.uniform(-1, 1, size=(5, 3))
+    buffers = (core.StepBuffers(5, False), core.StepBuffers(5, False))
+    reused = state
+    fresh = state
+    for k in range(4):
+        reused, *_ = core.step(params, reused, action, False, buffers[k % 2])
+        fresh, *_ = core.step(params, fresh, action, False)
+    for a, b in zip([*reused[:-1], *reused.reference], [*fresh[:-1], *fresh.reference]):
+        np.testing.assert_array_equal(a, b)
+    # A buffer's state skips the shape check, but a state derived from it with _replace is checked again.
+    with pytest.raises(ValueError, match="state arrays must have shapes"):
+        core.step(params, reused._replace(residual=reused.residual[:3]), action, False)
+    with pytest.raises(ValueError, match="out holds 4 robots"):
+        core.step(params, state, action, False, core.StepBuffers(4, False))
+    with pytest.raises(ValueError, match="action must be finite"):
+        core.step(params, state, np.full((5, 3), np.inf), False)
+
+
+def test_env_state_is_a_copy(rng):
+    """env.unwrapped.state is a snapshot: kept across steps it does not change, and editing it changes nothing."""
+    import gymnasium as gym
+
+    env = gym.make("Planar3RPRReach-v0")
+    env.reset(seed=3)
+    first = env.unwrapped.state
+    kept = first.x.copy()
+    for _ in range(3):
+        env.step(rng.uniform(-1, 1, size=3).astype(np.float32))
+    np.testing.assert_array_equal(first.x, kept)
+    now = env.unwrapped.state
+    now.x[:] = 123.0
+    assert not np.any(env.unwrapped.state.x == 123.0)
