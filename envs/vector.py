@@ -181,6 +181,13 @@ class Planar3RPRVectorEnv(VectorEnv):
         self._seeds: list[int | None] = [None] * self.num_envs
         self._state: State | None = None
         self._observations: np.ndarray | None = None
+        # Two sets of step outputs, used in turn (a step never writes over the state it starts from),
+        # so that stepping allocates no large arrays.
+        self._buffers = (
+            core.StepBuffers(self.num_envs, self.with_velocity),
+            core.StepBuffers(self.num_envs, self.with_velocity),
+        )
+        self._next = 0
         self._ended = np.zeros(self.num_envs, dtype=bool)
         self._trails: list[deque[np.ndarray]] = []
 
@@ -253,7 +260,9 @@ class Planar3RPRVectorEnv(VectorEnv):
                 f"sub-environment(s) {ended[:10]} have ended and autoreset_mode is DISABLED; "
                 "reset them with reset(options={'reset_mask': mask})"
             )
-        state, outcome, evaluation, observations = core.step(self.params, self._state, a, self.with_velocity)
+        out = self._buffers[self._next]  # not the one holding self._state
+        state, outcome, evaluation, observations = core.step(self.params, self._state, a, self.with_velocity, out)
+        self._next ^= 1
         self._state = state
         info = step_info(state, evaluation, outcome.reason)
         rewards = evaluation[:, core.EVALUATION_COLUMNS["reward"]].copy()
@@ -325,8 +334,15 @@ class Planar3RPRVectorEnv(VectorEnv):
 
     @property
     def state(self) -> State | None:
-        """The batched state of the N robots, or None before the first reset."""
-        return self._state
+        """A copy of the batched state of the N robots, or None before the first reset.
+
+        The environment reuses its own arrays from step to step; the copy is yours to keep.
+        """
+        state = self._state
+        if state is None:
+            return None
+        reference = Reference(*(field.copy() for field in state.reference))
+        return State(*(field.copy() for field in state[:-1]), reference)
 
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:
