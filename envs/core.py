@@ -2,7 +2,14 @@
 
 The ``phys2d`` pattern of Gymnasium: parameters live in a frozen dataclass, the state in arrays with a
 leading batch dimension N, and every function here is pure. The single environment calls them with
-N = 1, the native vector environment with N robots; nothing is copied between the two.
+N = 1, the native vector environment with N robots, the shield, the evaluation harness and the tests
+as well; nothing is copied between them.
+
+The work is done robot by robot by the compiled kernels of ``envs.kernels`` (Numba; on every core for
+large N); this module checks shapes, allocates the outputs and names the results. ``step`` fuses
+``transition`` and ``evaluate`` (reward terms, errors, success, cost and observation) in one pass, which
+is what the environments call on their hot path. The first call in a fresh checkout compiles the
+kernels (about 10 s); Numba caches them next to the source afterwards.
 """
 
 from __future__ import annotations
