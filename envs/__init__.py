@@ -2,12 +2,14 @@
 
 from gymnasium.envs.registration import register, registry
 
+from envs.goal import GoalReachWrapper
 from envs.planar_3rpr import Planar3RPRReachEnv, Planar3RPRTrackEnv
 from envs.shield import SingularityShield
 from envs.vector import Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv, Planar3RPRVectorEnv
 
 __all__ = [
     "ENV_IDS",
+    "GoalReachWrapper",
     "Planar3RPRReachEnv",
     "Planar3RPRReachVectorEnv",
     "Planar3RPRTrackEnv",

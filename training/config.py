@@ -20,7 +20,9 @@ __all__ = [
     "algorithm_class",
     "load_hyperparams",
     "parse_overrides",
+    "resolve_env_wrapper",
     "resolve_policy_kwargs",
+    "resolve_replay_buffer",
     "resolve_schedules",
 ]
 
@@ -28,7 +30,22 @@ __all__ = [
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3}
 
 #: Keys of an env entry that belong to the run, not to the algorithm's constructor (RL Zoo layout).
-RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "eval_freq", "n_eval_episodes", "env_kwargs")
+RUN_KEYS = (
+    "n_envs",
+    "n_timesteps",
+    "policy",
+    "normalize",
+    "eval_freq",
+    "n_eval_episodes",
+    "env_kwargs",
+    "env_wrapper",
+)
+
+#: Wrappers that ``env_wrapper`` may name (the RL Zoo's key; an allow-list, nothing is imported by name).
+ENV_WRAPPERS = ("envs.GoalReachWrapper",)
+
+#: Replay buffers that ``replay_buffer_class`` may name.
+REPLAY_BUFFERS = ("HerReplayBuffer",)
 
 #: Activation functions that ``policy_kwargs.activation_fn`` may name (no ``eval`` of strings).
 _ACTIVATIONS = ("ReLU", "Tanh", "ELU", "LeakyReLU", "GELU", "SiLU")
@@ -254,3 +271,48 @@ class LinearSchedule:
 
     def __repr__(self) -> str:
         return f"lin_{self.initial!r}"
+
+
+def resolve_env_wrapper(name: Any) -> type | None:
+    """The wrapper class an ``env_wrapper`` entry names (None for none).
+
+    Args:
+        name: A string of ``ENV_WRAPPERS``, or None.
+
+    Returns:
+        The class, or None.
+
+    Raises:
+        ConfigError: For any other value, listing the valid ones.
+    """
+    if name is None:
+        return None
+    if name not in ENV_WRAPPERS:
+        raise ConfigError(f"env_wrapper {name!r} is not one of {list(ENV_WRAPPERS)}")
+    import envs
+
+    return envs.GoalReachWrapper
+
+
+def resolve_replay_buffer(hyperparams: dict[str, Any]) -> dict[str, Any]:
+    """Turn a ``replay_buffer_class`` name into SB3's class.
+
+    Args:
+        hyperparams: Algorithm arguments as written in YAML.
+
+    Returns:
+        A new dict with the class in place of its name.
+
+    Raises:
+        ConfigError: For a name outside ``REPLAY_BUFFERS``.
+    """
+    out = dict(hyperparams)
+    name = out.get("replay_buffer_class")
+    if name is None:
+        return out
+    if name not in REPLAY_BUFFERS:
+        raise ConfigError(f"replay_buffer_class {name!r} is not one of {list(REPLAY_BUFFERS)}")
+    from stable_baselines3 import HerReplayBuffer
+
+    out["replay_buffer_class"] = HerReplayBuffer
+    return out

@@ -28,7 +28,7 @@ import yaml
 
 import envs
 from envs.core import TERMINATION_REASONS
-from training.config import ConfigError, algorithm_class
+from training.config import ConfigError, algorithm_class, resolve_env_wrapper
 from training.controllers import CONTROLLERS
 
 __all__ = [
@@ -40,6 +40,7 @@ __all__ = [
     "load_controller",
     "load_run",
     "main",
+    "wrap_for_run",
 ]
 
 #: Termination reasons that mean the robot met a singularity.
@@ -169,8 +170,12 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
         cls = algorithm_class(config["algo"])
     except ConfigError as exc:
         raise EvaluationError(f"{str(run / 'config.yml')!r}: {exc}") from exc
+    load_env = None
+    if config.get("hyperparams", {}).get("replay_buffer_class"):  # SB3 rebuilds a HER buffer around an env
+        env_id = config.get("env_id")
+        load_env = DummyVecEnv([lambda: wrap_for_run(gym.make(env_id), config)])
     try:
-        model = cls.load(model_path, device="cpu")
+        model = cls.load(model_path, env=load_env, device="cpu")
     except Exception as exc:  # SB3 raises many kinds on a damaged zip
         raise EvaluationError(f"cannot load {str(model_path)!r}: {type(exc).__name__}: {exc}") from exc
     normalizer = None
@@ -180,7 +185,7 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
             raise EvaluationError(f"run folder {str(run)!r} normalises observations but has no {stats.name}")
         env_id = config["env_id"]
         try:
-            normalizer = VecNormalize.load(str(stats), DummyVecEnv([lambda: gym.make(env_id)]))
+            normalizer = VecNormalize.load(str(stats), DummyVecEnv([lambda: wrap_for_run(gym.make(env_id), config)]))
         except Exception as exc:
             raise EvaluationError(f"cannot load {str(stats)!r}: {type(exc).__name__}: {exc}") from exc
         normalizer.training = False
@@ -195,6 +200,32 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
     return agent, config
 
 
+def wrap_for_run(env: gym.Env, config: dict[str, Any]) -> gym.Env:
+    """Apply the run's ``env_wrapper`` (for example the goal view HER trains on), if it has one.
+
+    Args:
+        env: The environment to evaluate on.
+        config: The run's ``config.yml``.
+
+    Returns:
+        ``env`` wrapped as in training.
+
+    Raises:
+        EvaluationError: If the config names an unknown wrapper or the env cannot take it.
+    """
+    try:
+        wrapper = resolve_env_wrapper(config.get("hyperparams", {}).get("env_wrapper"))
+        return env if wrapper is None else wrapper(env)
+    except (ConfigError, TypeError) as exc:
+        raise EvaluationError(f"cannot wrap {env.spec.id if env.spec else env} as the run was trained: {exc}") from exc
+
+
+def _shapes(space: gym.Space) -> Any:
+    if isinstance(space, gym.spaces.Dict):
+        return {key: sub.shape for key, sub in space.spaces.items()}
+    return space.shape
+
+
 def check_compatible(agent: Agent, env: gym.Env, source: str) -> None:
     """Raise if a trained agent expects observations of another shape than ``env`` gives.
 
@@ -207,10 +238,10 @@ def check_compatible(agent: Agent, env: gym.Env, source: str) -> None:
         EvaluationError: On a shape mismatch, naming both shapes.
     """
     space = getattr(agent, "observation_space", None)
-    if space is not None and space.shape != env.observation_space.shape:
+    if space is not None and _shapes(space) != _shapes(env.observation_space):
         raise EvaluationError(
-            f"{source} was trained on observations of shape {space.shape}, but {env.spec.id} gives "
-            f"{env.observation_space.shape}; evaluate it on the env it was trained on"
+            f"{source} was trained on observations of shape {_shapes(space)}, but {env.spec.id} gives "
+            f"{_shapes(env.observation_space)}; evaluate it on the env it was trained on"
         )
 
 
@@ -257,7 +288,8 @@ def evaluate_agent(
         if film:
             frames.append(env.render())
         while not done:
-            action = agent(obs[None])[0]
+            batch = {key: value[None] for key, value in obs.items()} if isinstance(obs, dict) else obs[None]
+            action = agent(batch)[0]
             obs, reward, terminated, truncated, info = env.step(action)
             total += reward
             done = terminated or truncated
@@ -457,6 +489,7 @@ def main(argv: list[str] | None = None) -> int:
         targets = args.targets or getattr(env.unwrapped, "targets", "standard")
         if args.run is not None:
             agent, _ = load_run(args.run, args.model)
+            env = wrap_for_run(env, config)
             check_compatible(agent, env, f"run {args.run!r}")
             name = f"{config['algo']} ({Path(args.run).name}){shielded}"
             out = Path(args.out) if args.out else Path(args.run) / f"eval-{env_id}-{targets}"

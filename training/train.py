@@ -35,7 +35,9 @@ from training.config import (
     algorithm_class,
     load_hyperparams,
     parse_overrides,
+    resolve_env_wrapper,
     resolve_policy_kwargs,
+    resolve_replay_buffer,
     resolve_schedules,
 )
 
@@ -56,6 +58,7 @@ def make_training_env(
     vec: str = "dummy",
     monitor_dir: str | Path | None = None,
     env_kwargs: dict[str, Any] | None = None,
+    wrapper_class: type | None = None,
 ):
     """A vectorised, monitored training environment (SB3 ``VecEnv``).
 
@@ -67,6 +70,7 @@ def make_training_env(
             ``VecMonitor``), "dummy" (one process) or "subproc" (one process per environment).
         monitor_dir: Folder for the Monitor CSV logs (with ``is_success`` and ``cost``), or None.
         env_kwargs: Keyword arguments for ``gym.make`` (or ``gym.make_vec`` for "native").
+        wrapper_class: A wrapper applied to each single env over its Monitor (not with "native").
 
     Returns:
         The SB3 ``VecEnv``.
@@ -82,6 +86,8 @@ def make_training_env(
 
         if gym.spec(env_id).vector_entry_point is None:
             raise ConfigError(f"{env_id} has no native vector env; use --vec dummy or subproc")
+        if wrapper_class is not None:
+            raise ConfigError(f"env_wrapper {wrapper_class.__name__} wraps single envs; use --vec dummy or subproc")
         adapter = NativeVecEnvAdapter.from_id(env_id, n_envs, **(env_kwargs or {}))
         adapter.seed(seed)
         filename = None if monitor_dir is None else str(Path(monitor_dir) / "native.monitor.csv")
@@ -93,6 +99,7 @@ def make_training_env(
         env_kwargs=env_kwargs,
         monitor_dir=None if monitor_dir is None else str(monitor_dir),
         monitor_kwargs={"info_keywords": ("is_success", "cost")},
+        wrapper_class=wrapper_class,
         vec_env_cls=SubprocVecEnv if vec == "subproc" else DummyVecEnv,
     )
 
@@ -227,9 +234,12 @@ def train(
     eval_freq = int(hyper.pop("eval_freq", 10_000))
     n_eval = int(hyper.pop("n_eval_episodes", 20))
     env_kwargs = hyper.pop("env_kwargs", None) or {}
+    wrapper = resolve_env_wrapper(hyper.pop("env_wrapper", None))
+    if wrapper is not None and vec == "native":
+        vec = "dummy"  # a wrapper applies to single envs; the native vector env has none to wrap
     if "policy_kwargs" in hyper:
         hyper["policy_kwargs"] = resolve_policy_kwargs(hyper["policy_kwargs"])
-    hyper = resolve_schedules(hyper)
+    hyper = resolve_replay_buffer(resolve_schedules(hyper))
 
     resolved = {
         "algo": algo,
@@ -244,9 +254,10 @@ def train(
     (run / "command.txt").write_text(cmd + "\n")
 
     torch.set_num_threads(1)
-    venv = make_training_env(env_id, count, seed, vec, run / "monitor", env_kwargs)
+    venv = make_training_env(env_id, count, seed, vec, run / "monitor", env_kwargs, wrapper)
     # Wrapped like the training env (VecNormalize syncs its statistics through the same wrapper stack).
-    eval_env = make_training_env(env_id, 1, seed + 10_000, "native" if vec == "native" else "dummy", None, env_kwargs)
+    eval_vec = "native" if vec == "native" else "dummy"
+    eval_env = make_training_env(env_id, 1, seed + 10_000, eval_vec, None, env_kwargs, wrapper)
     if normalize:
         norm = normalize if isinstance(normalize, dict) else {}
         gamma = hyper.get("gamma", 0.99)

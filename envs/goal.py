@@ -1,0 +1,111 @@
+"""A goal-conditioned view of the Reach environments, for hindsight experience replay (HER).
+
+SB3's ``HerReplayBuffer`` (Andrychowicz et al., NeurIPS 2017) relabels stored transitions with goals the
+robot actually reached and asks the environment for the reward it would have paid. That needs the
+observation split into ``observation`` / ``achieved_goal`` / ``desired_goal`` and a vectorised
+``compute_reward``. ``GoalReachWrapper`` provides both on top of `Planar3RPRReach-v0` (or its hard
+variant) without touching the dynamics: ``compute_reward`` calls the environment's own batched
+``core.reward_terms`` for the tracking and conditioning terms and takes the action and termination terms
+from ``info``, so for the goal the episode really had it returns exactly the reward ``step`` paid.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from envs import core
+
+__all__ = ["OBSERVATION_INDEX", "GoalReachWrapper"]
+
+#: Entries of the flat observation that do not depend on the goal: pose (x, y, cos φ, sin φ), the
+#: normalised strokes and the inverse condition number (see ``core.observation`` for the layout).
+OBSERVATION_INDEX = np.array([0, 1, 2, 3, 11, 12, 13, 17])
+
+
+class GoalReachWrapper(gym.Wrapper):
+    """Dict observations {observation, achieved_goal, desired_goal} and ``compute_reward`` for HER.
+
+    * ``observation``: float32 (8,), the goal-independent entries of the flat observation
+      (``OBSERVATION_INDEX``).
+    * ``achieved_goal``: the pose (x [m], y [m], φ [rad]), float32 (3,).
+    * ``desired_goal``: the target pose (x* [m], y* [m], φ* [rad]), float32 (3,).
+
+    Rewards, terminations and infos are the wrapped environment's.
+
+    Args:
+        env: A Reach environment (``gym.make("Planar3RPRReach-v0")`` or ``...ReachHard-v0``), possibly wrapped.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        """Wrap ``env``; see the class docstring."""
+        super().__init__(env)
+        base = env.unwrapped
+        if "targets" not in getattr(type(base), "reset_options", ()) or not hasattr(base, "params"):
+            raise TypeError(f"GoalReachWrapper needs a planar 3-RPR Reach environment, got {type(base).__name__}")
+        self.params = base.params
+        flat = env.observation_space
+        goal_low = np.array(self.params.pose_low, dtype=np.float32)
+        goal_high = np.array(self.params.pose_high, dtype=np.float32)
+        self.observation_space = spaces.Dict(
+            {
+                "observation": spaces.Box(flat.low[OBSERVATION_INDEX], flat.high[OBSERVATION_INDEX], dtype=np.float32),
+                "achieved_goal": spaces.Box(goal_low, goal_high, dtype=np.float32),
+                "desired_goal": spaces.Box(goal_low, goal_high, dtype=np.float32),
+            }
+        )
+
+    def _goal_obs(self, obs: np.ndarray, info: dict[str, Any]) -> dict[str, np.ndarray]:
+        space = self.observation_space
+        return {
+            "observation": obs[OBSERVATION_INDEX],
+            # The pose stays inside its bounds except at an out-of-bounds termination: clip for the space.
+            "achieved_goal": np.clip(info["pose"], space["achieved_goal"].low, space["achieved_goal"].high).astype(
+                np.float32
+            ),
+            "desired_goal": np.asarray(info["target"], dtype=np.float32),
+        }
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Reset the wrapped env; the observation becomes the goal dict."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        return self._goal_obs(obs, info), info
+
+    def step(self, action: Any):
+        """Step the wrapped env; the observation becomes the goal dict (reward and info unchanged)."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._goal_obs(obs, info), reward, terminated, truncated, info
+
+    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        """The reward of a transition had the goal been ``desired_goal`` (batched, for HER).
+
+        reward = tracking(achieved, desired) + singularity(k) + info's action term + info's termination
+        term, summed in the order ``step`` sums them; the first two come from ``core.reward_terms``.
+
+        Args:
+            achieved_goal: Poses reached, shape (3,) or (B, 3).
+            desired_goal: Goals, same shape.
+            info: The step's info dict, or a sequence / array of B of them.
+
+        Returns:
+            A float, or rewards of shape (B,).
+        """
+        achieved = np.asarray(achieved_goal, dtype=np.float64)
+        desired = np.asarray(desired_goal, dtype=np.float64)
+        single = achieved.ndim == 1
+        achieved, desired = achieved.reshape(-1, 3), desired.reshape(-1, 3)
+        infos = [info] if isinstance(info, dict) else list(np.asarray(info, dtype=object).ravel())
+        n = len(achieved)
+        if desired.shape != achieved.shape or len(infos) != n:
+            raise ValueError(
+                f"achieved_goal {achieved.shape}, desired_goal {desired.shape} and {len(infos)} infos must match"
+            )
+        k = np.array([i["inverse_condition_number"] for i in infos], dtype=np.float64)
+        action = np.array([i["reward_action"] for i in infos], dtype=np.float64)
+        termination = np.array([i["reward_termination"] for i in infos], dtype=np.float64)
+        terms = core.reward_terms(self.params, achieved, desired, k, np.zeros((n, 3)), np.zeros(n, dtype=np.int64))
+        reward = terms["reward_tracking"] + terms["reward_singularity"] + action + termination
+        return float(reward[0]) if single else reward
