@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from sb3_contrib import TQC
 from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
 
@@ -27,7 +28,7 @@ __all__ = [
 ]
 
 #: Algorithms the project trains, by command-line name.
-ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3}
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3, "tqc": TQC}
 
 #: Keys of an env entry that belong to the run, not to the algorithm's constructor (RL Zoo layout).
 RUN_KEYS = (
@@ -92,7 +93,7 @@ def algorithm_class(algo: str) -> type[BaseAlgorithm]:
     """The SB3 class for an algorithm name.
 
     Args:
-        algo: "ppo", "sac" or "td3" (case-insensitive).
+        algo: "ppo", "sac", "td3" or "tqc" (case-insensitive).
 
     Returns:
         The algorithm class.

@@ -17,6 +17,7 @@ import argparse
 import csv
 import json
 import sys
+import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -175,7 +176,11 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
         env_id = config.get("env_id")
         load_env = DummyVecEnv([lambda: wrap_for_run(gym.make(env_id), config)])
     try:
-        model = cls.load(model_path, env=load_env, device="cpu")
+        with warnings.catch_warnings():
+            # A run with n_steps > 1 saved its NStepReplayBuffer class; on reload SB3 warns that n_steps is
+            # then ignored. The buffer is not used for evaluation.
+            warnings.filterwarnings("ignore", message=r"`n_steps=\d+` is ignored", category=UserWarning)
+            model = cls.load(model_path, env=load_env, device="cpu")
     except Exception as exc:  # SB3 raises many kinds on a damaged zip
         raise EvaluationError(f"cannot load {str(model_path)!r}: {type(exc).__name__}: {exc}") from exc
     normalizer = None

@@ -195,7 +195,7 @@ def train(
     """Train ``algo`` on ``env_id`` with the shipped hyperparameters (plus overrides); return the run folder.
 
     Args:
-        algo: "ppo", "sac" or "td3".
+        algo: "ppo", "sac", "td3" or "tqc".
         env_id: A registered id.
         seed: Random seed (environments, networks).
         timesteps: Environment steps; default the config's ``n_timesteps``.

@@ -164,10 +164,10 @@ def test_non_mapping_entry(tmp_path):
 
 @pytest.mark.parametrize("bad", ["A2C", "dqn", "", "pp0"])
 def test_unknown_algorithm_lists_choices(bad):
-    """An unknown algorithm is a ConfigError listing ppo, sac and td3."""
-    with pytest.raises(ConfigError, match=r"unknown algorithm .*valid choices: \['ppo', 'sac', 'td3'\]"):
+    """An unknown algorithm is a ConfigError listing ppo, sac, td3 and tqc."""
+    with pytest.raises(ConfigError, match=r"unknown algorithm .*valid choices: \['ppo', 'sac', 'td3', 'tqc'\]"):
         load_hyperparams(bad, REACH)
-    with pytest.raises(ConfigError, match=r"\['ppo', 'sac', 'td3'\]"):
+    with pytest.raises(ConfigError, match=r"\['ppo', 'sac', 'td3', 'tqc'\]"):
         algorithm_class(bad)
 
 

@@ -66,7 +66,7 @@ def test_evaluate_config_with_unknown_algorithm(make_run_folder, tmp_path, capsy
     run = make_run_folder("ppo")
     (run / "config.yml").write_text((run / "config.yml").read_text().replace("algo: ppo", "algo: a2c"))
     err = _exit_message(evaluate.main, ["--run", str(run), "--out", str(tmp_path / "o")], capsys)
-    assert "unknown algorithm 'a2c'; valid choices: ['ppo', 'sac', 'td3']" in err
+    assert "unknown algorithm 'a2c'; valid choices: ['ppo', 'sac', 'td3', 'tqc']" in err
 
 
 def test_evaluate_config_with_unknown_env(make_run_folder, tmp_path, capsys):
@@ -192,7 +192,7 @@ def _train_argv(tmp_path, *extra: str, algo: str = "ppo", env_id: str = REACH) -
 def test_train_unknown_algorithm(tmp_path, capsys, algo):
     """--algo outside ppo/sac/td3 lists the valid algorithms and writes nothing."""
     err = _exit_message(train.main, _train_argv(tmp_path, algo=algo), capsys)
-    assert f"unknown algorithm {algo!r}; valid choices: ['ppo', 'sac', 'td3']" in err
+    assert f"unknown algorithm {algo!r}; valid choices: ['ppo', 'sac', 'td3', 'tqc']" in err
     assert not (tmp_path / "run").exists()
 
 

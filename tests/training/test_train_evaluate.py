@@ -48,7 +48,7 @@ TINY = {
                 "policy_kwargs": {"net_arch": [32, 32]},
             },
         }
-        for algo in ("sac", "td3")
+        for algo in ("sac", "td3", "tqc")
     },
 }
 
@@ -133,7 +133,7 @@ def _check_evaluation(out: Path, episodes: int) -> dict:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("algo", ["ppo", "sac", "td3"])
+@pytest.mark.parametrize("algo", ["ppo", "sac", "td3", "tqc"])
 def test_train_then_evaluate(algo, tmp_path, capsys):
     """A tiny run writes the whole run folder, and evaluate.main reloads it from that folder alone."""
     spec = TINY[algo]
@@ -161,7 +161,7 @@ def test_train_then_evaluate(algo, tmp_path, capsys):
     _check_evaluation(best, episodes=1)
 
 
-@pytest.mark.parametrize("algo", ["ppo", "sac", "td3"])
+@pytest.mark.parametrize("algo", ["ppo", "sac", "td3", "tqc"])
 def test_evaluate_run_is_deterministic(algo, make_run_folder, tmp_path):
     """Evaluating the same run folder twice with the same seed gives identical episodes (no training needed)."""
     run = make_run_folder(algo)
