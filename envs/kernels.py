@@ -23,9 +23,16 @@ offsets below.
 from __future__ import annotations
 
 import math
+import os
 
 import numba
 import numpy as np
+
+# Numba's OpenMP threading layer spin-waits at its barriers: on a machine whose cores are busy (a
+# training run beside the env, other jobs) a parallel step then runs many times slower than a serial
+# one. The work-queue layer degrades gracefully. A user's NUMBA_THREADING_LAYER still wins.
+if "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER = "workqueue"
 
 __all__ = [
     "C_SIZE",
@@ -74,8 +81,8 @@ C_SIZE = 42
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
 
 #: Batches at least this large run on every core (``numba.prange``); smaller ones stay on one thread,
-#: where starting the thread pool would cost more than it saves.
-PARALLEL_MIN_BATCH = 2048
+#: where waking the thread pool would cost more than it saves.
+PARALLEL_MIN_BATCH = 512
 
 _TWO_PI = 2.0 * math.pi
 

@@ -7,6 +7,9 @@ scalars. Here they are checked against straightforward NumPy versions of the sam
 
 from __future__ import annotations
 
+import os
+
+import numba
 import numpy as np
 import pytest
 
@@ -222,6 +225,8 @@ def test_parallel_kernel_equals_serial(params, rng, monkeypatch):
     state = _random_states(params, rng, n)
     action = rng.uniform(-1, 1, size=(n, 3))
     parallel = core.step(params, state, action, False)
+    if "NUMBA_THREADING_LAYER" not in os.environ:  # OpenMP's spinning barriers stall on busy machines
+        assert numba.threading_layer() == "workqueue"
     monkeypatch.setattr(kernels, "PARALLEL_MIN_BATCH", 10**9)
     serial = core.step(params, state, action, False)
     for a, b in zip([*parallel[0][:-1], *parallel[1], *parallel[2:]], [*serial[0][:-1], *serial[1], *serial[2:]]):
