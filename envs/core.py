@@ -450,7 +450,7 @@ def observation(
     )
 
 
-#: Columns of the per-robot evaluation returned by ``evaluate`` and ``step`` (``envs.kernels.E_*``):
+#: Rows of the evaluation returned by ``evaluate`` and ``step`` (``envs.kernels.E_*``; column i is robot i):
 #: the four reward terms, their sum, the errors, success, cost, the target pose and velocity, the
 #: inverse condition number, the constraint residual and the pose.
 EVALUATION_COLUMNS = {
@@ -530,7 +530,7 @@ def evaluate(
         with_velocity: Whether the observation ends with the target velocity.
 
     Returns:
-        (evaluation, shape (N, len(E)) float64 with the columns of ``EVALUATION_COLUMNS``;
+        (evaluation, shape (len(E), N) float64 with the rows of ``EVALUATION_COLUMNS``;
         observations, shape (N, 18) or (N, 21) float32).
     """
     action = _rows3(action)
@@ -602,7 +602,7 @@ def step(
             None for fresh ones.
 
     Returns:
-        (new state, outcome, evaluation (N, len(E)) float64, observations float32), as ``transition``
+        (new state, outcome, evaluation (len(E), N) float64, observations float32), as ``transition``
         and ``evaluate``.
 
     Raises:
@@ -611,8 +611,8 @@ def step(
     n = _check_state(state, action)
     if out is None:
         out = StepBuffers(n, with_velocity)
-    elif out.evaluation.shape[0] != n or out.observations.shape[1] != (21 if with_velocity else 18):
-        raise ValueError(f"out holds {out.evaluation.shape[0]} robots of {out.observations.shape[1]} observations")
+    elif out.evaluation.shape[1] != n or out.observations.shape[1] != (21 if with_velocity else 18):
+        raise ValueError(f"out holds {out.evaluation.shape[1]} robots of {out.observations.shape[1]} observations")
     ref = state.reference
     bad = kernels.step_batch(
         params.packed,

@@ -598,7 +598,8 @@ def reference_batch(c, t, center, radius, phase, amplitude):
     return o_pose, o_velocity
 
 
-#: Columns of the per-robot evaluation written by ``evaluate_batch``.
+#: Rows of the evaluation written by ``evaluate_batch`` (one column per robot, so that each quantity
+#: of the N robots is contiguous).
 E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION = 0, 1, 2, 3
 E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_REWARD = 4, 5, 6, 7, 8
 E_TARGET = 9  # target pose, 3 columns
@@ -820,16 +821,16 @@ def _evaluate_row(
         c, x[i, 0], x[i, 1], x[i, 2], p0, p1, p2, k[i], action[i, 0], action[i, 1], action[i, 2], reason[i]
     )
     e = o_eval
-    e[i, E_TRACKING], e[i, E_SINGULARITY], e[i, E_ACTION], e[i, E_TERMINATION] = tr, si, ac, te
-    e[i, E_REWARD] = tr + si + ac + te
-    e[i, E_POSITION_ERROR], e[i, E_ORIENTATION_ERROR] = ep, eo
+    e[E_TRACKING, i], e[E_SINGULARITY, i], e[E_ACTION, i], e[E_TERMINATION, i] = tr, si, ac, te
+    e[E_REWARD, i] = tr + si + ac + te
+    e[E_POSITION_ERROR, i], e[E_ORIENTATION_ERROR, i] = ep, eo
     ok = reason[i] == 0 and _is_success(c, ep, eo)
-    e[i, E_SUCCESS] = 1.0 if ok else 0.0
-    e[i, E_COST] = 1.0 if k[i] < c[C_SAFE] else 0.0
-    e[i, E_TARGET], e[i, E_TARGET + 1], e[i, E_TARGET + 2] = p0, p1, p2
-    e[i, E_VELOCITY], e[i, E_VELOCITY + 1], e[i, E_VELOCITY + 2] = w0, w1, w2
-    e[i, E_K], e[i, E_RESIDUAL] = k[i], residual[i]
-    e[i, E_POSE], e[i, E_POSE + 1], e[i, E_POSE + 2] = x[i, 0], x[i, 1], x[i, 2]
+    e[E_SUCCESS, i] = 1.0 if ok else 0.0
+    e[E_COST, i] = 1.0 if k[i] < c[C_SAFE] else 0.0
+    e[E_TARGET, i], e[E_TARGET + 1, i], e[E_TARGET + 2, i] = p0, p1, p2
+    e[E_VELOCITY, i], e[E_VELOCITY + 1, i], e[E_VELOCITY + 2, i] = w0, w1, w2
+    e[E_K, i], e[E_RESIDUAL, i] = k[i], residual[i]
+    e[E_POSE, i], e[E_POSE + 1, i], e[E_POSE + 2, i] = x[i, 0], x[i, 1], x[i, 2]
     _observation_row(c, low, high, with_velocity, q, x, k, p0, p1, p2, w0, w1, w2, i, o_obs)
 
 
@@ -908,10 +909,10 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, ra
         reason: Termination reason codes, shape (N,) (int).
 
     Returns:
-        (evaluation (N, E_SIZE) float64 with the ``E_*`` columns, observations (N, D) float32).
+        (evaluation (E_SIZE, N) float64 with the ``E_*`` rows, observations (N, D) float32).
     """
     n = x.shape[0]
-    o_eval = np.empty((n, E_SIZE))
+    o_eval = np.empty((E_SIZE, n))
     o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
     kernel = _evaluate_parallel if n >= PARALLEL_MIN_BATCH else _evaluate_serial
     kernel(
@@ -1020,7 +1021,7 @@ def allocate_step(n, obs_dim):
         np.empty((n, 3)),
         np.empty(n, dtype=np.int64),
         np.empty(n),
-        np.empty((n, E_SIZE)),
+        np.empty((E_SIZE, n)),
         np.empty((n, obs_dim), dtype=np.float32),
     )
 

@@ -174,19 +174,19 @@ def step_info(state: State, evaluation: np.ndarray, reason: np.ndarray) -> dict[
 
     Args:
         state: The robots' state after the step.
-        evaluation: ``core.evaluate`` / ``core.step`` output for that state, shape (N, E).
+        evaluation: ``core.evaluate`` / ``core.step`` output for that state, shape (E, N).
         reason: Termination reason codes, shape (N,).
 
     Returns:
         Fresh arrays with a leading dimension N, in the order of the single env's ``info``.
     """
     columns = core.EVALUATION_COLUMNS
-    info = {name: evaluation[:, columns[name]].copy() for name in INFO_KEYS[:8]}
-    info["is_success"] = evaluation[:, columns["is_success"]] != 0.0
-    info["cost"] = evaluation[:, columns["cost"]].copy()
+    info = {name: evaluation[columns[name]].copy() for name in INFO_KEYS[:8]}
+    info["is_success"] = evaluation[columns["is_success"]] != 0.0
+    info["cost"] = evaluation[columns["cost"]].copy()
     info["termination_reason"] = _REASON_NAMES[reason]
-    info["pose"] = evaluation[:, columns["pose"]].copy()
-    info["target"] = evaluation[:, columns["target"]].copy()
+    info["pose"] = evaluation[columns["pose"]].T.copy()
+    info["target"] = evaluation[columns["target"]].T.copy()
     return info
 
 
@@ -263,7 +263,7 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._trail.append(self._state.x[0, :2].copy())
         reason = np.zeros(1, dtype=np.int64)
         evaluation, observations = core.evaluate(self.params, self._state, np.zeros((1, 3)), reason, self.with_velocity)
-        info = self._info(evaluation[0], 0)
+        info = self._info(evaluation[:, 0], 0)
         if self.render_mode == "human":
             self.render()
         return observations[0], info
@@ -282,7 +282,7 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
         reason = int(outcome.reason[0])
         terminated = reason != 0
         self._terminated = terminated
-        row = evaluation[0]
+        row = evaluation[:, 0]
         info = self._info(row, reason)
         self._trail.append(info["pose"][:2])
         if self.render_mode == "human":

@@ -245,13 +245,13 @@ def test_step_equals_transition_then_evaluate(params, rng):
     terms = core.reward_terms(
         params,
         new.x,
-        evaluation[:, kernels.E_TARGET : kernels.E_TARGET + 3],
+        evaluation[kernels.E_TARGET : kernels.E_TARGET + 3].T,
         new.inverse_condition,
         outcome.action,
         outcome.reason,
     )
     total = sum(terms.values())
-    np.testing.assert_array_equal(evaluation[:, core.EVALUATION_COLUMNS["reward"]], total)
+    np.testing.assert_array_equal(evaluation[core.EVALUATION_COLUMNS["reward"]], total)
 
 
 def test_mismatched_batches_are_refused(params, rng):
