@@ -32,6 +32,7 @@ __all__ = [
     "State",
     "StepBuffers",
     "StepOutcome",
+    "copy_state",
     "evaluate",
     "observation",
     "observation_bounds",
@@ -483,6 +484,19 @@ class _BufferState(State):
     @classmethod
     def _make(cls, iterable: Any) -> State:
         return State._make(iterable)
+
+
+def copy_state(state: State) -> State:
+    """A deep copy of ``state`` (every array copied), for handing out a state the env will overwrite.
+
+    Args:
+        state: The robots' state.
+
+    Returns:
+        A plain State with fresh arrays.
+    """
+    reference = Reference(*(field.copy() for field in state.reference))
+    return State(*(field.copy() for field in state[:-1]), reference)
 
 
 def _check_state(state: State, action: np.ndarray | None = None) -> int:

@@ -80,7 +80,8 @@ C_SIZE = 42
 # Termination reason codes (same order as ``core.TERMINATION_REASONS``).
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
 
-#: Batches at least this large run on every core (``numba.prange``); smaller ones stay on one thread,
+#: ``step_batch`` (the environments' hot path) runs batches at least this large on every core
+#: (``numba.prange``); smaller ones stay on one thread,
 #: where waking the thread pool would cost more than it saves.
 PARALLEL_MIN_BATCH = 512
 
@@ -455,12 +456,6 @@ def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res
         _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
 
 
-@_jit_parallel
-def _transition_parallel(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
-    for i in numba.prange(q.shape[0]):
-        _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
-
-
 def transition_batch(c, q, x, det_sign, residual, action):
     """Advance N robots by one control period (the algorithm of ``core.transition``).
 
@@ -479,8 +474,7 @@ def transition_batch(c, q, x, det_sign, residual, action):
     o_q, o_x, o_a, o_qr = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     o_k, o_res, o_jump = np.empty(n), np.empty(n), np.empty(n)
     o_reason = np.empty(n, dtype=np.int64)
-    kernel = _transition_parallel if n >= PARALLEL_MIN_BATCH else _transition_serial
-    kernel(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+    _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
     return o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
 
 
@@ -861,33 +855,6 @@ def _evaluate_serial(
         )
 
 
-@_jit_parallel
-def _evaluate_parallel(
-    c, low, high, with_velocity, q, x, t, k, residual, center, radius, phase, amplitude, action, reason, o_eval, o_obs
-):
-    for i in numba.prange(x.shape[0]):
-        _evaluate_row(
-            c,
-            low,
-            high,
-            with_velocity,
-            q,
-            x,
-            t,
-            k,
-            residual,
-            center,
-            radius,
-            phase,
-            amplitude,
-            action,
-            reason,
-            i,
-            o_eval,
-            o_obs,
-        )
-
-
 def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, radius, phase, amplitude, action, reason):
     """Everything an environment reports after a transition, for N robots, in one pass.
 
@@ -914,8 +881,7 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, ra
     n = x.shape[0]
     o_eval = np.empty((E_SIZE, n))
     o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
-    kernel = _evaluate_parallel if n >= PARALLEL_MIN_BATCH else _evaluate_serial
-    kernel(
+    _evaluate_serial(
         c,
         low,
         high,

@@ -327,10 +327,7 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
         The environment reuses its own arrays from step to step; the copy is yours to keep.
         """
         state = self._state
-        if state is None:
-            return None
-        reference = Reference(*(field.copy() for field in state.reference))
-        return State(*(field.copy() for field in state[:-1]), reference)
+        return None if state is None else core.copy_state(state)
 
     def _reference(self) -> tuple[np.ndarray, np.ndarray]:
         return core.reference_pose(self.params, self._state.reference, self._state.t)

@@ -339,10 +339,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         The environment reuses its own arrays from step to step; the copy is yours to keep.
         """
         state = self._state
-        if state is None:
-            return None
-        reference = Reference(*(field.copy() for field in state.reference))
-        return State(*(field.copy() for field in state[:-1]), reference)
+        return None if state is None else core.copy_state(state)
 
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:
