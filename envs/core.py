@@ -24,7 +24,7 @@ from envs import kernels
 from kinematics import Planar3RPR
 
 __all__ = [
-    "EVALUATION_COLUMNS",
+    "EVALUATION_ROWS",
     "REWARD_TERMS",
     "TERMINATION_REASONS",
     "EnvParams",
@@ -454,7 +454,7 @@ def observation(
 #: Rows of the evaluation returned by ``evaluate`` and ``step`` (``envs.kernels.E_*``; column i is robot i):
 #: the four reward terms, their sum, the errors, success, cost, the target pose and velocity, the
 #: inverse condition number, the constraint residual and the pose.
-EVALUATION_COLUMNS = {
+EVALUATION_ROWS = {
     "reward_tracking": kernels.E_TRACKING,
     "reward_singularity": kernels.E_SINGULARITY,
     "reward_action": kernels.E_ACTION,
@@ -544,7 +544,7 @@ def evaluate(
         with_velocity: Whether the observation ends with the target velocity.
 
     Returns:
-        (evaluation, shape (len(E), N) float64 with the rows of ``EVALUATION_COLUMNS``;
+        (evaluation, shape (len(E), N) float64 with the rows of ``EVALUATION_ROWS``;
         observations, shape (N, 18) or (N, 21) float32).
     """
     action = _rows3(action)

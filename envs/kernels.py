@@ -596,10 +596,10 @@ def reference_batch(c, t, center, radius, phase, amplitude):
 #: of the N robots is contiguous).
 E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION = 0, 1, 2, 3
 E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_REWARD = 4, 5, 6, 7, 8
-E_TARGET = 9  # target pose, 3 columns
-E_VELOCITY = 12  # target velocity, 3 columns
+E_TARGET = 9  # target pose, 3 rows
+E_VELOCITY = 12  # target velocity, 3 rows
 E_K, E_RESIDUAL = 15, 16  # inverse condition number, constraint residual [m²]
-E_POSE = 17  # pose (x, y, φ), 3 columns
+E_POSE = 17  # pose (x, y, φ), 3 rows
 E_SIZE = 20
 
 

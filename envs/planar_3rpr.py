@@ -180,13 +180,13 @@ def step_info(state: State, evaluation: np.ndarray, reason: np.ndarray) -> dict[
     Returns:
         Fresh arrays with a leading dimension N, in the order of the single env's ``info``.
     """
-    columns = core.EVALUATION_COLUMNS
-    info = {name: evaluation[columns[name]].copy() for name in INFO_KEYS[:8]}
-    info["is_success"] = evaluation[columns["is_success"]] != 0.0
-    info["cost"] = evaluation[columns["cost"]].copy()
+    rows = core.EVALUATION_ROWS
+    info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS[:8]}
+    info["is_success"] = evaluation[rows["is_success"]] != 0.0
+    info["cost"] = evaluation[rows["cost"]].copy()
     info["termination_reason"] = _REASON_NAMES[reason]
-    info["pose"] = evaluation[columns["pose"]].T.copy()
-    info["target"] = evaluation[columns["target"]].T.copy()
+    info["pose"] = evaluation[rows["pose"]].T.copy()
+    info["target"] = evaluation[rows["target"]].T.copy()
     return info
 
 
@@ -208,8 +208,8 @@ INFO_KEYS = (
     "pose",
     "target",
 )
-# Evaluation columns the single env reads (module constants: the step reads them without lookups).
-_E_TRACKING, _E_SINGULARITY, _E_ACTION, _E_TERMINATION = (core.EVALUATION_COLUMNS[k] for k in INFO_KEYS[:4])
+# Evaluation rows the single env reads (module constants: the step reads them without lookups).
+_E_TRACKING, _E_SINGULARITY, _E_ACTION, _E_TERMINATION = (core.EVALUATION_ROWS[k] for k in INFO_KEYS[:4])
 _E_POSITION_ERROR, _E_ORIENTATION_ERROR = kernels.E_POSITION_ERROR, kernels.E_ORIENTATION_ERROR
 _E_K, _E_RESIDUAL, _E_SUCCESS, _E_COST = kernels.E_K, kernels.E_RESIDUAL, kernels.E_SUCCESS, kernels.E_COST
 _E_REWARD = kernels.E_REWARD

@@ -265,7 +265,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         self._next ^= 1
         self._state = state
         info = step_info(state, evaluation, outcome.reason)
-        rewards = evaluation[core.EVALUATION_COLUMNS["reward"]].copy()
+        rewards = evaluation[core.EVALUATION_ROWS["reward"]].copy()
         terminations = outcome.reason != 0
         truncations = state.t >= self.max_episode_steps
         extra: dict[str, Any] = {}

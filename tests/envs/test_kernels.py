@@ -251,7 +251,7 @@ def test_step_equals_transition_then_evaluate(params, rng):
         outcome.reason,
     )
     total = sum(terms.values())
-    np.testing.assert_array_equal(evaluation[core.EVALUATION_COLUMNS["reward"]], total)
+    np.testing.assert_array_equal(evaluation[core.EVALUATION_ROWS["reward"]], total)
 
 
 def test_mismatched_batches_are_refused(params, rng):
