@@ -116,7 +116,7 @@ class Planar3RPRVectorEnv(VectorEnv):
     prints these figures; `tests/envs/test_vector.py` checks the first): the state arrays hold
     128 bytes per robot (q, x, t, det sign, k, residual: 80 B; the reference: 48 B), the kept
     observations 72 (Reach) or 84 (Track) bytes, and each sub-environment's `np.random.Generator`
-    about 860 bytes, plus two sets of step outputs reused in turn (2 × 344 bytes per robot for
+    about 860 bytes, plus two sets of step outputs reused in turn (2 × 368 bytes per robot for
     Reach). One step at N = 16384 then allocates a tracemalloc peak of about 250 bytes per robot (Reach),
     of which about 225 stay alive as the returned observations, rewards and infos.
 
