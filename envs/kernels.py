@@ -1,4 +1,4 @@
-"""Compiled (Numba) kernels: the one implementation of the 3-RPR environments' step, reward and observation.
+"""Compiled (Numba) kernels: the one implementation of the 3-RPR environments' step, reward, observation and tasks.
 
 Every function here works on one robot at a time, on scalars, so a batch is a loop that Numba compiles
 to machine code (and, for large batches, spreads over the cores). ``envs.core`` wraps them in the pure,
@@ -11,9 +11,11 @@ vectors d_i = p + R(φ) P_i − B_i,
     Φ_i = d_iᵀ d_i − L_i²,   J_x = 2 A,   A_i = (d_ix, d_iy, d_iyᵀ (R P_i)_x − d_ix (R P_i)_y),
     J_q = −2 diag(L),        J_f = −J_x⁻¹ J_q = A⁻¹ diag(L),   J_i = −J_q⁻¹ J_x = diag(1/L) A.
 
-3 × 3 systems are solved with the adjugate (Cramer's rule); the inverse condition number of the
-homogeneous inverse Jacobian J_i diag(1, 1, 1/ℓ_c) comes from a one-sided Jacobi SVD (Hestenes), which
-gets small singular values to high relative accuracy. ``kinematics.Planar3RPR`` (NumPy, checked against
+3 × 3 systems are solved with the adjugate (Cramer's rule). The inverse condition number of the
+homogeneous inverse Jacobian M = J_i diag(1, 1, 1/ℓ_c) is σ_min/σ_max = |det M| / (σ_max² σ_mid), with σ_max²
+and σ_mid² the two largest eigenvalues of MᵀM from the trigonometric solution of its cubic; where two
+eigenvalues (nearly) coincide, and the cubic's roots lose accuracy, a one-sided Jacobi SVD (Hestenes) is
+used instead. ``kinematics.Planar3RPR`` (NumPy, checked against
 SymPy and finite differences) is the reference these kernels are tested against.
 
 The constants of an environment travel as one float64 vector (``pack_params``), indexed by the ``C_*``
@@ -461,8 +463,8 @@ def transition_batch(c, q, x, det_sign, residual, action):
 
     Args:
         c: Packed constants (``pack_params``), shape (C_SIZE,).
-        q: Strokes [m], shape (N, 3), float64, C-contiguous.
-        x: Poses (x [m], y [m], φ [rad]), shape (N, 3), float64, C-contiguous.
+        q: Strokes [m], shape (N, 3), float64.
+        x: Poses (x [m], y [m], φ [rad]), shape (N, 3), float64.
         det_sign: Working mode sign(det J_x) of each episode, shape (N,).
         residual: Constraint residual at (q, x) [m²], shape (N,).
         action: Normalised stroke rates, shape (N, 3), finite.
