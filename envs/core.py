@@ -32,6 +32,7 @@ __all__ = [
     "State",
     "StepBuffers",
     "StepOutcome",
+    "batch3",
     "copy_state",
     "evaluate",
     "observation",
@@ -59,8 +60,15 @@ NEWTON_FAILED, ASSEMBLY_MODE_CHANGE, SINGULARITY_CROSSED, SINGULAR, OUT_OF_BOUND
 REWARD_TERMS = ("reward_tracking", "reward_singularity", "reward_action", "reward_termination")
 
 
-def _rows3(a: np.ndarray) -> np.ndarray:
-    """``a`` as a float64 array of shape (N, 3) (no copy when it already is one)."""
+def batch3(a: np.ndarray) -> np.ndarray:
+    """``a`` as a float64 array of shape (N, 3) (no copy when it already is one), or a ValueError.
+
+    Args:
+        a: Poses, strokes or actions, shape (N, 3).
+
+    Returns:
+        The float64 array.
+    """
     a = np.asarray(a, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != 3:
         raise ValueError(f"expected an array of shape (N, 3), got shape {a.shape}")
@@ -230,7 +238,7 @@ def reference_pose(params: EnvParams, reference: Reference, t: np.ndarray) -> tu
     if len(n) != 1:
         raise ValueError(f"t must have shape (N,) matching the reference's, got {t.shape}")
     (n,) = n
-    center = _rows3(reference.center)
+    center = batch3(reference.center)
     return kernels.reference_batch(
         params.packed,
         np.broadcast_to(t, (n,)),
@@ -257,8 +265,8 @@ def substep_counts(
     Returns:
         Integer counts in [1, max_substeps], shape (N,).
     """
-    q, x, q_rate = _rows3(q), _rows3(x), _rows3(q_rate)
-    rate = None if rate is None else _rows3(rate)
+    q, x, q_rate = batch3(q), batch3(x), batch3(q_rate)
+    rate = None if rate is None else batch3(rate)
     _batch_size(q=q, x=x, q_rate=q_rate, **({} if rate is None else {"rate": rate}))
     return kernels.substep_batch(params.packed, q, x, q_rate, rate)
 
@@ -276,7 +284,7 @@ def conditioning(params: EnvParams, q: np.ndarray, x: np.ndarray) -> tuple[np.nd
     Returns:
         (inverse condition number (N,) in [0, 1], sign of det J_x (N,) in {−1, 0, 1}).
     """
-    q, x = _rows3(q), _rows3(x)
+    q, x = batch3(q), batch3(x)
     _batch_size(q=q, x=x)
     return kernels.singularity_batch(params.packed, q, x)
 
@@ -308,7 +316,7 @@ def transition(params: EnvParams, state: State, action: np.ndarray) -> tuple[Sta
     Returns:
         (the new state, the step's outcome).
     """
-    action = _rows3(action)
+    action = batch3(action)
     _batch_size(q=state.q, x=state.x, det_sign=state.det_sign, residual=state.residual, action=action)
     q, x, k, residual, a, q_rate, reason, jump = kernels.transition_batch(
         params.packed, state.q, state.x, state.det_sign, state.residual, action
@@ -336,7 +344,7 @@ def tracking_errors(params: EnvParams, x: np.ndarray, target: np.ndarray) -> tup
     Returns:
         (position error (N,) [m], orientation error (N,) [rad]).
     """
-    x, target = _rows3(x), _rows3(target)
+    x, target = batch3(x), batch3(target)
     _batch_size(x=x, target=target)
     return kernels.errors_batch(x, target)
 
@@ -367,7 +375,7 @@ def reward_terms(
     Returns:
         {"reward_tracking", "reward_singularity", "reward_action", "reward_termination"}, each (N,).
     """
-    x, target, action = _rows3(x), _rows3(target), _rows3(action)
+    x, target, action = batch3(x), batch3(target), batch3(action)
     inverse_condition = np.asarray(inverse_condition, dtype=np.float64)
     reason = np.asarray(reason, dtype=np.int64)
     _batch_size(x=x, target=target, inverse_condition=inverse_condition, action=action, reason=reason)
@@ -444,7 +452,7 @@ def observation(
         Observations, shape (N, 18) or (N, 21), float32.
     """
     low, high = observation_bounds(params, with_velocity)
-    target, velocity = _rows3(target), _rows3(velocity)
+    target, velocity = batch3(target), batch3(velocity)
     _batch_size(q=state.q, x=state.x, k=state.inverse_condition, target=target, velocity=velocity)
     return kernels.observation_batch(
         params.packed, low, high, with_velocity, state.q, state.x, state.inverse_condition, target, velocity
@@ -547,7 +555,7 @@ def evaluate(
         (evaluation, shape (len(E), N) float64 with the rows of ``EVALUATION_ROWS``;
         observations, shape (N, 18) or (N, 21) float32).
     """
-    action = _rows3(action)
+    action = batch3(action)
     reason = np.asarray(reason, dtype=np.int64)
     n = _check_state(state, action)
     if reason.shape != (n,):

@@ -422,7 +422,7 @@ def _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res
         g0, g1, g2 = y0 - p0, y1 - p1, lc * (y2 - p2)
         jump = max(jump, math.sqrt(g0 * g0 + g1 * g1 + g2 * g2))
         kq0, kq1, kq2, kx0, kx1, kx2, res = t0, t1, t2, y0, y1, y2, fres
-    if failed or count == 0:
+    if failed:  # (count ≥ 1, so the loop has set rows otherwise)
         kq0, kq1, kq2, kx0, kx1, kx2, res = q0, q1, q2, x0, x1, x2, residual[i]
         rows = _rows(c, kx0, kx1, kx2)
     k_new, sign = _singularity_rows(c, kq0, kq1, kq2, rows)

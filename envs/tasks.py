@@ -5,21 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from envs import kernels
-from envs.core import EnvParams, Reference
+from envs.core import EnvParams, Reference, batch3
 from envs.workspace import WorkspaceMap
 
 __all__ = ["is_safe", "sample_reach", "sample_track", "segment_min_condition"]
 
 #: Points checked along a straight start → target segment for hard pairs (ends included).
 SEGMENT_POINTS = 33
-
-
-def _poses(x: np.ndarray) -> np.ndarray:
-    """``x`` as a C-contiguous float64 array of shape (M, 3)."""
-    x = np.ascontiguousarray(x, dtype=np.float64)
-    if x.ndim != 2 or x.shape[1] != 3:
-        raise ValueError(f"poses must have shape (M, 3), got {x.shape}")
-    return x
 
 
 def is_safe(params: EnvParams, workspace: WorkspaceMap, x: np.ndarray) -> np.ndarray:
@@ -36,7 +28,7 @@ def is_safe(params: EnvParams, workspace: WorkspaceMap, x: np.ndarray) -> np.nda
     Returns:
         Boolean array, shape (M,); False for a non-finite pose.
     """
-    return kernels.safe_batch(params.packed, workspace.packed, _poses(x))
+    return kernels.safe_batch(params.packed, workspace.packed, batch3(x))
 
 
 def segment_min_condition(
@@ -53,7 +45,7 @@ def segment_min_condition(
     Returns:
         min k along each segment, shape (M,).
     """
-    start, target = _poses(start), _poses(target)
+    start, target = batch3(start), batch3(target)
     if start.shape != target.shape:
         raise ValueError(f"start and target must have the same shape, got {start.shape} and {target.shape}")
     if not (isinstance(n, (int, np.integer)) and n >= 2):
