@@ -24,11 +24,15 @@ offsets below.
 
 from __future__ import annotations
 
+import ctypes
 import math
 import os
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.extending import intrinsic
 
 # Numba's OpenMP threading layer spin-waits at its barriers: on a machine whose cores are busy (a
 # training run beside the env, other jobs) a parallel step then runs many times slower than a serial
@@ -42,12 +46,14 @@ __all__ = [
     "evaluate_batch",
     "observation_batch",
     "pack_params",
+    "random_streams",
     "reference_batch",
     "singularity_batch",
     "substep_batch",
     "success_batch",
     "terms_batch",
     "transition_batch",
+    "uniform_batch",
 ]
 
 # Offsets into the packed constants vector.
@@ -136,6 +142,75 @@ def pack_params(params) -> np.ndarray:
     return c
 
 
+# -- random streams: the generators' own bit generators, called from compiled code ----------------------
+
+
+@intrinsic
+def _next_double(typingctx, fn, state):
+    """``fn(state)``: a bit generator's ``next_double`` at address fn on its state at address ``state``.
+
+    This is what ``Generator.random()`` computes (a uniform double in [0, 1)), called through the
+    bit generator's documented ctypes interface (NumPy's "extending with Numba" example), so a
+    generator's stream is the same whether NumPy or a kernel draws from it.
+    """
+    sig = types.float64(fn, state)
+
+    def codegen(context, builder, signature, args):
+        pointer = ir.IntType(8).as_pointer()
+        function = builder.inttoptr(args[0], ir.FunctionType(ir.DoubleType(), [pointer]).as_pointer())
+        return builder.call(function, [builder.inttoptr(args[1], pointer)])
+
+    return sig, codegen
+
+
+def random_streams(generators) -> np.ndarray:
+    """The kernels' handle on NumPy generators: (address of ``next_double``, address of the state) of each.
+
+    Kernels given these draw exactly the numbers ``Generator.random()`` would, and advance the
+    generators' states. The generators must stay alive while a kernel uses the addresses (the caller
+    holds them); like Numba's own generator support, the kernels do not take the bit generators' locks.
+
+    Args:
+        generators: A sequence of ``np.random.Generator``.
+
+    Returns:
+        uint64 array of shape (len(generators), 2).
+
+    Raises:
+        TypeError: If an element is not a ``np.random.Generator``.
+    """
+    out = np.empty((len(generators), 2), dtype=np.uint64)
+    for i, generator in enumerate(generators):
+        if not isinstance(generator, np.random.Generator):
+            raise TypeError(f"expected a numpy.random.Generator, got {type(generator).__name__} {generator!r}")
+        interface = generator.bit_generator.ctypes
+        out[i, 0] = ctypes.cast(interface.next_double, ctypes.c_void_p).value
+        out[i, 1] = interface.state_address
+    return out
+
+
+@_jit
+def _uniform_loop(streams, out):
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            out[i, j] = _next_double(streams[i, 0], streams[i, 1])
+
+
+def uniform_batch(streams, m):
+    """Uniform draws in [0, 1), m from each stream, shape (S, m) (the kernels' ``Generator.random(m)``).
+
+    Args:
+        streams: ``random_streams(generators)``, shape (S, 2).
+        m: Draws per stream.
+
+    Returns:
+        float64 array of shape (S, m).
+    """
+    out = np.empty((streams.shape[0], m))
+    _uniform_loop(streams, out)
+    return out
+
+
 # -- scalar building blocks ---------------------------------------------------------------------------
 
 
@@ -208,11 +283,16 @@ def _max_abs3(a, b, c):
 
 
 @_jit
-def _pose_rate(c, q0, q1, q2, x0, x1, x2, r0, r1, r2):
-    """ẋ = J_f(q, x) q̇ = A⁻¹ (L ∘ q̇) [m/s, m/s, rad/s]; NaN where J_x is exactly singular."""
-    a = _rows(c, x0, x1, x2)
+def _pose_rate_rows(a, q0, q1, q2, r0, r1, r2):
+    """ẋ = J_f q̇ = A⁻¹ (L ∘ q̇) from the rows ``a`` of A at x (as ``_rows``); NaN where J_x is singular."""
     u0, u1, u2, _ = _solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], q0 * r0, q1 * r1, q2 * r2)
     return u0, u1, u2
+
+
+@_jit
+def _pose_rate(c, q0, q1, q2, x0, x1, x2, r0, r1, r2):
+    """ẋ = J_f(q, x) q̇ = A⁻¹ (L ∘ q̇) [m/s, m/s, rad/s]; NaN where J_x is exactly singular."""
+    return _pose_rate_rows(_rows(c, x0, x1, x2), q0, q1, q2, r0, r1, r2)
 
 
 @_jit
@@ -384,7 +464,9 @@ def _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res
     n1 = min(max(q1 + a1 * stroke, lo), hi)
     n2 = min(max(q2 + a2 * stroke, lo), hi)
     r0, r1, r2 = (n0 - q0) / dt, (n1 - q1) / dt, (n2 - q2) / dt
-    v0, v1, v2 = _pose_rate(c, q0, q1, q2, x0, x1, x2, r0, r1, r2)
+    start_rows = _rows(c, x0, x1, x2)
+    rows = start_rows
+    v0, v1, v2 = _pose_rate_rows(start_rows, q0, q1, q2, r0, r1, r2)
     count = _substeps(c, v0, v1, v2)
     h = dt / count
     rk4 = c[C_RK4] != 0.0
@@ -396,8 +478,8 @@ def _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res
     for k in range(count):
         frac = (k + 1) / count
         t0, t1, t2 = q0 + frac * (n0 - q0), q1 + frac * (n1 - q1), q2 + frac * (n2 - q2)
-        if k > 0:
-            v0, v1, v2 = _pose_rate(c, kq0, kq1, kq2, kx0, kx1, kx2, r0, r1, r2)
+        if k > 0:  # at the pose Newton's method just returned, whose rows it computed
+            v0, v1, v2 = _pose_rate_rows(rows, kq0, kq1, kq2, r0, r1, r2)
         if rk4:
             hh = 0.5 * h
             m0, m1, m2 = kq0 + hh * r0, kq1 + hh * r1, kq2 + hh * r2
@@ -422,9 +504,9 @@ def _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res
         g0, g1, g2 = y0 - p0, y1 - p1, lc * (y2 - p2)
         jump = max(jump, math.sqrt(g0 * g0 + g1 * g1 + g2 * g2))
         kq0, kq1, kq2, kx0, kx1, kx2, res = t0, t1, t2, y0, y1, y2, fres
-    if failed:  # (count ≥ 1, so the loop has set rows otherwise)
+    if failed:
         kq0, kq1, kq2, kx0, kx1, kx2, res = q0, q1, q2, x0, x1, x2, residual[i]
-        rows = _rows(c, kx0, kx1, kx2)
+        rows = start_rows
     k_new, sign = _singularity_rows(c, kq0, kq1, kq2, rows)
     out = False
     for j, value in enumerate((kx0, kx1, kx2)):
@@ -1163,7 +1245,7 @@ def segment_batch(c, start, target, n):
 
 
 @_jit
-def _pose_in_component(c, ws, rng, j, tries):
+def _pose_in_component(c, ws, fn, st, j, tries):
     """A safe pose in sampled component j: a random node of it jittered within its cell.
 
     Returns:
@@ -1174,22 +1256,22 @@ def _pose_in_component(c, ws, rng, j, tries):
     size = offsets[j + 1] - offsets[j]
     ny, nphi = labels.shape[1], labels.shape[2]
     for _ in range(tries):
-        flat = nodes[offsets[j] + min(int(rng.random() * size), size - 1)]
+        flat = nodes[offsets[j] + min(int(_next_double(fn, st) * size), size - 1)]
         ix, rest = divmod(flat, ny * nphi)
         iy, iphi = divmod(rest, nphi)
-        x0 = ws[7][ix] + (rng.random() - 0.5) * w[W_CELL]
-        x1 = ws[8][iy] + (rng.random() - 0.5) * w[W_CELL + 1]
-        x2 = ws[9][iphi] + (rng.random() - 0.5) * w[W_CELL + 2]
+        x0 = ws[7][ix] + (_next_double(fn, st) - 0.5) * w[W_CELL]
+        x1 = ws[8][iy] + (_next_double(fn, st) - 0.5) * w[W_CELL + 1]
+        x2 = ws[9][iphi] + (_next_double(fn, st) - 0.5) * w[W_CELL + 2]
         if _safe(c, ws, x0, x1, x2) and _label(ws, x0, x1, x2) == comp:
             return True, x0, x1, x2
     return False, 0.0, 0.0, 0.0
 
 
 @_jit
-def _choose_component(ws, rng):
+def _choose_component(ws, fn, st):
     """Index of a sampled component, drawn with probability proportional to its size."""
     cumulative = ws[4]
-    u = rng.random() * cumulative[-1]
+    u = _next_double(fn, st) * cumulative[-1]
     for j in range(cumulative.shape[0] - 1):
         if u < cumulative[j]:
             return j
@@ -1212,31 +1294,36 @@ SAMPLER_TRIES = 6400
 
 
 @_jit
-def _sample_reach(c, ws, rng, hard, min_distance, fixed_kind, f0, f1, f2, segment_points, o_start, o_target):
+def _sample_reach(c, ws, streams, hard, min_distance, fixed_kind, f0, f1, f2, segment_points, o_start, o_target):
     """Fill o_start / o_target (M, 3) with pairs in one region; fixed_kind 1 (2) keeps the start (target) f.
 
+    Pair i draws from ``streams[i]`` (or from ``streams[0]`` for every pair when there is one stream).
+
     Returns:
-        True on success, False when ``SAMPLER_TRIES`` candidates were rejected for one pair.
+        −1 on success, else the index of the first pair for which ``SAMPLER_TRIES`` candidates were rejected.
     """
     lc = c[C_LC]
     fixed_j = -1
     if fixed_kind != 0:
         fixed_j = _component_index(ws, f0, f1, f2)
         if fixed_j < 0:
-            return False
+            return 0
+    shared = streams.shape[0] == 1
     for i in range(o_start.shape[0]):
+        s = 0 if shared else i
+        fn, st = streams[s, 0], streams[s, 1]
         done = False
         for _ in range(SAMPLER_TRIES):
             if fixed_kind == 0:
-                j = _choose_component(ws, rng)
-                ok, s0, s1, s2 = _pose_in_component(c, ws, rng, j, SAMPLER_TRIES)
-                ok2, t0, t1, t2 = _pose_in_component(c, ws, rng, j, SAMPLER_TRIES)
+                j = _choose_component(ws, fn, st)
+                ok, s0, s1, s2 = _pose_in_component(c, ws, fn, st, j, SAMPLER_TRIES)
+                ok2, t0, t1, t2 = _pose_in_component(c, ws, fn, st, j, SAMPLER_TRIES)
                 if not (ok and ok2):
-                    return False
+                    return i
             else:
-                ok, o0, o1, o2 = _pose_in_component(c, ws, rng, fixed_j, SAMPLER_TRIES)
+                ok, o0, o1, o2 = _pose_in_component(c, ws, fn, st, fixed_j, SAMPLER_TRIES)
                 if not ok:
-                    return False
+                    return i
                 if fixed_kind == 1:
                     s0, s1, s2, t0, t1, t2 = f0, f1, f2, o0, o1, o2
                 else:
@@ -1251,17 +1338,18 @@ def _sample_reach(c, ws, rng, hard, min_distance, fixed_kind, f0, f1, f2, segmen
             done = True
             break
         if not done:
-            return False
-    return True
+            return i
+    return -1
 
 
-def sample_reach_batch(c, ws, rng, n, hard, min_distance, fixed_kind, fixed, segment_points):
-    """Draw n start/target pairs (see ``envs.tasks.sample_reach``) with the generator ``rng``.
+def sample_reach_batch(c, ws, streams, n, hard, min_distance, fixed_kind, fixed, segment_points):
+    """Draw n start/target pairs (see ``envs.tasks.sample_reach``) from random streams.
 
     Args:
         c: Packed constants.
         ws: Packed workspace.
-        rng: A NumPy ``Generator`` (its state advances exactly as if NumPy drew the same numbers).
+        streams: ``random_streams`` of one generator (every pair drawn from it, in turn) or of n
+            generators (pair i drawn from generator i), shape (1, 2) or (n, 2).
         n: Number of pairs.
         hard: Whether the straight line must dip below the hard threshold.
         min_distance: Smallest ‖(Δx, Δy, ℓ_c Δφ)‖ between start and target [m].
@@ -1270,29 +1358,41 @@ def sample_reach_batch(c, ws, rng, n, hard, min_distance, fixed_kind, fixed, seg
         segment_points: Points checked along a hard pair's segment.
 
     Returns:
-        (starts (n, 3), targets (n, 3)), or None if no pair was found.
+        (starts (n, 3), targets (n, 3)), or None if no pair was found for one of them.
     """
     o_start, o_target = np.empty((n, 3)), np.empty((n, 3))
     f0, f1, f2 = (float(v) for v in fixed)
-    if not _sample_reach(c, ws, rng, hard, min_distance, fixed_kind, f0, f1, f2, segment_points, o_start, o_target):
+    failed = _sample_reach(
+        c, ws, streams, hard, min_distance, fixed_kind, f0, f1, f2, segment_points, o_start, o_target
+    )
+    if failed >= 0:
         return None
     return o_start, o_target
 
 
 @_jit
-def _sample_track(c, ws, rng, r_lo, r_hi, a_lo, a_hi, n_check, o_center, o_radius, o_phase, o_amplitude):
-    """Fill the M references (centre, radius, phase, amplitude) whose every step pose is safe in one region."""
+def _sample_track(c, ws, streams, r_lo, r_hi, a_lo, a_hi, n_check, o_center, o_radius, o_phase, o_amplitude):
+    """Fill the M references (centre, radius, phase, amplitude) whose every step pose is safe in one region.
+
+    Reference i draws from ``streams[i]`` (or from ``streams[0]`` when there is one stream).
+
+    Returns:
+        −1 on success, else the index of the first reference that could not be drawn.
+    """
     omega_dt = _TWO_PI / c[C_PERIOD] * c[C_DT]
+    shared = streams.shape[0] == 1
     for i in range(o_radius.shape[0]):
+        s = 0 if shared else i
+        fn, st = streams[s, 0], streams[s, 1]
         done = False
         for _ in range(SAMPLER_TRIES):
-            j = _choose_component(ws, rng)
-            ok, c0, c1, c2 = _pose_in_component(c, ws, rng, j, SAMPLER_TRIES)
+            j = _choose_component(ws, fn, st)
+            ok, c0, c1, c2 = _pose_in_component(c, ws, fn, st, j, SAMPLER_TRIES)
             if not ok:
-                return False
-            r = r_lo + rng.random() * (r_hi - r_lo)
-            th = -math.pi + rng.random() * _TWO_PI
-            a = a_lo + rng.random() * (a_hi - a_lo)
+                return i
+            r = r_lo + _next_double(fn, st) * (r_hi - r_lo)
+            th = -math.pi + _next_double(fn, st) * _TWO_PI
+            a = a_lo + _next_double(fn, st) * (a_hi - a_lo)
             comp = ws[3][j]
             good = True
             for step in range(n_check):
@@ -1309,29 +1409,30 @@ def _sample_track(c, ws, rng, r_lo, r_hi, a_lo, a_hi, n_check, o_center, o_radiu
                 done = True
                 break
         if not done:
-            return False
-    return True
+            return i
+    return -1
 
 
-def sample_track_batch(c, ws, rng, n, radius_range, amplitude_range, n_check):
-    """Draw n reference trajectories (see ``envs.tasks.sample_track``) with the generator ``rng``.
+def sample_track_batch(c, ws, streams, n, radius_range, amplitude_range, n_check):
+    """Draw n reference trajectories (see ``envs.tasks.sample_track``) from random streams.
 
     Args:
         c: Packed constants.
         ws: Packed workspace.
-        rng: A NumPy ``Generator``.
+        streams: ``random_streams`` of one generator (shape (1, 2)) or of n generators (shape (n, 2)).
         n: Number of references.
         radius_range: (r_min, r_max) [m].
         amplitude_range: (a_min, a_max) [rad].
         n_check: Steps of one period checked for safety.
 
     Returns:
-        (centres (n, 3), radii (n,), phases (n,), amplitudes (n,)), or None if none was found.
+        (centres (n, 3), radii (n,), phases (n,), amplitudes (n,)), or None if one was not found.
     """
     center, radius, phase, amplitude = np.empty((n, 3)), np.empty(n), np.empty(n), np.empty(n)
     r_lo, r_hi = (float(v) for v in radius_range)
     a_lo, a_hi = (float(v) for v in amplitude_range)
-    if not _sample_track(c, ws, rng, r_lo, r_hi, a_lo, a_hi, n_check, center, radius, phase, amplitude):
+    failed = _sample_track(c, ws, streams, r_lo, r_hi, a_lo, a_hi, n_check, center, radius, phase, amplitude)
+    if failed >= 0:
         return None
     return center, radius, phase, amplitude
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import inspect
 import math
 from collections import deque
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -388,6 +389,22 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
         Returns:
             (start pose of shape (1, 3), the target reference of one robot).
         """
+        return self.sample_tasks((self.np_random,), options)
+
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, Reference]:
+        """Draw one task per generator, in one compiled call (the vector env's episode starts).
+
+        Task i is the one this env's ``sample_task`` draws when ``np_random`` is ``generators[i]``.
+
+        Args:
+            generators: M generators, one per task; each advances as in ``sample_task``.
+            options: The ``reset`` options (keys from ``reset_options``), the same for every task.
+
+        Returns:
+            (start poses of shape (M, 3), the target references of M robots).
+        """
         raise NotImplementedError
 
 
@@ -523,8 +540,11 @@ class Planar3RPRReachEnv(Planar3RPREnvBase):
         params = build_params(**_build_params_arguments(locals()))
         self._setup(render_mode, params)
 
-    def sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
-        """A start and a fixed target (``sample_reach``), honouring the targets/start/target options."""
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, Reference]:
+        """Starts and fixed targets (``sample_reach``), honouring the targets/start/target options."""
+        m = len(generators)
         mode = options.get("targets", self.targets)
         if mode not in _TARGET_MODES:
             raise ValueError(f"options['targets'] must be one of {_TARGET_MODES}, got {mode!r}")
@@ -536,15 +556,15 @@ class Planar3RPRReachEnv(Planar3RPREnvBase):
                     f"start {start.tolist()} and target {target.tolist()} lie in different safe regions "
                     "(different working modes): no singularity-free path joins them"
                 )
-            starts, targets = start[None], target[None]
+            starts, targets = np.tile(start, (m, 1)), np.tile(target, (m, 1))
         else:
             try:
                 starts, targets = sample_reach(
-                    self.params, self.workspace, self.np_random, 1, mode == "hard", start=start, target=target
+                    self.params, self.workspace, generators, m, mode == "hard", start=start, target=target
                 )
             except RuntimeError as exc:
                 raise ValueError(f"no {mode} task exists for the given pose: {exc}") from exc
-        reference = Reference(center=targets, radius=np.zeros(1), phase=np.zeros(1), amplitude=np.zeros(1))
+        reference = Reference(center=targets, radius=np.zeros(m), phase=np.zeros(m), amplitude=np.zeros(m))
         return starts, reference
 
 
@@ -643,8 +663,11 @@ class Planar3RPRTrackEnv(Planar3RPREnvBase):
         params = build_params(**_build_params_arguments(locals()))
         self._setup(render_mode, params)
 
-    def sample_task(self, options: dict[str, Any]) -> tuple[np.ndarray, Reference]:
-        """A reference inside one safe region (``sample_track``); the start is its pose at t = 0."""
-        reference = sample_track(self.params, self.workspace, self.np_random, 1)
-        start, _ = core.reference_pose(self.params, reference, np.zeros(1, dtype=np.int64))
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, Reference]:
+        """References inside one safe region each (``sample_track``); the starts are their poses at t = 0."""
+        m = len(generators)
+        reference = sample_track(self.params, self.workspace, generators, m)
+        start, _ = core.reference_pose(self.params, reference, np.zeros(m, dtype=np.int64))
         return start, reference

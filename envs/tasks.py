@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from envs import kernels
@@ -56,7 +58,7 @@ def segment_min_condition(
 def sample_reach(
     params: EnvParams,
     workspace: WorkspaceMap,
-    rng: np.random.Generator,
+    rng: np.random.Generator | Sequence[np.random.Generator],
     n: int,
     hard: bool,
     min_distance: float = 0.1,
@@ -71,12 +73,14 @@ def sample_reach(
     between them in pose space dips below ``hard_threshold``: a straight-line controller meets the
     ill-conditioned zone, a detour inside the region does not. A given ``start`` (or ``target``) is
     kept and the other end is drawn from its region under the same conditions. The rejection loop is
-    the compiled kernel ``envs.kernels.sample_reach_batch``, drawing from ``rng``.
+    the compiled kernel ``envs.kernels.sample_reach_batch``, drawing from ``rng`` exactly the numbers
+    ``rng.random()`` would.
 
     Args:
         params: Environment constants.
         workspace: The certified grid.
-        rng: Random generator (the env's ``np_random``).
+        rng: Random generator (the env's ``np_random``) that draws every pair in turn, or a sequence of
+            n generators, pair i drawn from the i-th (a vector env's sub-environments, in one call).
         n: Number of pairs.
         hard: Whether to sample hard pairs.
         min_distance: Smallest start–target distance [m].
@@ -92,8 +96,9 @@ def sample_reach(
     if start is not None and target is not None:
         raise ValueError("give a start or a target to keep, not both")
     kind, fixed = (1, start) if start is not None else ((2, target) if target is not None else (0, (0.0, 0.0, 0.0)))
+    streams = _streams(rng, n)
     pairs = kernels.sample_reach_batch(
-        params.packed, workspace.packed, rng, int(n), bool(hard), float(min_distance), kind, fixed, SEGMENT_POINTS
+        params.packed, workspace.packed, streams, int(n), bool(hard), float(min_distance), kind, fixed, SEGMENT_POINTS
     )
     if pairs is None:
         what = "hard " if hard else ""
@@ -104,7 +109,7 @@ def sample_reach(
 def sample_track(
     params: EnvParams,
     workspace: WorkspaceMap,
-    rng: np.random.Generator,
+    rng: np.random.Generator | Sequence[np.random.Generator],
     n: int,
     radius_range: tuple[float, float] = (0.05, 0.15),
     amplitude_range: tuple[float, float] = (0.0, 0.4),
@@ -118,7 +123,8 @@ def sample_track(
     Args:
         params: Environment constants.
         workspace: The certified grid.
-        rng: Random generator.
+        rng: Random generator that draws every reference in turn, or a sequence of n generators
+            (reference i drawn from the i-th).
         n: Number of references.
         radius_range: Range of r [m].
         amplitude_range: Range of a [rad].
@@ -128,9 +134,20 @@ def sample_track(
     """
     n_check = int(np.ceil(params.track_period / params.dt))
     found = kernels.sample_track_batch(
-        params.packed, workspace.packed, rng, int(n), radius_range, amplitude_range, n_check
+        params.packed, workspace.packed, _streams(rng, n), int(n), radius_range, amplitude_range, n_check
     )
     if found is None:
         raise RuntimeError("could not sample reference trajectories inside one safe region")
     center, radius, phase, amplitude = found
     return Reference(center=center, radius=radius, phase=phase, amplitude=amplitude)
+
+
+def _streams(rng: np.random.Generator | Sequence[np.random.Generator], n: int) -> np.ndarray:
+    """The kernels' random streams (``kernels.random_streams``) of one generator or of n of them."""
+    if isinstance(rng, np.random.Generator):
+        return kernels.random_streams((rng,))
+    if isinstance(rng, Sequence) and not isinstance(rng, (str, bytes)):
+        if len(rng) != n:
+            raise ValueError(f"rng must be a Generator or a sequence of n={n} Generators, got {len(rng)}")
+        return kernels.random_streams(rng)
+    raise TypeError(f"rng must be a numpy.random.Generator or a sequence of them, got {type(rng).__name__}")

@@ -430,15 +430,12 @@ class Planar3RPRVectorEnv(VectorEnv):
         return observations, step_info(state, evaluation, reason)
 
     def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> State:
-        """Draw a task for each sub-environment of ``rows`` with its own generator; their state at t = 0."""
-        starts, references = [], []
-        for i in rows:
-            self._sampler.np_random = self._generators[i]
-            start, reference = self._sampler.sample_task(options)
-            starts.append(start)
-            references.append(reference)
-        reference = Reference(*(np.concatenate(field) for field in zip(*references)))
-        return initial_state(self.params, np.concatenate(starts), reference)
+        """Draw a task for each sub-environment of ``rows`` with its own generator; their state at t = 0.
+
+        One compiled call for all of them (``sample_tasks``), each drawing from its own generator.
+        """
+        start, reference = self._sampler.sample_tasks([self._generators[i] for i in rows.tolist()], options)
+        return initial_state(self.params, start, reference)
 
     def _restart(self, rows: np.ndarray, observations: np.ndarray, info: dict[str, np.ndarray]) -> None:
         """Autoreset the sub-environments ``rows``: new episodes, their observations and reset infos."""

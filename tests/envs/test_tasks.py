@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs import core
-from envs.tasks import is_safe, segment_min_condition
+from envs import core, kernels
+from envs.tasks import is_safe, sample_reach, segment_min_condition
 from tests.envs.helpers import component_node, pose_metric
 
 #: (env id, reset options) of every way to get a Reach task; the flag says whether it is a hard one.
@@ -182,3 +182,57 @@ def test_track_refuses_unknown_options(key, make_env):
     env = make_env("Planar3RPRTrack-v0")
     with pytest.raises(ValueError, match=rf"unknown reset option\(s\) \['{key}'\]"):
         env.reset(seed=0, options={key: [0.5, 0.3, 0.0]})
+
+
+# -- the kernels draw from the env's own generators ------------------------------------------------------
+
+BIT_GENERATORS = [np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937, np.random.Philox, np.random.SFC64]
+
+
+@pytest.mark.parametrize("bit_generator", BIT_GENERATORS, ids=lambda b: b.__name__)
+def test_kernel_streams_draw_what_generator_random_draws(bit_generator):
+    """``kernels.uniform_batch`` gives ``Generator.random``'s numbers and leaves the same generator state."""
+    mine = [np.random.Generator(bit_generator(seed)) for seed in (1, 2, 3)]
+    numpy = [np.random.Generator(bit_generator(seed)) for seed in (1, 2, 3)]
+    drawn = kernels.uniform_batch(kernels.random_streams(mine), 257)
+    for row, generator in zip(drawn, numpy):
+        np.testing.assert_array_equal(row, generator.random(257))
+    for a, b in zip(mine, numpy):
+        np.testing.assert_equal(a.bit_generator.state, b.bit_generator.state)
+
+
+def test_random_streams_refuse_non_generators():
+    """A legacy RandomState has no bit generator to hand to the kernels: a TypeError names it."""
+    with pytest.raises(TypeError, match=r"expected a numpy\.random\.Generator, got RandomState"):
+        kernels.random_streams([np.random.RandomState(0)])
+
+
+@pytest.mark.parametrize(
+    ("env_id", "options"),
+    [
+        ("Planar3RPRReach-v0", {}),
+        ("Planar3RPRReach-v0", {"targets": "hard"}),
+        ("Planar3RPRTrack-v0", {}),
+    ],
+)
+def test_sample_tasks_in_one_call_equal_one_at_a_time(env_id, options, make_env):
+    """The vector env's batched draw (one generator per task) equals drawing each task alone."""
+    env = make_env(env_id).unwrapped
+    seeds = range(40, 52)
+    starts, reference = env.sample_tasks([np.random.default_rng(s) for s in seeds], options)
+    assert starts.shape == (len(seeds), 3)
+    for i, seed in enumerate(seeds):
+        env.np_random = np.random.default_rng(seed)
+        start, alone = env.sample_task(options)
+        np.testing.assert_array_equal(starts[i], start[0])
+        for batched, single in zip(reference, alone):
+            np.testing.assert_array_equal(batched[i], single[0])
+
+
+def test_sample_reach_checks_the_number_of_generators(make_env):
+    """One generator per pair, or one for all; anything else is refused with the counts."""
+    env = make_env("Planar3RPRReach-v0").unwrapped
+    with pytest.raises(ValueError, match="sequence of n=3 Generators, got 2"):
+        sample_reach(env.params, env.workspace, [np.random.default_rng(0)] * 2, 3, False)
+    with pytest.raises(TypeError, match=r"rng must be a numpy\.random\.Generator or a sequence of them, got int"):
+        sample_reach(env.params, env.workspace, 7, 3, False)
