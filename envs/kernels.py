@@ -183,10 +183,21 @@ def random_streams(generators) -> np.ndarray:
     for i, generator in enumerate(generators):
         if not isinstance(generator, np.random.Generator):
             raise TypeError(f"expected a numpy.random.Generator, got {type(generator).__name__} {generator!r}")
-        interface = generator.bit_generator.ctypes
-        out[i, 0] = ctypes.cast(interface.next_double, ctypes.c_void_p).value
+        bit_generator = generator.bit_generator
+        interface = bit_generator.ctypes
+        function = _NEXT_DOUBLE.get(type(bit_generator))
+        if function is None:
+            function = ctypes.cast(interface.next_double, ctypes.c_void_p).value
+        out[i, 0] = function
         out[i, 1] = interface.state_address
     return out
+
+
+#: ``next_double`` addresses of NumPy's bit generators: one C function per class, looked up once.
+_NEXT_DOUBLE = {
+    kind: ctypes.cast(kind().ctypes.next_double, ctypes.c_void_p).value
+    for kind in (np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937, np.random.Philox, np.random.SFC64)
+}
 
 
 @_jit
