@@ -61,8 +61,7 @@ def trajectories_figure(
     labels = list(runs)
     cols = min(episodes, min(len(r) for r in runs.values()))
     fig, axes = plt.subplots(len(labels), cols, figsize=(3.4 * cols, 3.3 * len(labels)), squeeze=False)
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("0.85")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
     image = None
     for row, label in enumerate(labels):
         for col in range(cols):
