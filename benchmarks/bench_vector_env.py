@@ -7,7 +7,8 @@ advance), so they run the same episodes; autoresets are part of the timed steps.
 take turns over the rounds (native, Sync, Sync, native, …) so that a change of machine load affects
 them alike; the median env-steps per second is reported, with the ratio native / Sync (the anchor,
 measured in the same run). SyncVectorEnv is run up to N = 1024. The share of the native step spent
-starting new episodes (task sampling, one sub-environment at a time) is measured by timing those calls.
+starting new episodes (task sampling: one compiled call for all the robots that restart) is measured by
+timing those calls.
 """
 
 from __future__ import annotations
