@@ -21,6 +21,7 @@ __all__ = [
     "algorithm_class",
     "load_hyperparams",
     "parse_overrides",
+    "resolve_action_noise",
     "resolve_env_wrapper",
     "resolve_policy_kwargs",
     "resolve_replay_buffer",
@@ -41,6 +42,14 @@ RUN_KEYS = (
     "env_kwargs",
     "env_wrapper",
 )
+
+#: Run keys of the off-policy algorithms (those whose constructor takes ``action_noise``), as in the RL Zoo:
+#: ``noise_type`` names the exploration noise added to the deterministic actor's output, ``noise_std`` its
+#: standard deviation per action dimension (in the normalised action units of [-1, 1]).
+NOISE_KEYS = ("noise_type", "noise_std")
+
+#: Noise types that ``noise_type`` may name, with SB3's class names.
+NOISE_TYPES = {"normal": "NormalActionNoise", "ornstein-uhlenbeck": "OrnsteinUhlenbeckActionNoise"}
 
 #: Wrappers that ``env_wrapper`` may name (the RL Zoo's key; an allow-list, nothing is imported by name).
 ENV_WRAPPERS = ("envs.GoalReachWrapper",)
@@ -114,10 +123,14 @@ def valid_keys(algo: str) -> set[str]:
         algo: Algorithm name.
 
     Returns:
-        The run keys and the algorithm constructor's own arguments.
+        The run keys and the algorithm constructor's own arguments. An algorithm that takes
+        ``action_noise`` gets ``noise_type`` and ``noise_std`` in its place (an object YAML cannot hold).
     """
     params = inspect.signature(algorithm_class(algo).__init__).parameters
-    return set(RUN_KEYS) | {name for name in params if name not in _RESERVED}
+    keys = set(RUN_KEYS) | {name for name in params if name not in _RESERVED}
+    if "action_noise" in keys:
+        keys = (keys - {"action_noise"}) | set(NOISE_KEYS)
+    return keys
 
 
 def default_config_path(algo: str) -> Path:
@@ -272,6 +285,35 @@ class LinearSchedule:
 
     def __repr__(self) -> str:
         return f"lin_{self.initial!r}"
+
+
+def resolve_action_noise(noise_type: Any, noise_std: Any, n_actions: int) -> Any:
+    """SB3's action-noise object for the RL Zoo keys ``noise_type`` and ``noise_std``.
+
+    Args:
+        noise_type: ``"normal"``, ``"ornstein-uhlenbeck"`` or None (no noise).
+        noise_std: Standard deviation per action dimension, in action units (> 0); required with a type.
+        n_actions: Size of the action vector.
+
+    Returns:
+        A ``NormalActionNoise`` or ``OrnsteinUhlenbeckActionNoise`` with zero mean and σ = noise_std in every
+        dimension, or None. SB3 wraps it per environment when there are several.
+
+    Raises:
+        ConfigError: For an unknown type, a missing or non-positive σ, or a σ without a type.
+    """
+    if noise_type is None:
+        if noise_std is not None:
+            raise ConfigError(f"noise_std {noise_std!r} needs a noise_type, one of {list(NOISE_TYPES)}")
+        return None
+    if noise_type not in NOISE_TYPES:
+        raise ConfigError(f"noise_type {noise_type!r} is not one of {list(NOISE_TYPES)}")
+    if isinstance(noise_std, bool) or not isinstance(noise_std, (int, float)) or not 0.0 < noise_std < np.inf:
+        raise ConfigError(f"noise_std must be a positive number with noise_type {noise_type!r}, got {noise_std!r}")
+    from stable_baselines3.common import noise
+
+    cls = getattr(noise, NOISE_TYPES[noise_type])
+    return cls(mean=np.zeros(n_actions), sigma=float(noise_std) * np.ones(n_actions))
 
 
 def resolve_env_wrapper(name: Any) -> type | None:

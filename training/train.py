@@ -35,6 +35,7 @@ from training.config import (
     algorithm_class,
     load_hyperparams,
     parse_overrides,
+    resolve_action_noise,
     resolve_env_wrapper,
     resolve_policy_kwargs,
     resolve_replay_buffer,
@@ -240,6 +241,8 @@ def train(
     if "policy_kwargs" in hyper:
         hyper["policy_kwargs"] = resolve_policy_kwargs(hyper["policy_kwargs"])
     hyper = resolve_replay_buffer(resolve_schedules(hyper))
+    noise_type, noise_std = hyper.pop("noise_type", None), hyper.pop("noise_std", None)
+    resolve_action_noise(noise_type, noise_std, 1)  # refuse a bad entry before anything is built
 
     resolved = {
         "algo": algo,
@@ -263,6 +266,9 @@ def train(
         gamma = hyper.get("gamma", 0.99)
         venv = VecNormalize(venv, gamma=gamma, **norm)
         eval_env = VecNormalize(eval_env, training=False, norm_reward=False, gamma=gamma)
+    action_noise = resolve_action_noise(noise_type, noise_std, int(np.prod(venv.action_space.shape)))
+    if action_noise is not None:
+        hyper["action_noise"] = action_noise
     model = cls(policy, venv, seed=seed, verbose=0, device="cpu", **hyper)
     callback = EvalCallback(
         eval_env,

@@ -2,22 +2,27 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import gymnasium as gym
 import pytest
 import torch
 import yaml
+from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 
 from envs import ENV_IDS
 from training.config import (
     ALGORITHMS,
+    NOISE_KEYS,
+    NOISE_TYPES,
     RUN_KEYS,
     ConfigError,
     algorithm_class,
     default_config_path,
     load_hyperparams,
     parse_overrides,
+    resolve_action_noise,
     resolve_policy_kwargs,
     resolve_schedules,
     valid_keys,
@@ -63,10 +68,13 @@ def test_shipped_hyperparams_load(algo, env_id):
 def test_shipped_hyperparams_construct_the_algorithm(algo, env_id):
     """The algorithm arguments of every entry are accepted by the SB3 constructor (types, not just names)."""
     config = load_hyperparams(algo, env_id)
-    hyper = {k: v for k, v in config.items() if k not in RUN_KEYS}
+    hyper = {k: v for k, v in config.items() if k not in RUN_KEYS + NOISE_KEYS}
     hyper["policy_kwargs"] = resolve_policy_kwargs(hyper.get("policy_kwargs"))
     hyper = resolve_schedules(hyper)
     env = gym.make(env_id)
+    noise = resolve_action_noise(config.get("noise_type"), config.get("noise_std"), env.action_space.shape[0])
+    if noise is not None:
+        hyper["action_noise"] = noise
     try:
         model = algorithm_class(algo)(config["policy"], env, device="cpu", seed=0, **hyper)
     finally:
@@ -293,3 +301,64 @@ def test_policy_kwargs_without_activation():
     given = {"net_arch": [32]}
     resolved = resolve_policy_kwargs(given)
     assert resolved == given and resolved is not given
+
+
+# -- exploration noise (RL Zoo keys noise_type / noise_std) ---------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("name", "cls"), [("normal", NormalActionNoise), ("ornstein-uhlenbeck", OrnsteinUhlenbeckActionNoise)]
+)
+def test_noise_keys_become_sb3_noise(name, cls):
+    """noise_type / noise_std give SB3's noise with zero mean and σ in every action dimension."""
+    noise = resolve_action_noise(name, 0.2, 3)
+    assert isinstance(noise, cls)
+    assert noise._mu.tolist() == [0.0, 0.0, 0.0]
+    assert noise._sigma.tolist() == [0.2, 0.2, 0.2]
+
+
+def test_no_noise_type_means_no_noise():
+    """Without the keys there is no noise object (SAC and TQC explore through their entropy)."""
+    assert resolve_action_noise(None, None, 3) is None
+
+
+@pytest.mark.parametrize(
+    ("noise_type", "noise_std", "message"),
+    [
+        ("gaussian", 0.1, "noise_type 'gaussian' is not one of ['normal', 'ornstein-uhlenbeck']"),
+        ("normal", None, "noise_std must be a positive number with noise_type 'normal', got None"),
+        ("normal", 0.0, "noise_std must be a positive number with noise_type 'normal', got 0.0"),
+        ("normal", -0.1, "noise_std must be a positive number"),
+        ("normal", float("nan"), "noise_std must be a positive number"),
+        ("normal", "0.1", "noise_std must be a positive number"),
+        ("normal", True, "noise_std must be a positive number"),
+        (None, 0.1, "noise_std 0.1 needs a noise_type, one of ['normal', 'ornstein-uhlenbeck']"),
+    ],
+)
+def test_bad_noise_entries_are_refused(noise_type, noise_std, message):
+    """Every malformed noise entry is a ConfigError naming the expected and the actual value."""
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        resolve_action_noise(noise_type, noise_std, 3)
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3", "tqc"])
+def test_off_policy_algorithms_take_noise_keys_not_action_noise(algo):
+    """action_noise (an object) is replaced by the two YAML keys for the algorithms that take it."""
+    keys = valid_keys(algo)
+    assert set(NOISE_KEYS) <= keys and "action_noise" not in keys
+    config = load_hyperparams(algo, REACH, overrides={"noise_type": "normal", "noise_std": 0.1})
+    assert config["noise_type"] == "normal" and config["noise_std"] == 0.1
+
+
+def test_ppo_refuses_noise_keys():
+    """PPO's policy is stochastic and takes no action noise: the keys are unknown there."""
+    with pytest.raises(ConfigError, match=r"unknown hyperparameter\(s\) \['noise_type'\] for PPO"):
+        load_hyperparams("ppo", REACH, overrides={"noise_type": "normal"})
+
+
+def test_noise_types_are_sb3_classes():
+    """Every name in NOISE_TYPES is a class of SB3's noise module."""
+    from stable_baselines3.common import noise
+
+    for class_name in NOISE_TYPES.values():
+        assert isinstance(getattr(noise, class_name), type)

@@ -151,6 +151,13 @@ def test_train_then_evaluate(algo, tmp_path, capsys):
     )
     assert run == tmp_path / "run"
     _check_run_folder(run, algo, spec, command)
+    if algo == "td3":  # the shipped exploration noise (noise_type / noise_std in td3.yml) reaches the model
+        from stable_baselines3 import TD3
+        from stable_baselines3.common.noise import NormalActionNoise
+
+        noise = TD3.load(run / "model.zip", device="cpu").action_noise
+        assert isinstance(noise, NormalActionNoise)
+        assert noise._sigma.tolist() == [0.1, 0.1, 0.1]
 
     out = tmp_path / "eval"
     assert evaluate.main(["--run", str(run), "--episodes", "2", "--out", str(out)]) == 0
