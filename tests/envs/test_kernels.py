@@ -219,14 +219,39 @@ def test_observation_and_rewards_match_numpy_formulas(params, rng):
     np.testing.assert_array_equal(ok, (position <= 0.02) & (np.abs(wrapped) <= 0.1))
 
 
+def test_threading_layer_is_tbb_where_installed():
+    """With the ``tbb`` wheel installed (a dependency on x86-64), the parallel step runs on TBB, never OpenMP."""
+    import importlib.metadata
+
+    if "NUMBA_THREADING_LAYER" in os.environ:
+        pytest.skip("the user chose the threading layer")
+    try:
+        importlib.metadata.version("tbb")
+    except importlib.metadata.PackageNotFoundError:
+        assert kernels.THREADING_LAYER == "workqueue"
+    else:
+        assert kernels.THREADING_LAYER == "tbb"
+        assert kernels._load_tbb()
+
+
+def test_threading_layer_falls_back_without_tbb(monkeypatch):
+    """Without the ``tbb`` wheel, ``_load_tbb`` says so (and the kernels use the work-queue layer), never raises."""
+    import importlib.metadata
+
+    def missing(name):
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(importlib.metadata, "files", missing)
+    assert kernels._load_tbb() is False
+
+
 def test_parallel_kernel_equals_serial(params, rng, monkeypatch):
     """Large batches run on every core (prange); the result is bit-identical to the one-thread loop."""
     n = kernels.PARALLEL_MIN_BATCH + 7
     state = _random_states(params, rng, n)
     action = rng.uniform(-1, 1, size=(n, 3))
     parallel = core.step(params, state, action, False)
-    if "NUMBA_THREADING_LAYER" not in os.environ:  # OpenMP's spinning barriers stall on busy machines
-        assert numba.threading_layer() == "workqueue"
+    assert numba.threading_layer() == kernels.THREADING_LAYER
     monkeypatch.setattr(kernels, "PARALLEL_MIN_BATCH", 10**9)
     serial = core.step(params, state, action, False)
     for a, b in zip([*parallel[0][:-1], *parallel[1], *parallel[2:]], [*serial[0][:-1], *serial[1], *serial[2:]]):

@@ -8,6 +8,7 @@ import os
 import shlex
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -155,7 +156,9 @@ def test_train_then_evaluate(algo, tmp_path, capsys):
         from stable_baselines3 import TD3
         from stable_baselines3.common.noise import NormalActionNoise
 
-        noise = TD3.load(run / "model.zip", device="cpu").action_noise
+        with warnings.catch_warnings():  # the saved NStepReplayBuffer makes SB3 warn that n_steps is ignored on load
+            warnings.filterwarnings("ignore", message=r"`n_steps=\d+` is ignored", category=UserWarning)
+            noise = TD3.load(run / "model.zip", device="cpu").action_noise
         assert isinstance(noise, NormalActionNoise)
         assert noise._sigma.tolist() == [0.1, 0.1, 0.1]
 
