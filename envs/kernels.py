@@ -52,7 +52,9 @@ def _load_tbb() -> bool:
             ctypes.CDLL(os.fspath(path), mode=ctypes.RTLD_GLOBAL)
         from numba.np.ufunc import parallel
 
-        parallel._check_tbb_version_compatible()  # TBB 2021.6 or newer, as Numba requires
+        check = getattr(parallel, "_check_tbb_version_compatible", None)  # private: absent in some versions
+        if check is not None:
+            check()  # TBB 2021.6 or newer, as Numba requires (raises ImportError otherwise)
         from numba.np.ufunc import tbbpool  # noqa: F401  (the import is the check)
     except (importlib.metadata.PackageNotFoundError, OSError, ImportError):
         return False
@@ -65,7 +67,9 @@ def _load_tbb() -> bool:
 #: work-queue layer hands each worker a fixed share, and on an idle machine the OS often wakes both
 #: workers on one core (measured: the 16384-robot step took 7.0 ms after other work in the same process,
 #: as long as on one thread, against 3.7 ms with TBB). OpenMP is not used: its barriers spin, and with
-#: one core busy a step ran 14× slower. A user's ``NUMBA_THREADING_LAYER`` still wins.
+#: one core busy a step ran 14× slower. TBB is also what Numba calls its "safe" layer (thread- and
+#: fork-safe; the work-queue layer aborts if two threads run parallel code at once). A user's
+#: ``NUMBA_THREADING_LAYER`` still wins.
 THREADING_LAYER = os.environ.get("NUMBA_THREADING_LAYER") or ("tbb" if _load_tbb() else "workqueue")
 numba.config.THREADING_LAYER = THREADING_LAYER
 
