@@ -254,6 +254,7 @@ def test_sac_with_her_trains_and_evaluates(tmp_path):
             "policy": "MultiInputPolicy",
             "replay_buffer_class": "HerReplayBuffer",
             "replay_buffer_kwargs": {"n_sampled_goal": 4, "goal_selection_strategy": "future", "copy_info_dict": True},
+            "n_steps": 1,  # HerReplayBuffer has no n-step returns
             "learning_starts": 50,
             "buffer_size": 1000,
             "batch_size": 32,
