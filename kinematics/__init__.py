@@ -2,6 +2,14 @@
 
 Conventions (used by every module of the project):
 
+The family
+    Every robot here is a *distance-constraint mechanism* (``DistanceConstraintMechanism``): leg i keeps a
+    platform point P_i at a distance ℓ_i(q_i) from an anchor A_i(q_i), Φ_i = ‖p + R P_i − A_i‖² − ℓ_i²,
+    and a robot is data: a pose space (planar or spatial), an actuator kind and a geometry. The 3-RPR
+    (``Planar3RPR``) and the Stewart–Gough hexapod (``StewartGough``) are members; a user's own geometry
+    needs no new code. For spatial poses the velocity is the platform twist (v, ω) in {B} and J_x, J_f and
+    J_i refer to it (see ``kinematics.family``).
+
 Frames
     {B} is the fixed base frame, {P} the moving platform frame. A platform point given in {P} is
     mapped to {B} by ``p + R(φ) P_i``.
@@ -27,16 +35,23 @@ Singularities (Gosselin & Angeles 1990)
 Every function accepts leading batch dimensions and broadcasts ``q`` against ``x``.
 """
 
+from kinematics.family import ACTUATOR_KINDS, POSE_SPACES, DistanceConstraintMechanism, PoseSpace
 from kinematics.mechanism import (
     ForwardKinematicsResult,
     ParallelMechanism,
     SingularConfigurationError,
 )
 from kinematics.planar_3rpr import Planar3RPR
+from kinematics.stewart_gough import StewartGough
 
 __all__ = [
+    "ACTUATOR_KINDS",
+    "POSE_SPACES",
+    "DistanceConstraintMechanism",
     "ForwardKinematicsResult",
     "ParallelMechanism",
     "Planar3RPR",
+    "PoseSpace",
     "SingularConfigurationError",
+    "StewartGough",
 ]

@@ -131,6 +131,10 @@ class ParallelMechanism(abc.ABC):
         """(Φ, J_x) at once, for Newton's method; override to share work between the two."""
         return self._constraints(q, x), self._jacobians(q, x)[1]
 
+    def _retract(self, x: FloatArray, step: FloatArray) -> FloatArray:
+        """The pose reached from x by a step in velocity coordinates; x + step unless the pose space is curved."""
+        return x + step
+
     @abc.abstractmethod
     def _inverse_kinematics(self, x: FloatArray) -> FloatArray:
         """Closed-form q(x), shape (..., n), no validation."""
@@ -384,7 +388,8 @@ class ParallelMechanism(abc.ABC):
     ) -> ForwardKinematicsResult:
         """Solve Φ(q, x) = 0 for x by Newton's method from ``x_guess`` (stays in its assembly mode).
 
-        Each step solves J_x δ = Φ and sets x ← x − δ; a configuration stops once max_i |Φ_i| ≤
+        Each step solves J_x δ = Φ and sets x ← x − δ (on the rotation group for spatial poses: J_x is
+        taken with respect to the platform twist, see ``_retract``); a configuration stops once max_i |Φ_i| ≤
         ``tolerance``. A singular J_x or a non-finite iterate stops that configuration, unconverged.
         Failure is reported in the result, never raised.
 
@@ -422,7 +427,7 @@ class ParallelMechanism(abc.ABC):
             step = res_a > tolerance  # NaN compares False: a non-finite residual stops there
             if it == max_iterations or not step.any():
                 break
-            x_new = x_a[step] - batched_solve(J_x[step], phi[step][..., None])[..., 0]
+            x_new = self._retract(x_a[step], -batched_solve(J_x[step], phi[step][..., None])[..., 0])
             ok = np.isfinite(x_new).all(axis=-1)
             moved = np.flatnonzero(step)[ok]
             x_a[moved] = x_new[ok]

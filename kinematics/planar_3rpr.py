@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from kinematics._validation import FloatArray, point_set, positive_scalar
-from kinematics.mechanism import ParallelMechanism
+from kinematics.family import DistanceConstraintMechanism, check_distinct
 
 #: Configurations per block of the fused batched J_f (temporaries of 32 kB stay in cache).
 _FUSED_BLOCK = 4096
@@ -28,8 +28,12 @@ def _cross2(a: FloatArray, b: FloatArray) -> FloatArray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-class Planar3RPR(ParallelMechanism):
+class Planar3RPR(DistanceConstraintMechanism):
     """Planar 3-RPR manipulator: three legs B_i → P_i with actuated prismatic strokes L_i.
+
+    The planar, leg-actuated member of the distance-constraint family (``DistanceConstraintMechanism``
+    with ``pose_space="planar"``), with the lesson's geometry as default, a fused batched J_f and every
+    assembly mode (``assembly_modes``). Its constraint-level math is tested equal to the family's.
 
     Constraints (lesson §5.1): Φ_i(q, x) = d_iᵀ d_i − L_i², d_i = p + R(φ) P_i − B_i, with
     q = (L_1, L_2, L_3) [m] and x = (x [m], y [m], φ [rad]) the pose of {P} in {B}.
@@ -64,8 +68,8 @@ class Planar3RPR(ParallelMechanism):
         """Validate and store the geometry (see the class docstring for the arguments)."""
         B = point_set("base anchors", DEFAULT_BASE if base is None else base, 3, 2)
         P = point_set("platform points", DEFAULT_PLATFORM if platform is None else platform, 3, 2)
-        _check_distinct("base anchors", B)
-        _check_distinct("platform points", P)
+        check_distinct("base anchors", B)
+        check_distinct("platform points", P)
         extent = float(np.max(np.linalg.norm(B - B.mean(axis=0), axis=1)))
         twice_area = abs(_cross2(B[1] - B[0], B[2] - B[0]))
         if twice_area <= 1e-9 * extent**2:
@@ -79,29 +83,14 @@ class Planar3RPR(ParallelMechanism):
                 raise ValueError("platform points are all at the origin; give characteristic_length")
         l_c = positive_scalar("characteristic_length", characteristic_length)
         tol = positive_scalar("singular_tolerance", singular_tolerance)
-        super().__init__(pose_scale=np.array([1.0, 1.0, 1.0 / l_c]), singular_tolerance=tol)
-        self._B = B
-        self._P = P
-        self._l_c = l_c
+        super().__init__(
+            B, P, pose_space="planar", characteristic_length=l_c, singular_tolerance=tol, check_architecture=False
+        )
+        self.q_description = "leg lengths (L_1, L_2, L_3) [m]"
         self._B_list = B.tolist()
         self._P_list = P.tolist()
 
     # -- geometry ---------------------------------------------------------------------------------
-
-    @property
-    def base(self) -> FloatArray:
-        """Base anchors B_i in {B} [m], shape (3, 2), read-only."""
-        return self._B
-
-    @property
-    def platform(self) -> FloatArray:
-        """Platform points P_i in {P} [m], shape (3, 2), read-only."""
-        return self._P
-
-    @property
-    def characteristic_length(self) -> float:
-        """ℓ_c [m], the length that makes rotations commensurate with translations."""
-        return self._l_c
 
     def __repr__(self) -> str:
         """Geometry in a form that can be pasted back."""
@@ -166,10 +155,6 @@ class Planar3RPR(ParallelMechanism):
         return x[..., None, :2] + self._rotated_platform(x) - self._B
 
     # -- the constraint-level math ----------------------------------------------------------------
-
-    def _check_actuators(self, q: FloatArray) -> None:
-        if q.size and not q.min() > 0:
-            raise ValueError(f"leg lengths q must be > 0 [m], got minimum {float(np.min(q))!r}")
 
     def _legs(self, x: FloatArray) -> tuple[bool, list[tuple[Any, Any, Any, Any]]]:
         """Per leg i: ((R P_i)_x, (R P_i)_y, d_ix, d_iy) in {B} [m].
@@ -393,14 +378,3 @@ class Planar3RPR(ParallelMechanism):
             return None
         return np.linalg.solve(M, r)
 
-
-def _check_distinct(name: str, points: FloatArray) -> None:
-    extent = max(1.0, float(np.max(np.abs(points))))
-    for i in range(3):
-        for j in range(i + 1, 3):
-            gap = float(np.linalg.norm(points[i] - points[j]))
-            if gap <= 1e-9 * extent:
-                raise ValueError(
-                    f"{name} must be pairwise distinct: points {i + 1} and {j + 1} are {gap:.3g} m "
-                    f"apart ({points[i].tolist()} and {points[j].tolist()})"
-                )
