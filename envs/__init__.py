@@ -2,6 +2,13 @@
 
 from gymnasium.envs.registration import register, registry
 
+from envs.family import (
+    ROBOT_PRESETS,
+    FamilyReachEnv,
+    FamilyReachVectorEnv,
+    FamilyTrackEnv,
+    FamilyTrackVectorEnv,
+)
 from envs.goal import GoalReachWrapper
 from envs.planar_3rpr import Planar3RPRReachEnv, Planar3RPRTrackEnv
 from envs.shield import SingularityShield
@@ -9,6 +16,10 @@ from envs.vector import Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv, Plan
 
 __all__ = [
     "ENV_IDS",
+    "FamilyReachEnv",
+    "FamilyReachVectorEnv",
+    "FamilyTrackEnv",
+    "FamilyTrackVectorEnv",
     "GoalReachWrapper",
     "Planar3RPRReachEnv",
     "Planar3RPRReachVectorEnv",
@@ -28,6 +39,15 @@ _SPECS = {
         {"targets": "hard"},
     ),
     "Planar3RPRTrack-v0": ("envs.planar_3rpr:Planar3RPRTrackEnv", "envs.vector:Planar3RPRTrackVectorEnv", 400, {}),
+    # The Stewart–Gough hexapod on the family core (``envs.family``; ``robot=`` takes any other member).
+    "StewartGoughReach-v0": ("envs.family:FamilyReachEnv", "envs.family:FamilyReachVectorEnv", 200, {}),
+    "StewartGoughReachHard-v0": (
+        "envs.family:FamilyReachEnv",
+        "envs.family:FamilyReachVectorEnv",
+        200,
+        {"targets": "hard", **ROBOT_PRESETS["stewart_gough_hard"]},
+    ),
+    "StewartGoughTrack-v0": ("envs.family:FamilyTrackEnv", "envs.family:FamilyTrackVectorEnv", 400, {}),
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)

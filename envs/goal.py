@@ -17,7 +17,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs import core
+from envs.family import FamilyParams
+from envs.family_kernels import observation_layout
 
 __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper"]
 
@@ -45,14 +46,20 @@ class GoalReachWrapper(gym.Wrapper):
         super().__init__(env)
         base = env.unwrapped
         if "targets" not in getattr(type(base), "reset_options", ()) or not hasattr(base, "params"):
-            raise TypeError(f"GoalReachWrapper needs a planar 3-RPR Reach environment, got {type(base).__name__}")
+            raise TypeError(f"GoalReachWrapper needs a Reach environment of envs, got {type(base).__name__}")
         self.params = base.params
+        self._physics = base.physics
+        self._index = OBSERVATION_INDEX
+        self._n = base.action_space.shape[0]
+        if isinstance(self.params, FamilyParams):  # a robot of the family: its own observation layout
+            layout = observation_layout(self.params.spatial, self._n, False)
+            self._index = np.concatenate([np.arange(64)[layout[name]] for name in ("pose", "strokes", "k")])
         flat = env.observation_space
         goal_low = np.array(self.params.pose_low, dtype=np.float32)
         goal_high = np.array(self.params.pose_high, dtype=np.float32)
         self.observation_space = spaces.Dict(
             {
-                "observation": spaces.Box(flat.low[OBSERVATION_INDEX], flat.high[OBSERVATION_INDEX], dtype=np.float32),
+                "observation": spaces.Box(flat.low[self._index], flat.high[self._index], dtype=np.float32),
                 "achieved_goal": spaces.Box(goal_low, goal_high, dtype=np.float32),
                 "desired_goal": spaces.Box(goal_low, goal_high, dtype=np.float32),
             }
@@ -61,7 +68,7 @@ class GoalReachWrapper(gym.Wrapper):
     def _goal_obs(self, obs: np.ndarray, info: dict[str, Any]) -> dict[str, np.ndarray]:
         space = self.observation_space
         return {
-            "observation": obs[OBSERVATION_INDEX],
+            "observation": obs[self._index],
             # The pose stays inside its bounds except at an out-of-bounds termination: clip for the space.
             "achieved_goal": np.clip(info["pose"], space["achieved_goal"].low, space["achieved_goal"].high).astype(
                 np.float32
@@ -96,7 +103,8 @@ class GoalReachWrapper(gym.Wrapper):
         achieved = np.asarray(achieved_goal, dtype=np.float64)
         desired = np.asarray(desired_goal, dtype=np.float64)
         single = achieved.ndim == 1
-        achieved, desired = achieved.reshape(-1, 3), desired.reshape(-1, 3)
+        m = len(self.params.pose_low)
+        achieved, desired = achieved.reshape(-1, m), desired.reshape(-1, m)
         infos = [info] if isinstance(info, dict) else list(np.asarray(info, dtype=object).ravel())
         n = len(achieved)
         if desired.shape != achieved.shape or len(infos) != n:
@@ -106,6 +114,8 @@ class GoalReachWrapper(gym.Wrapper):
         k = np.array([i["inverse_condition_number"] for i in infos], dtype=np.float64)
         action = np.array([i["reward_action"] for i in infos], dtype=np.float64)
         termination = np.array([i["reward_termination"] for i in infos], dtype=np.float64)
-        terms = core.reward_terms(self.params, achieved, desired, k, np.zeros((n, 3)), np.zeros(n, dtype=np.int64))
+        terms = self._physics.reward_terms(
+            self.params, achieved, desired, k, np.zeros((n, self._n)), np.zeros(n, dtype=np.int64)
+        )
         reward = terms["reward_tracking"] + terms["reward_singularity"] + action + termination
         return float(reward[0]) if single else reward

@@ -227,6 +227,8 @@ class Planar3RPREnvBase(gym.Env[np.ndarray, np.ndarray]):
     with_velocity = False
     #: The keys ``reset(options=...)`` accepts.
     reset_options: tuple[str, ...] = ()
+    #: The pure functions of this env's physics (the shield and the HER goal view call them).
+    physics = core
 
     def _setup(self, render_mode: str | None, params: EnvParams) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:

@@ -22,8 +22,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs import core
-
 __all__ = ["SHIELD_SCALES", "SingularityShield"]
 
 #: Action scales tried in order; the last (zero) is always safe.
@@ -48,7 +46,7 @@ class SingularityShield(gym.Wrapper):
         super().__init__(env)
         base = env.unwrapped
         if not (hasattr(base, "params") and hasattr(base, "state")):
-            raise TypeError(f"SingularityShield needs a planar 3-RPR environment, got {type(base).__name__}")
+            raise TypeError(f"SingularityShield needs a parallel-robot environment of envs, got {type(base).__name__}")
         if not (isinstance(k_guard, (int, float)) and 0.0 < float(k_guard) < 1.0):
             raise ValueError(f"k_guard must be a number in (0, 1), got {k_guard!r}")
         self.k_guard = float(k_guard)
@@ -57,25 +55,26 @@ class SingularityShield(gym.Wrapper):
         """The action to apply instead of ``action`` and its scale.
 
         Args:
-            action: Proposed normalised stroke rates, shape (3,), finite.
+            action: Proposed normalised stroke rates, shape (n,), finite.
 
         Returns:
-            (the action, shape (3,) float32; the scale in ``SHIELD_SCALES`` applied to it).
+            (the action, shape (n,) float32; the scale in ``SHIELD_SCALES`` applied to it).
         """
         base = self.env.unwrapped
         state = base.state
         if state is None:
             raise gym.error.ResetNeeded("Cannot call step() before reset()")
         proposed = np.asarray(action, dtype=np.float64)
-        if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
+        n = base.action_space.shape[0]
+        if proposed.shape != (n,) or not np.all(np.isfinite(proposed)):
             return np.asarray(action), 1.0  # let the environment reject it with its own message
         proposed = np.clip(proposed, -1.0, 1.0)
         k_now = float(state.inverse_condition[0])
         for scale in SHIELD_SCALES[:-1]:
-            new_state, outcome = core.transition(base.params, state, proposed[None] * scale)
+            new_state, outcome = base.physics.transition(base.params, state, proposed[None] * scale)
             if outcome.reason[0] == 0 and float(new_state.inverse_condition[0]) >= min(self.k_guard, k_now):
                 return (proposed * scale).astype(np.float32), scale
-        return np.zeros(3, dtype=np.float32), 0.0
+        return np.zeros(n, dtype=np.float32), 0.0
 
     def step(self, action: Any):
         """Step with the shielded action; ``info["shield_scale"]`` records the scale used."""

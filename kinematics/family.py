@@ -128,9 +128,7 @@ class PoseSpace:
 #: The pose spaces, by name.
 POSE_SPACES = {
     "planar": PoseSpace("planar", 2, 3, (2,), "a pose (x [m], y [m], φ [rad])"),
-    "spatial": PoseSpace(
-        "spatial", 3, 6, (3, 4, 5), "a pose (p_x, p_y, p_z [m], rotation vector r_x, r_y, r_z [rad])"
-    ),
+    "spatial": PoseSpace("spatial", 3, 6, (3, 4, 5), "a pose (p_x, p_y, p_z [m], rotation vector r_x, r_y, r_z [rad])"),
 }
 
 
@@ -149,7 +147,7 @@ def _rotations(r: FloatArray) -> Any:
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    """a × b over the last axis: the z component for 2-D vectors (shape (...)), the vector for 3-D."""
+    """A × b over the last axis: the z component for 2-D vectors (shape (...)), the vector for 3-D."""
     if a.shape[-1] == 2:
         return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
     return np.cross(a, b)

@@ -377,4 +377,3 @@ class Planar3RPR(DistanceConstraintMechanism):
         if abs(np.linalg.det(M)) < 1e-12 * max(1.0, float(np.max(np.abs(M))) ** 2):
             return None
         return np.linalg.solve(M, r)
-

@@ -10,7 +10,14 @@ import numpy as np
 
 from envs.core import EnvParams, wrap_angle
 
-__all__ = ["CONTROLLERS", "ResolvedRateController", "SingularityAwareController", "decode_observation"]
+__all__ = [
+    "CONTROLLERS",
+    "FAMILY_CONTROLLERS",
+    "FamilyResolvedRateController",
+    "ResolvedRateController",
+    "SingularityAwareController",
+    "decode_observation",
+]
 
 
 def decode_observation(params: EnvParams, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -165,5 +172,64 @@ class SingularityAwareController(ResolvedRateController):
         return v
 
 
+class FamilyResolvedRateController:
+    """Resolved-rate control of any robot of the distance-constraint family (``envs.family``): q̇ = J_i v.
+
+    v = ẋ* + K e, with e = (p* − p, δθ) the exact twist error of the observation (δθ the rotation vector of
+    R* Rᵀ in {B}; planar: (x* − x, y* − y, wrap(φ* − φ))), capped at ``max_speed`` in (δp, ℓ_c δθ); q̇ is
+    scaled down as a whole when a leg would exceed ``max_rate``, so the platform keeps its direction: a
+    straight geodesic toward the target. The pose and strokes come from the observation, J_i from the
+    kinematics library.
+
+    Args:
+        params: Environment constants (``envs.family.FamilyParams``).
+        gain: K [1/s].
+        max_speed: Cap on the scaled platform speed [m/s].
+    """
+
+    name = "resolved-rate"
+
+    def __init__(self, params, gain: float = 2.0, max_speed: float = 0.25) -> None:
+        from envs.family_kernels import observation_layout
+
+        self.params = params
+        self.gain = float(gain)
+        self.max_speed = float(max_speed)
+        robot = params.robot
+        self._layout = observation_layout(params.spatial, robot.n_actuators, True)
+        self._metric = np.where(robot.pose_scale < 1.0, 1.0 / robot.pose_scale, 1.0)
+
+    def decode(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pose (N, m), twist error (N, m), target velocity (N, m), zeros for Reach) from observations."""
+        from scipy.spatial.transform import Rotation
+
+        obs = np.asarray(obs, dtype=np.float64)
+        code = obs[:, self._layout["pose"]]
+        if self.params.spatial:
+            quat = code[:, [4, 5, 6, 3]]  # SciPy's (x, y, z, w)
+            pose = np.concatenate([code[:, :3], Rotation.from_quat(quat).as_rotvec()], axis=-1)
+        else:
+            pose = np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
+        error = obs[:, self._layout["error"]]
+        velocity_slice = self._layout["target_velocity"]
+        velocity = obs[:, velocity_slice] if obs.shape[1] >= velocity_slice.stop else np.zeros_like(pose)
+        return pose, error, velocity
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Normalised stroke rates in [−1, 1] for a batch of observations, shape (N, n), float32."""
+        pose, error, velocity = self.decode(obs)
+        v = velocity + self.gain * error
+        speed = np.linalg.norm(v * self._metric, axis=-1, keepdims=True)
+        v = v / np.maximum(speed / self.max_speed, 1.0)
+        robot = self.params.robot
+        q = robot.inverse_kinematics(pose, validate=False)
+        q_dot = np.einsum("nij,nj->ni", robot.inverse_jacobian(q, pose, validate=False), v)
+        a = q_dot / self.params.max_rate
+        a /= np.maximum(np.max(np.abs(a), axis=-1, keepdims=True), 1.0)
+        return a.astype(np.float32)
+
+
 #: Controllers by command-line name.
 CONTROLLERS = {cls.name: cls for cls in (ResolvedRateController, SingularityAwareController)}
+#: Controllers for the robots of ``envs.family`` (by command-line name).
+FAMILY_CONTROLLERS = {cls.name: cls for cls in (FamilyResolvedRateController,)}

@@ -30,7 +30,7 @@ import yaml
 import envs
 from envs.core import TERMINATION_REASONS
 from training.config import ConfigError, algorithm_class, resolve_env_wrapper
-from training.controllers import CONTROLLERS
+from training.controllers import CONTROLLERS, FAMILY_CONTROLLERS
 
 __all__ = [
     "EpisodeRecord",
@@ -109,9 +109,15 @@ def load_controller(name: str, env: gym.Env) -> Agent:
     Raises:
         EvaluationError: For an unknown name, listing the valid ones.
     """
-    if name not in CONTROLLERS:
-        raise EvaluationError(f"unknown controller {name!r}; valid choices: {sorted(CONTROLLERS)}")
-    return CONTROLLERS[name](env.unwrapped.params)
+    from envs.family import FamilyParams
+
+    params = env.unwrapped.params
+    table = FAMILY_CONTROLLERS if isinstance(params, FamilyParams) else CONTROLLERS
+    if name not in table:
+        raise EvaluationError(
+            f"unknown controller {name!r} for {type(env.unwrapped).__name__}; valid choices: {sorted(table)}"
+        )
+    return table[name](params)
 
 
 def read_run_config(run_dir: str | Path) -> dict[str, Any]:
@@ -435,8 +441,9 @@ def write_outputs(
         for r in records:
             writer.writerow(r.row())
     params = env.unwrapped.params
-    workspace = env.unwrapped.workspace
-    plots.trajectories_figure({label: records}, params, workspace, out / "trajectories.png")
+    workspace = getattr(env.unwrapped, "workspace", None)  # the planar 3-RPR's certified grid
+    if workspace is not None:
+        plots.trajectories_figure({label: records}, params, workspace, out / "trajectories.png")
     plots.condition_figure({label: records}, params, out / "condition_number.png")
     if frames:
         plots.save_gif(frames, out / "episodes.gif", fps=env.unwrapped.metadata["render_fps"])

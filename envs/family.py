@@ -1,0 +1,1124 @@
+"""Pure batched physics and the Gymnasium environments of any robot of the distance-constraint family.
+
+The ``phys2d`` pattern again: constants in a frozen dataclass (``FamilyParams``), the state of N robots in
+arrays with a leading dimension N, pure functions (``initial_state``, ``transition``, ``evaluate``,
+``step``, ``reward_terms``) over the compiled kernels of ``envs.family_kernels``. The single environments
+(N = 1), the native vector environment, the shield, the HER goal view and the evaluation all call them.
+A robot is a ``kinematics.DistanceConstraintMechanism`` given as data; ``ROBOT_PRESETS`` holds the
+documented defaults of the robots with registered ids (the Stewart–Gough hexapod).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar, NamedTuple
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from envs import family_kernels as fk
+from envs.core import TERMINATION_REASONS, NonFiniteActionError
+from kinematics import DistanceConstraintMechanism, StewartGough
+
+__all__ = [
+    "REWARD_TERMS",
+    "ROBOT_PRESETS",
+    "FamilyParams",
+    "FamilyReachEnv",
+    "FamilyReference",
+    "FamilyState",
+    "FamilyTrackEnv",
+    "FamilyVectorEnv",
+    "evaluate",
+    "initial_state",
+    "observation_bounds",
+    "reward_terms",
+    "step",
+    "transition",
+]
+
+REWARD_TERMS = ("reward_tracking", "reward_singularity", "reward_action", "reward_termination")
+_TARGET_MODES = ("standard", "hard")
+_INTEGRATORS = ("euler", "rk4")
+TRAIL_LENGTH = 200
+
+
+@dataclass(frozen=True)
+class FamilyParams:
+    """Every constant of a family environment (see ``FamilyReachEnv`` for meanings and units).
+
+    Attributes:
+        robot: The mechanism (pose space, legs, geometry, ℓ_c).
+        stroke_limits: (q_min, q_max) hard stops of every leg [m].
+        dt: Control period [s].
+        max_rate: Stroke rate of a unit action [m/s].
+        integrator: "euler" or "rk4" prediction of the twist J_f q̇ (on the rotation group).
+        pose_low: Lower pose bounds, shape (m,) [m, rad]; leaving them terminates.
+        pose_high: Upper pose bounds, shape (m,).
+        sample_low: Lower corner of the box starts and targets are drawn from, shape (m,).
+        sample_high: Upper corner of that box, shape (m,).
+        safe_threshold: k below which the penalty and the cost start.
+        hard_threshold: k below which the episode terminates.
+        position_weight: w_p [1/m].
+        orientation_weight: w_o [1/m] (multiplies ℓ_c · orientation error).
+        singularity_weight: w_s.
+        action_weight: w_a.
+        termination_penalty: P.
+        success_position_tolerance: [m].
+        success_orientation_tolerance: [rad].
+        newton_tolerance: Residual max_i |Φ_i| of the correction [m²].
+        newton_max_iterations: Newton iterations per substep.
+        jump_tolerance: Largest ‖(δp, ℓ_c δθ)‖ between prediction and correction [m].
+        max_substep: Largest predicted motion per substep [m].
+        max_substeps: Most substeps per period.
+        track_period: Period of the Track references [s].
+        track_amplitude: Largest amplitude of each pose coordinate of a Track reference, shape (m,).
+        stroke_margin: Strokes of the safe set keep this far from the limits [m].
+        segment_spacing: Largest gap between checked points of a certified path [m].
+        min_distance: Smallest ‖(δp, ℓ_c δθ)‖ between start and target [m].
+        hard_kind: What makes a hard target: "detour" (the straight path dips below k_safe, a detour is
+            certified) or "ill_conditioned" (the target lies where 2 k_hard ≤ k < k_safe).
+    """
+
+    robot: DistanceConstraintMechanism = field(default_factory=StewartGough)
+    stroke_limits: tuple[float, float] = (0.45, 0.75)
+    dt: float = 0.05
+    max_rate: float = 0.1
+    integrator: str = "euler"
+    pose_low: tuple[float, ...] = (-0.2, -0.2, 0.3, -0.6, -0.6, -1.9)
+    pose_high: tuple[float, ...] = (0.2, 0.2, 0.75, 0.6, 0.6, 1.9)
+    sample_low: tuple[float, ...] = (-0.1, -0.1, 0.4, -0.2, -0.2, -0.5)
+    sample_high: tuple[float, ...] = (0.1, 0.1, 0.6, 0.2, 0.2, 0.5)
+    safe_threshold: float = 0.1
+    hard_threshold: float = 0.03
+    position_weight: float = 1.0
+    orientation_weight: float = 1.0
+    singularity_weight: float = 1.0
+    action_weight: float = 0.01
+    termination_penalty: float = 50.0
+    success_position_tolerance: float = 0.01
+    success_orientation_tolerance: float = 0.05
+    newton_tolerance: float = 1e-12
+    newton_max_iterations: int = 8
+    jump_tolerance: float = 0.02
+    max_substep: float = 0.01
+    max_substeps: int = 16
+    track_period: float = 8.0
+    track_amplitude: tuple[float, ...] = (0.05, 0.0, 0.04, 0.0, 0.1, 0.0)
+    stroke_margin: float = 0.02
+    segment_spacing: float = 0.01
+    min_distance: float = 0.05
+    hard_kind: str = "detour"
+
+    @functools.cached_property
+    def packed(self) -> np.ndarray:
+        """The kernels' float64 constants (``family_kernels.pack_family``), read-only."""
+        return fk.pack_family(self)
+
+    @functools.cached_property
+    def spatial(self) -> bool:
+        """Whether the pose space is spatial (else planar)."""
+        return self.robot.pose_space.name == "spatial"
+
+    @functools.cached_property
+    def evaluation_rows(self) -> dict[str, int | slice]:
+        """Rows of ``evaluate`` / ``step``'s evaluation array."""
+        return fk.evaluation_rows(self.robot.n_pose)
+
+    @functools.cached_property
+    def observation_bounds(self) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """``observation_bounds`` without (index 0) and with (index 1) the target velocity."""
+        return _observation_bounds(self, False), _observation_bounds(self, True)
+
+
+#: Documented defaults of the robots with registered ids: constructor keyword arguments of the envs.
+ROBOT_PRESETS: dict[str, dict[str, Any]] = {
+    # A symmetric 6-6 hexapod (``kinematics.StewartGough()``): base radius 0.5 m, platform radius 0.3 m, legs
+    # 0.59 m at the home pose p = (0, 0, 0.5) m. Strokes 0.45-0.75 m at 0.1 m/s. Standard tasks keep to a box of
+    # ±0.1 m, z 0.4-0.6 m, tilts ±0.2 rad and yaw ±0.5 rad, where k ≥ 0.2. Hard tasks widen the tilts to
+    # ±0.35 rad and the yaw to ±1.3 rad, toward Fichter's singularity at yaw ±90°.
+    "stewart_gough": {},
+    # In this workspace no straight path between two safe poses dips below k_safe (0 of 10 000 pairs, even
+    # with k_safe = 0.25: k is quasi-concave there), so hard targets are ill-conditioned ones instead: toward
+    # Fichter's singularity, where 2 k_hard ≤ k < k_safe, reached from a safe start. Large yaws stretch the
+    # legs, so this task's hexapod has longer strokes (0.40-0.85 m).
+    "stewart_gough_hard": {
+        "stroke_limits": (0.40, 0.85),
+        "sample_low": (-0.12, -0.12, 0.38, -0.3, -0.3, -1.45),
+        "sample_high": (0.12, 0.12, 0.62, 0.3, 0.3, 1.45),
+        "hard_kind": "ill_conditioned",
+    },
+}
+
+
+class FamilyReference(NamedTuple):
+    """Target trajectories of N robots: x*_j(t) = c_j + a_j sin(ω t + θ_j), ω = 2π / track_period.
+
+    For spatial poses the coordinates are (p, rotation vector); a reference that moves one rotation
+    coordinate alone (as Track's pitch) turns about a fixed axis, where ṙ is the angular velocity. A fixed
+    target (Reach) has a = 0.
+
+    Attributes:
+        center: c, shape (N, m).
+        amplitude: a, shape (N, m).
+        phase: θ [rad], shape (N, m).
+    """
+
+    center: np.ndarray
+    amplitude: np.ndarray
+    phase: np.ndarray
+
+
+class FamilyState(NamedTuple):
+    """State of N robots.
+
+    Attributes:
+        q: Leg lengths [m], shape (N, n).
+        x: Platform poses of {P} in {B}, shape (N, m).
+        t: Steps taken in the episode, shape (N,) (int).
+        det_sign: sign(det J_x) at the start of the episode (the working mode), shape (N,).
+        inverse_condition: Homogeneous inverse condition number k at (q, x), shape (N,).
+        residual: Constraint residual max_i |Φ_i| [m²], shape (N,).
+        reference: The targets' trajectories.
+    """
+
+    q: np.ndarray
+    x: np.ndarray
+    t: np.ndarray
+    det_sign: np.ndarray
+    inverse_condition: np.ndarray
+    residual: np.ndarray
+    reference: FamilyReference
+
+
+class FamilyOutcome(NamedTuple):
+    """What a transition reports besides the new state (see ``envs.core.StepOutcome``).
+
+    Attributes:
+        action: The applied (clipped) action, shape (N, n).
+        q_rate: Achieved stroke rates [m/s], shape (N, n).
+        reason: Termination reason codes (``envs.core.TERMINATION_REASONS``), shape (N,).
+        jump: Largest prediction–correction gap ‖(δp, ℓ_c δθ)‖ [m], shape (N,).
+    """
+
+    action: np.ndarray
+    q_rate: np.ndarray
+    reason: np.ndarray
+    jump: np.ndarray
+
+
+def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
+    n, m = params.robot.n_actuators, params.robot.n_pose
+    low_p, high_p = np.array(params.pose_low), np.array(params.pose_high)
+    d = 3 if params.spatial else 2
+    span = high_p[:d] - low_p[:d]
+    if params.spatial:
+        code_lo, code_hi = [0.0, -1.0, -1.0, -1.0], [1.0, 1.0, 1.0, 1.0]
+        rot_err = [np.pi] * 3
+    else:
+        code_lo, code_hi = [-1.0, -1.0], [1.0, 1.0]
+        rot_err = [np.pi]
+    pose_lo = [*low_p[:d], *code_lo]
+    pose_hi = [*high_p[:d], *code_hi]
+    low = [*pose_lo, *pose_lo, *(-span), *(-np.array(rot_err)), *[-1.0] * (2 * n), 0.0]
+    high = [*pose_hi, *pose_hi, *span, *rot_err, *[1.0] * (2 * n), 1.0]
+    if with_velocity:
+        # |ẋ*_j| ≤ a_j ω; coordinates that do not move keep a small non-empty range (Gymnasium's checker).
+        v_max = np.maximum(np.array(params.track_amplitude) * 2.0 * np.pi / params.track_period, 1e-3)
+        low += list(-v_max)
+        high += list(v_max)
+    low_arr, high_arr = np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+    assert low_arr.shape[0] == sum(
+        s.stop - s.start for s in fk.observation_layout(params.spatial, n, with_velocity).values()
+    )
+    low_arr.setflags(write=False)
+    high_arr.setflags(write=False)
+    del m
+    return low_arr, high_arr
+
+
+def observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Finite float32 bounds of the observation (layout in ``FamilyReachEnv``'s docstring).
+
+    Args:
+        params: Environment constants.
+        with_velocity: Whether the target velocity is appended (Track).
+
+    Returns:
+        (low, high), read-only float32 arrays.
+    """
+    return params.observation_bounds[bool(with_velocity)]
+
+
+def _rows(a: Any, width: int, name: str) -> np.ndarray:
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != width:
+        raise ValueError(f"{name} must have shape (N, {width}), got shape {arr.shape}")
+    return np.ascontiguousarray(arr)
+
+
+def initial_state(params: FamilyParams, start: np.ndarray, reference: FamilyReference) -> FamilyState:
+    """State of N robots at rest at ``start`` (shape (N, m)), strokes from the inverse kinematics."""
+    start = _rows(start, params.robot.n_pose, "start")
+    q, k, det_sign, residual = fk.initial_batch(params.packed, start)
+    return FamilyState(q, start.copy(), np.zeros(len(start), dtype=np.int64), det_sign, k, residual, reference)
+
+
+def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> tuple[FamilyState, FamilyOutcome]:
+    """Advance N robots by one control period (the algorithm of ``envs.core.transition``, on the family).
+
+    Strokes advance by the clipped action · max_rate · dt, clamped to the hard stops; the step is split into
+    substeps of at most ``max_substep`` of predicted motion; each predicts the pose with the twist
+    J_f(q, x) q̇ (Euler or RK4, on the rotation group) and corrects it onto Φ = 0 by Newton's method. A robot
+    whose correction fails stays where it was; the others are checked for an assembly-mode jump, a flip of
+    sign(det J_x), k < hard_threshold and leaving the pose bounds, in that order.
+
+    Args:
+        params: Environment constants.
+        state: The robots' state.
+        action: Normalised stroke rates, shape (N, n), finite.
+
+    Returns:
+        (the new state, the outcome).
+    """
+    action = _rows(action, params.robot.n_actuators, "action")
+    if not np.isfinite(action).all():
+        rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
+        raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}", rows)
+    q, x, k, residual, a, q_rate, reason, jump = fk.transition_batch(
+        params.packed, state.q, state.x, state.det_sign, state.residual, action
+    )
+    new = FamilyState(q, x, state.t + 1, state.det_sign, k, residual, state.reference)
+    return new, FamilyOutcome(a, q_rate, reason, jump)
+
+
+def evaluate(
+    params: FamilyParams, state: FamilyState, action: np.ndarray, reason: np.ndarray, with_velocity: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Reward terms, errors, success, cost, targets and observations of a state, in one compiled pass.
+
+    Args:
+        params: Environment constants.
+        state: The robots' state.
+        action: The applied actions, shape (N, n).
+        reason: Termination reason codes, shape (N,).
+        with_velocity: Whether the observation ends with the target velocity.
+
+    Returns:
+        (evaluation (rows of ``params.evaluation_rows``, N) float64, observations (N, D) float32).
+    """
+    action = _rows(action, params.robot.n_actuators, "action")
+    low, high = observation_bounds(params, with_velocity)
+    ref = state.reference
+    return fk.evaluate_batch(
+        params.packed,
+        low,
+        high,
+        bool(with_velocity),
+        state.q,
+        state.x,
+        state.t,
+        state.inverse_condition,
+        state.residual,
+        ref.center,
+        ref.amplitude,
+        ref.phase,
+        action,
+        np.asarray(reason, dtype=np.int64),
+    )
+
+
+def reward_terms(
+    params: FamilyParams,
+    x: np.ndarray,
+    target: np.ndarray,
+    inverse_condition: np.ndarray,
+    action: np.ndarray,
+    reason: np.ndarray,
+) -> dict[str, np.ndarray]:
+    """Every term of the reward of N poses against fixed targets (what HER's ``compute_reward`` calls).
+
+    Args:
+        params: Environment constants.
+        x: Poses, shape (N, m).
+        target: Target poses, shape (N, m).
+        inverse_condition: k, shape (N,).
+        action: Applied actions, shape (N, n).
+        reason: Termination reason codes, shape (N,).
+
+    Returns:
+        The four ``REWARD_TERMS``, each shape (N,).
+    """
+    m = params.robot.n_pose
+    x, target = _rows(x, m, "x"), _rows(target, m, "target")
+    n = len(x)
+    k = np.asarray(inverse_condition, dtype=np.float64).reshape(n)
+    ref = FamilyReference(target, np.zeros((n, m)), np.zeros((n, m)))
+    state = FamilyState(
+        np.full((n, m), np.mean(params.stroke_limits)), x, np.zeros(n, dtype=np.int64), np.ones(n), k, np.zeros(n), ref
+    )
+    evaluation, _ = evaluate(params, state, action, reason, False)
+    rows = params.evaluation_rows
+    return {name: evaluation[rows[name]].copy() for name in REWARD_TERMS}
+
+
+class StepBuffers:
+    """Output arrays of ``step`` for N robots, reused by every step (an env alternates two of them)."""
+
+    def __init__(self, params: FamilyParams, n: int, with_velocity: bool) -> None:
+        obs_dim = observation_bounds(params, with_velocity)[0].shape[0]
+        self.arrays = fk.allocate_step(n, params.robot.n_pose, obs_dim)
+        q, x, t, k, residual, a, q_rate, reason, jump, evaluation, observations = self.arrays
+        self.outcome = FamilyOutcome(a, q_rate, reason, jump)
+        self.evaluation, self.observations = evaluation, observations
+        self.fields = (q, x, t, k, residual)
+
+
+def step(
+    params: FamilyParams, state: FamilyState, action: np.ndarray, with_velocity: bool, out: StepBuffers | None = None
+) -> tuple[FamilyState, FamilyOutcome, np.ndarray, np.ndarray]:
+    """``transition`` then ``evaluate``, fused in one compiled pass (on every core for large N).
+
+    Args:
+        params: Environment constants.
+        state: The robots' state.
+        action: Normalised stroke rates, shape (N, n), float64.
+        with_velocity: Whether the observation ends with the target velocity.
+        out: Buffers to write into (none of them may hold ``state``), or None.
+
+    Returns:
+        (new state, outcome, evaluation, observations).
+
+    Raises:
+        NonFiniteActionError: If an action is not finite (``state`` is untouched).
+    """
+    n = state.q.shape[0]
+    if action.shape != state.q.shape or action.dtype != np.float64:
+        action = _rows(action, params.robot.n_actuators, "action")
+        if action.shape[0] != n:
+            raise ValueError(f"action must have shape {state.q.shape}, got {action.shape}")
+    if out is None:
+        out = StepBuffers(params, n, with_velocity)
+    ref = state.reference
+    low, high = observation_bounds(params, with_velocity)
+    bad = fk.step_batch(
+        params.packed,
+        low,
+        high,
+        bool(with_velocity),
+        state.q,
+        state.x,
+        state.t,
+        state.det_sign,
+        state.residual,
+        ref.center,
+        ref.amplitude,
+        ref.phase,
+        action,
+        out.arrays,
+    )
+    if bad:
+        rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
+        where = f" (row(s) {rows[:10].tolist()} of {n})" if n > 1 else ""
+        raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}{where}", rows)
+    q, x, t, k, residual = out.fields
+    return FamilyState(q, x, t, state.det_sign, k, residual, ref), out.outcome, out.evaluation, out.observations
+
+
+def copy_state(state: FamilyState) -> FamilyState:
+    """A deep copy of ``state`` (every array copied)."""
+    return FamilyState(*(a.copy() for a in state[:-1]), FamilyReference(*(a.copy() for a in state.reference)))
+
+
+_REASON_NAMES = np.asarray(TERMINATION_REASONS, dtype=object)
+#: The keys of an env's ``info``, in order.
+INFO_KEYS = (
+    "reward_tracking",
+    "reward_singularity",
+    "reward_action",
+    "reward_termination",
+    "position_error",
+    "orientation_error",
+    "inverse_condition_number",
+    "constraint_residual",
+    "is_success",
+    "cost",
+    "termination_reason",
+    "pose",
+    "target",
+)
+
+
+def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order."""
+    rows = params.evaluation_rows
+    info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS[:8]}
+    info["is_success"] = evaluation[rows["is_success"]] != 0.0
+    info["cost"] = evaluation[rows["cost"]].copy()
+    info["termination_reason"] = _REASON_NAMES[reason]
+    info["pose"] = evaluation[rows["pose"]].T.copy()
+    info["target"] = evaluation[rows["target"]].T.copy()
+    return info
+
+
+# -- argument checks ---------------------------------------------------------------------------------------
+
+
+def _number(name: str, value: Any, *, allow_zero: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        raise ValueError(f"{name} must be finite and {'≥' if allow_zero else '>'} 0, got {value!r}")
+    return value
+
+
+def _vector(name: str, value: Any, size: int) -> tuple[float, ...]:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a sequence of {size} numbers, got {value!r}") from exc
+    if arr.shape != (size,) or not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
+    return tuple(float(v) for v in arr)
+
+
+def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwargs: Any) -> FamilyParams:
+    """Validate constructor arguments into ``FamilyParams``; a robot without bounds gets ones around its home pose.
+
+    Args:
+        robot: The mechanism (default ``StewartGough()``).
+        **kwargs: Fields of ``FamilyParams``.
+
+    Returns:
+        The validated parameters.
+
+    Raises:
+        TypeError: On a robot that is not a ``DistanceConstraintMechanism`` or an argument of the wrong type.
+        ValueError: On an argument out of its range, naming the expected and the actual value.
+    """
+    if robot is None:
+        robot = StewartGough()
+    if not isinstance(robot, DistanceConstraintMechanism):
+        raise TypeError(f"robot must be a kinematics.DistanceConstraintMechanism, got {type(robot).__name__}")
+    m = robot.n_pose
+    defaults = FamilyParams.__dataclass_fields__
+    if m != 6 and robot is not None:
+        # Bounds of the spatial defaults do not fit: derive them from the robot's home pose.
+        home = robot.home_pose()
+        reach = 0.5 * float(np.mean(np.linalg.norm(robot.base - robot.base.mean(axis=0), axis=1)))
+        half = np.array([reach, reach, 0.6])
+        kwargs.setdefault("pose_low", tuple(home - half))
+        kwargs.setdefault("pose_high", tuple(home + half))
+        kwargs.setdefault("sample_low", tuple(home - 0.6 * half))
+        kwargs.setdefault("sample_high", tuple(home + 0.6 * half))
+        kwargs.setdefault("track_amplitude", (0.3 * reach, 0.3 * reach, 0.2))
+        legs = robot.inverse_kinematics(home)
+        kwargs.setdefault("stroke_limits", (0.5 * float(legs.min()), 1.6 * float(legs.max())))
+    unknown = set(kwargs) - set(defaults)
+    if unknown:
+        raise TypeError(f"unknown argument(s) {sorted(unknown)}")
+    values: dict[str, Any] = {}
+    for name in ("pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude"):
+        values[name] = _vector(name, kwargs.get(name, defaults[name].default), m)
+    lo, hi = _vector("stroke_limits", kwargs.get("stroke_limits", defaults["stroke_limits"].default), 2)
+    if not 0 < lo < hi:
+        raise ValueError(f"stroke_limits must satisfy 0 < q_min < q_max, got {(lo, hi)}")
+    for a, b in (("pose_low", "pose_high"), ("sample_low", "sample_high")):
+        if not all(u < v for u, v in zip(values[a], values[b])):
+            raise ValueError(f"{a} must be < {b} componentwise, got {values[a]} and {values[b]}")
+    if not all(
+        pl <= sl and sh <= ph
+        for pl, sl, sh, ph in zip(values["pose_low"], values["sample_low"], values["sample_high"], values["pose_high"])
+    ):
+        raise ValueError(
+            f"the sampling box {values['sample_low']}–{values['sample_high']} must lie inside the pose bounds "
+            f"{values['pose_low']}–{values['pose_high']}"
+        )
+    if robot.pose_space.name == "spatial" and max(map(abs, values["pose_low"][3:] + values["pose_high"][3:])) >= 2.5:
+        raise ValueError("rotation-vector bounds must stay within ±2.5 rad, away from the wrap at |r| = π")
+    hard_kind = kwargs.get("hard_kind", "detour")
+    if hard_kind not in ("detour", "ill_conditioned"):
+        raise ValueError(f"hard_kind must be 'detour' or 'ill_conditioned', got {hard_kind!r}")
+    integrator = kwargs.get("integrator", "euler")
+    if integrator not in _INTEGRATORS:
+        raise ValueError(f"integrator must be one of {_INTEGRATORS}, got {integrator!r}")
+    safe = _number("safe_threshold", kwargs.get("safe_threshold", defaults["safe_threshold"].default))
+    hard = _number("hard_threshold", kwargs.get("hard_threshold", defaults["hard_threshold"].default))
+    if not 0 < hard < safe < 1:
+        raise ValueError(f"thresholds must satisfy 0 < hard_threshold < safe_threshold < 1, got {hard} and {safe}")
+    iterations = kwargs.get("newton_max_iterations", defaults["newton_max_iterations"].default)
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
+        raise ValueError(f"newton_max_iterations must be an int ≥ 1, got {iterations!r}")
+    substeps = kwargs.get("max_substeps", defaults["max_substeps"].default)
+    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise ValueError(f"max_substeps must be an int ≥ 1, got {substeps!r}")
+    scalars = {}
+    for name in (
+        "dt",
+        "max_rate",
+        "success_position_tolerance",
+        "success_orientation_tolerance",
+        "newton_tolerance",
+        "jump_tolerance",
+        "max_substep",
+        "track_period",
+        "segment_spacing",
+    ):
+        scalars[name] = _number(name, kwargs.get(name, defaults[name].default))
+    for name in (
+        "position_weight",
+        "orientation_weight",
+        "singularity_weight",
+        "action_weight",
+        "termination_penalty",
+        "stroke_margin",
+        "min_distance",
+    ):
+        scalars[name] = _number(name, kwargs.get(name, defaults[name].default), allow_zero=True)
+    return FamilyParams(
+        robot=robot,
+        stroke_limits=(lo, hi),
+        integrator=integrator,
+        hard_kind=hard_kind,
+        safe_threshold=safe,
+        hard_threshold=hard,
+        newton_max_iterations=int(iterations),
+        max_substeps=int(substeps),
+        **values,
+        **scalars,
+    )
+
+
+# -- the environments ----------------------------------------------------------------------------------------
+
+
+class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
+    """Shared machinery of the single-robot family environments; see ``FamilyReachEnv`` for the documentation."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 20}
+    with_velocity = False
+    reset_options: tuple[str, ...] = ()
+
+    def _setup(self, render_mode: str | None, params: FamilyParams) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.params = params
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / params.dt}
+        n = params.robot.n_actuators
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
+        low, high = observation_bounds(params, self.with_velocity)
+        self.observation_space = spaces.Box(low.copy(), high.copy(), dtype=np.float32)
+        self._state: FamilyState | None = None
+        self._buffers = (StepBuffers(params, 1, self.with_velocity), StepBuffers(params, 1, self.with_velocity))
+        self._next = 0
+        self._terminated = False
+        self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
+        rows = params.evaluation_rows
+        self._rows = tuple(rows[name] for name in INFO_KEYS if name not in ("termination_reason",))
+        self._reward_row = rows["reward"]
+
+    #: The pure functions of this env's physics (the shield and the HER view call them).
+    physics = None  # set below to this module
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start a new episode (see the class docstring, Starting State)."""
+        super().reset(seed=seed)
+        options = {} if options is None else options
+        if not isinstance(options, dict):
+            raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+        unknown = set(options) - set(self.reset_options)
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self.reset_options)}")
+        start, reference = self.sample_tasks((self.np_random,), options)
+        self._state = initial_state(self.params, start, reference)
+        self._terminated = False
+        self._trail.clear()
+        self._trail.append(self.params.robot.pose_space.position(self._state.x[0]).copy())
+        n = self.params.robot.n_actuators
+        evaluation, observations = evaluate(
+            self.params, self._state, np.zeros((1, n)), np.zeros(1, dtype=np.int64), self.with_velocity
+        )
+        return observations[0], self._info(evaluation[:, 0], 0)
+
+    def step(self, action: Any):
+        """Apply normalised stroke rates for one period dt (see the class docstring)."""
+        if self._state is None:
+            raise gym.error.ResetNeeded("Cannot call step() before reset()")
+        if self._terminated:
+            raise gym.error.ResetNeeded("The episode has terminated; call reset() before step()")
+        n = self.params.robot.n_actuators
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"action must be an array of {n} real numbers, got {action!r}") from exc
+        if a.shape != (n,):
+            raise ValueError(f"action must have shape ({n},), got shape {a.shape}")
+        out = self._buffers[self._next]
+        state, outcome, evaluation, observations = step(
+            self.params, self._state, a.reshape(1, n), self.with_velocity, out
+        )
+        self._next ^= 1
+        self._state = state
+        reason = int(outcome.reason[0])
+        self._terminated = reason != 0
+        row = evaluation[:, 0]
+        info = self._info(row, reason)
+        self._trail.append(self.params.robot.pose_space.position(info["pose"]).copy())
+        return observations[0].copy(), float(row[self._reward_row]), self._terminated, False, info
+
+    def render(self):
+        """An RGB frame (``rgb_array``, headless); None without a render mode."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        if self._state is None:
+            raise gym.error.ResetNeeded("Cannot call render() before reset()")
+        from envs.rendering_family import render_family_frame
+
+        evaluation, _ = evaluate(
+            self.params, self._state, np.zeros_like(self._state.q), np.zeros(1, dtype=np.int64), False
+        )
+        target = evaluation[self.params.evaluation_rows["target"], 0]
+        return render_family_frame(
+            self.params.robot,
+            self._state.x[0],
+            target,
+            float(self._state.inverse_condition[0]),
+            safe_threshold=self.params.safe_threshold,
+            hard_threshold=self.params.hard_threshold,
+            view_low=self.params.pose_low,
+            view_high=self.params.pose_high,
+            trail=list(self._trail),
+            step=int(self._state.t[0]),
+        )
+
+    @property
+    def state(self) -> FamilyState | None:
+        """A copy of the current batched state (N = 1), or None before the first reset."""
+        return None if self._state is None else copy_state(self._state)
+
+    def _info(self, row: np.ndarray, reason: int) -> dict[str, Any]:
+        rows = self.params.evaluation_rows
+        v = row.tolist()
+        return {
+            "reward_tracking": v[rows["reward_tracking"]],
+            "reward_singularity": v[rows["reward_singularity"]],
+            "reward_action": v[rows["reward_action"]],
+            "reward_termination": v[rows["reward_termination"]],
+            "position_error": v[rows["position_error"]],
+            "orientation_error": v[rows["orientation_error"]],
+            "inverse_condition_number": v[rows["inverse_condition_number"]],
+            "constraint_residual": v[rows["constraint_residual"]],
+            "is_success": v[rows["is_success"]] != 0.0,
+            "cost": v[rows["cost"]],
+            "termination_reason": TERMINATION_REASONS[reason],
+            "pose": row[rows["pose"]].copy(),
+            "target": row[rows["target"]].copy(),
+        }
+
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, FamilyReference]:
+        """Draw one task per generator in one compiled call (start poses (M, m) and references)."""
+        raise NotImplementedError
+
+
+_ARGUMENTS_DOC = """
+    ## Arguments
+    | Parameter | Type | Default | Description |
+    |-----------|------|---------|-------------|
+    | `render_mode` | str or None | `None` | "rgb_array" (headless) |
+    | `robot` | DistanceConstraintMechanism or None | `None` | the robot; None: `StewartGough()` |
+    | `stroke_limits` | (float, float) | `(0.45, 0.75)` | leg length limits [m] |
+    | `dt` | float | `0.05` | control period [s] |
+    | `max_rate` | float | `0.1` | stroke rate of a unit action [m/s] |
+    | `integrator` | str | `"euler"` | "euler" or "rk4" |
+    | `pose_low` | sequence of m floats | `(-0.2, -0.2, 0.3, -0.6, -0.6, -1.9)` | pose bounds [m, rad] |
+    | `pose_high` | sequence of m floats | `(0.2, 0.2, 0.75, 0.6, 0.6, 1.9)` | pose bounds [m, rad] |
+    | `sample_low` | sequence of m floats | `(-0.1, -0.1, 0.4, -0.2, -0.2, -0.5)` | task box [m, rad] |
+    | `sample_high` | sequence of m floats | `(0.1, 0.1, 0.6, 0.2, 0.2, 0.5)` | task box [m, rad] |
+    | `safe_threshold` | float | `0.1` | k below which the penalty and the cost start |
+    | `hard_threshold` | float | `0.03` | k below which the episode terminates |
+    | `position_weight` | float | `1.0` | w_p [1/m] |
+    | `orientation_weight` | float | `1.0` | w_o [1/m] |
+    | `singularity_weight` | float | `1.0` | w_s |
+    | `action_weight` | float | `0.01` | w_a |
+    | `termination_penalty` | float | `50.0` | P |
+    | `success_position_tolerance` | float | `0.01` | [m] |
+    | `success_orientation_tolerance` | float | `0.05` | [rad] |
+    | `track_period` | float | `8.0` | Track reference period [s] |
+    | `track_amplitude` | sequence of m floats | `(0.05, 0.0, 0.04, 0.0, 0.1, 0.0)` | largest amplitudes [m, rad] |
+    | `hard_kind` | str | `"detour"` | "detour" or "ill_conditioned" hard targets |
+    | `**kwargs` | | | any other field of `FamilyParams` (Newton, substeps, margins) |
+
+    A robot that is not spatial gets bounds, strokes and amplitudes around its `home_pose()` unless given.
+"""
+
+
+class FamilyReachEnv(FamilyEnvBase):
+    r"""Reach a target pose with any parallel robot of the distance-constraint family, away from singularities.
+
+    ## Description
+    Leg i of the robot (``kinematics.DistanceConstraintMechanism``, by default the Stewart–Gough hexapod
+    ``kinematics.StewartGough()``) keeps the platform point P_i at the distance q_i from the base anchor B_i:
+    Φ_i = ‖p + R P_i − B_i‖² − q_i² = 0. Each step the leg lengths q move at the commanded rates; the pose
+    follows through the twist J_f q̇, J_f = −J_x⁻¹ J_q (Euler or RK4 on the rotation group: R ← exp([ω h]×) R),
+    and is corrected onto Φ = 0 by Newton's method (residual ≤ 1e-10, in substeps of ≤ 1 cm of predicted
+    motion). Near a Type II singularity (J_x singular; for the hexapod, Fichter's: centred and turned by
+    ±90° about the vertical) small stroke rates give huge platform motion.
+
+    ```
+        ___P___      {P}: platform frame; pose x = (p [m], rotation vector r [rad]) of {P} in {B}
+       /  / \\  \\     six legs B_i → P_i, lengths q_i actuated
+      B__B   B__B    {B}: base frame, z up
+    ```
+
+    ## Action Space
+    `Box(-1, 1, (n,), float32)`: stroke rates q̇_i / max_rate (m/s); legs stop at `stroke_limits`.
+
+    ## Observation Space
+    `Box(low, high, (D,), float32)` with finite bounds; spatial robots (D = 33, or 39 with Track's velocity):
+
+    | Num | Observation | Unit |
+    |-----|-------------|------|
+    | 0-2 | platform position p | m |
+    | 3-6 | orientation quaternion (w, x, y, z), w ≥ 0 | 1 |
+    | 7-9 | target position p* | m |
+    | 10-13 | target quaternion, w ≥ 0 | 1 |
+    | 14-16 | position error p* − p | m |
+    | 17-19 | orientation error: rotation vector of R* Rᵀ (in {B}) | rad |
+    | 20-25 | leg lengths normalised to [−1, 1] over the stroke limits | 1 |
+    | 26-31 | stroke error (q(x*) − q) / (q_max − q_min) | 1 |
+    | 32 | inverse condition number k | 1 |
+    | 33-38 | (Track) target velocity ẋ* = (ṗ*, ṙ*) | m/s, rad/s |
+
+    Planar robots: (x, y, cos φ, sin φ), the target likewise, (x* − x, y* − y, wrap(φ* − φ)), strokes,
+    stroke errors, k (D = 18).
+
+    ## Rewards
+    r = −(w_p ‖p* − p‖ + w_o ℓ_c θ_err) − w_s ((k_safe − k)/k_safe)² [k < k_safe] − w_a ‖a‖² − P [terminated],
+    with θ_err the angle of R* Rᵀ. Each term is in `info` and the reward is their sum; `info["cost"]` = 1
+    while k < k_safe.
+
+    ## Starting State
+    Tasks are certified, not guessed (a 6-D pose space cannot be gridded): start and target are drawn
+    uniformly in the task box (`sample_low`–`sample_high`, rotation-vector coordinates), each *safe* (strokes
+    within the limits less 2 cm, k ≥ k_safe), at least `min_distance` apart in (δp, ℓ_c δθ). A *standard*
+    target is kept only when the geodesic from the start (p linear, R along one rotation) is safe at points
+    at most `segment_spacing` (1 cm) apart, so a singularity-free path is known. A *hard* target is kept
+    only when that geodesic dips below `safe_threshold` (staying inside the box and the stroke limits) and a
+    waypoint is found whose two geodesics
+    start → waypoint → target are safe at the same spacing: a detour is known, the straight line is not safe.
+    With `hard_kind="ill_conditioned"` (the hexapod's `StewartGoughReachHard-v0`, whose workspace has no
+    detour tasks: k is quasi-concave there) a hard target lies in the ill-conditioned band
+    2 `hard_threshold` ≤ k < `safe_threshold`, toward Fichter's singularity, on a geodesic from a safe start that
+    keeps k ≥ 2 `hard_threshold`. `reset(options={"targets": "hard"})` switches for one episode.
+
+    ## Episode End
+    Termination (penalty P), first applicable: `newton_failed`, `assembly_mode_change` (prediction and
+    correction more than `jump_tolerance` apart), `singularity_crossed` (sign(det J_x) flipped),
+    `singular` (k < `hard_threshold`), `out_of_bounds`. Truncation after the registered 200 steps.
+    `info["is_success"]`: position error ≤ `success_position_tolerance` and orientation error ≤
+    `success_orientation_tolerance`.
+    {arguments}
+    | `targets` | str | `"standard"` | "standard" or "hard" targets |
+
+    ## Version History
+    * v0: Initial version.
+    """
+
+    reset_options = ("targets",)
+
+    def __init__(
+        self, render_mode: str | None = None, targets: str = "standard", robot: Any = None, **kwargs: Any
+    ) -> None:
+        if targets not in _TARGET_MODES:
+            raise ValueError(f"targets must be one of {_TARGET_MODES}, got {targets!r}")
+        self.targets = targets
+        self._setup(render_mode, build_family_params(robot, **kwargs))
+
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, FamilyReference]:
+        """Certified start/target pairs (standard or hard), one per generator."""
+        mode = options.get("targets", self.targets)
+        if mode not in _TARGET_MODES:
+            raise ValueError(f"options['targets'] must be one of {_TARGET_MODES}, got {mode!r}")
+        n, m = len(generators), self.params.robot.n_pose
+        found = fk.sample_reach_batch(
+            self.params.packed, fk.random_streams(generators), n, m, mode == "hard", self.params.min_distance
+        )
+        if found is None:
+            raise RuntimeError(f"no certified {mode} task found in the task box after {fk.SAMPLER_TRIES} tries")
+        start, target, self.last_waypoints = found
+        return start, FamilyReference(target, np.zeros((n, m)), np.zeros((n, m)))
+
+
+class FamilyTrackEnv(FamilyEnvBase):
+    """Follow a moving target with any robot of the distance-constraint family (a motion-simulator reference).
+
+    ## Description
+    As ``FamilyReachEnv``, but the target moves: x*_j(t) = c_j + a_j sin(2π t / track_period + θ_j) for each
+    pose coordinate. With the hexapod's defaults the reference combines surge (x, ≤ 5 cm), heave (z, ≤ 4 cm)
+    and pitch (rotation about y, ≤ 0.1 rad): a motion-simulator cue. The centre, amplitudes (½–1 of
+    `track_amplitude`) and phases are drawn so that the whole period stays in the safe set (checked at points
+    ≤ 1 cm apart). The observation ends with the target velocity. Truncation after the registered 400 steps.
+
+    ## Action Space
+    As ``FamilyReachEnv``.
+
+    ## Observation Space
+    As ``FamilyReachEnv``, plus the target velocity (m values).
+
+    ## Rewards
+    As ``FamilyReachEnv``.
+
+    ## Starting State
+    The platform starts on the reference at t = 0.
+
+    ## Episode End
+    As ``FamilyReachEnv`` (400 steps).
+    {arguments}
+
+    ## Version History
+    * v0: Initial version.
+    """
+
+    with_velocity = True
+
+    def __init__(self, render_mode: str | None = None, robot: Any = None, **kwargs: Any) -> None:
+        self._setup(render_mode, build_family_params(robot, **kwargs))
+
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, FamilyReference]:
+        """References whose whole period is safe, one per generator; the start is the reference at t = 0."""
+        n, m = len(generators), self.params.robot.n_pose
+        found = fk.sample_track_batch(
+            self.params.packed, fk.random_streams(generators), n, m, self.params.track_amplitude, 64
+        )
+        if found is None:
+            raise RuntimeError(f"no safe reference found in the task box after {fk.SAMPLER_TRIES} tries")
+        center, amplitude, phase = found
+        start = center + amplitude * np.sin(phase)
+        return start, FamilyReference(center, amplitude, phase)
+
+
+FamilyReachEnv.__doc__ = FamilyReachEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)
+FamilyTrackEnv.__doc__ = FamilyTrackEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)
+
+
+class FamilyVectorEnv(VectorEnv):
+    """N robots of the family in one batch: the native vector form of ``FamilyReachEnv`` / ``FamilyTrackEnv``.
+
+    Sub-environment i of ``reset(seed=s)`` is the single env reset with seed s + i; the step is one
+    compiled pass over the robots (``step``) and new episodes one compiled sampler call. Autoreset follows
+    Gymnasium 1.x's ``NEXT_STEP`` mode: the step after an episode ends resets it, ignores its action and
+    returns the first observation with reward 0. Truncation after ``max_episode_steps``.
+
+    Args:
+        num_envs: Number of robots N.
+        max_episode_steps: Truncation length (default: the registered one of the class).
+        render_mode: "rgb_array" or None.
+        **kwargs: The single env's arguments.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": ["rgb_array"],
+        "render_fps": 20,
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+    single_env_class: ClassVar[type[FamilyEnvBase] | None] = None
+    default_max_episode_steps: ClassVar[int] = 200
+
+    def __init__(
+        self, num_envs: int = 1, *, max_episode_steps: int | None = None, render_mode: str | None = None, **kwargs: Any
+    ) -> None:
+        cls = type(self).single_env_class
+        if cls is None:
+            raise TypeError("FamilyVectorEnv is abstract; use FamilyReachVectorEnv or FamilyTrackVectorEnv")
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be an int ≥ 1, got {num_envs!r}")
+        self.num_envs = int(num_envs)
+        steps = type(self).default_max_episode_steps if max_episode_steps is None else max_episode_steps
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+            raise ValueError(f"max_episode_steps must be an int ≥ 1, got {steps!r}")
+        self.max_episode_steps = int(steps)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self._sampler = cls(render_mode=render_mode, **kwargs)
+        self.params = self._sampler.params
+        self.with_velocity = cls.with_velocity
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / self.params.dt}
+        self.single_action_space = self._sampler.action_space
+        self.single_observation_space = self._sampler.observation_space
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._generators: list[np.random.Generator | None] = [None] * self.num_envs
+        self._seeds: list[int | None] = [None] * self.num_envs
+        self._state: FamilyState | None = None
+        self._buffers = (
+            StepBuffers(self.params, self.num_envs, self.with_velocity),
+            StepBuffers(self.params, self.num_envs, self.with_velocity),
+        )
+        self._next = 0
+        self._ended = np.zeros(self.num_envs, dtype=bool)
+
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
+        """Start new episodes in every sub-environment (seed s: sub-environment i gets s + i)."""
+        if seed is None:
+            seeds: list[int | None] = [None] * self.num_envs
+        elif isinstance(seed, (int, np.integer)):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"seed must be None, an int or {self.num_envs} seeds, got {len(seeds)}")
+        options = {} if options is None else dict(options)
+        unknown = set(options) - set(self._sampler.reset_options)
+        if unknown:
+            raise ValueError(
+                f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self._sampler.reset_options)}"
+            )
+        for i in range(self.num_envs):
+            if seeds[i] is not None or self._generators[i] is None:
+                self._generators[i], self._seeds[i] = seeding.np_random(seeds[i])
+        rows = np.arange(self.num_envs)
+        self._state = self._start(rows, options)
+        self._ended[:] = False
+        n = self.params.robot.n_actuators
+        evaluation, observations = evaluate(
+            self.params,
+            self._state,
+            np.zeros((self.num_envs, n)),
+            np.zeros(self.num_envs, dtype=np.int64),
+            self.with_velocity,
+        )
+        return observations.copy(), self._vector_info(
+            step_info(self.params, evaluation, np.zeros(self.num_envs, dtype=np.int64))
+        )
+
+    def step(self, actions: Any):
+        """Advance every robot by dt; ended sub-environments are reset (NEXT_STEP autoreset)."""
+        if self._state is None:
+            raise gym.error.ResetNeeded("Cannot call step() before reset()")
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != (self.num_envs, self.params.robot.n_actuators):
+            raise ValueError(f"actions must have shape {(self.num_envs, self.params.robot.n_actuators)}, got {a.shape}")
+        out = self._buffers[self._next]
+        try:
+            state, outcome, evaluation, observations = step(self.params, self._state, a, self.with_velocity, out)
+        except NonFiniteActionError as exc:
+            raise ValueError(f"actions must be finite; sub-environment(s) {exc.rows[:10].tolist()} are not") from None
+        self._next ^= 1
+        info = step_info(self.params, evaluation, outcome.reason)
+        rewards = evaluation[self.params.evaluation_rows["reward"]].copy()
+        terminations = outcome.reason != 0
+        truncations = state.t >= self.max_episode_steps
+        restarted = np.flatnonzero(self._ended)
+        self._state = state
+        if restarted.size:
+            rewards[restarted] = 0.0
+            terminations[restarted] = False
+            truncations[restarted] = False
+            fresh = self._start(restarted, {})
+            for field_name, value in zip(FamilyState._fields[:-1], fresh[:-1]):
+                getattr(state, field_name)[restarted] = value
+            for array, value in zip(state.reference, fresh.reference):
+                array[restarted] = value
+            n = self.params.robot.n_actuators
+            new_eval, new_obs = evaluate(
+                self.params,
+                fresh,
+                np.zeros((restarted.size, n)),
+                np.zeros(restarted.size, dtype=np.int64),
+                self.with_velocity,
+            )
+            observations[restarted] = new_obs
+            for key, value in step_info(self.params, new_eval, np.zeros(restarted.size, dtype=np.int64)).items():
+                info[key][restarted] = value
+        self._ended = terminations | truncations
+        return observations.copy(), rewards, terminations, truncations, self._vector_info(info)
+
+    def render(self):
+        """Frames of the N sub-environments (``rgb_array``)."""
+        if self.render_mode is None:
+            return None
+        if self._state is None:
+            raise gym.error.ResetNeeded("Cannot call render() before reset()")
+        from envs.rendering_family import render_family_frame
+
+        state = self._state
+        evaluation, _ = evaluate(
+            self.params, state, np.zeros_like(state.q), np.zeros(self.num_envs, dtype=np.int64), False
+        )
+        target = evaluation[self.params.evaluation_rows["target"]].T
+        return tuple(
+            render_family_frame(
+                self.params.robot,
+                state.x[i],
+                target[i],
+                float(state.inverse_condition[i]),
+                safe_threshold=self.params.safe_threshold,
+                hard_threshold=self.params.hard_threshold,
+                view_low=self.params.pose_low,
+                view_high=self.params.pose_high,
+                step=int(state.t[i]),
+            )
+            for i in range(self.num_envs)
+        )
+
+    @property
+    def state(self) -> FamilyState | None:
+        """A copy of the batched state, or None before the first reset."""
+        return None if self._state is None else copy_state(self._state)
+
+    def _start(self, rows: np.ndarray, options: dict[str, Any]) -> FamilyState:
+        for i in rows:
+            if self._generators[i] is None:
+                self._generators[i], self._seeds[i] = seeding.np_random()
+        start, reference = self._sampler.sample_tasks([self._generators[i] for i in rows.tolist()], options)
+        return initial_state(self.params, start, reference)
+
+    def _vector_info(self, info: dict[str, np.ndarray]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        mask = np.ones(self.num_envs, dtype=bool)
+        for key, value in info.items():
+            out[key] = value
+            out[f"_{key}"] = mask
+        return out
+
+
+class FamilyReachVectorEnv(FamilyVectorEnv):
+    """Native vector form of ``FamilyReachEnv`` (see ``FamilyVectorEnv``)."""
+
+    single_env_class = FamilyReachEnv
+    default_max_episode_steps = 200
+
+
+class FamilyTrackVectorEnv(FamilyVectorEnv):
+    """Native vector form of ``FamilyTrackEnv`` (see ``FamilyVectorEnv``)."""
+
+    single_env_class = FamilyTrackEnv
+    default_max_episode_steps = 400
+
+
+def _module():
+    import sys
+
+    return sys.modules[__name__]
+
+
+FamilyEnvBase.physics = _module()
+del replace

@@ -1,0 +1,1222 @@
+"""Compiled (Numba) kernels of the distance-constraint family: one step, reward, observation and tasks for all.
+
+A robot is data: its pose space (planar or spatial), its number of legs n (= m, the pose coordinates) and
+its geometry travel in one float64 vector (``pack_family``); the code below reads them and never asks which
+robot it runs. Points are handled in 3-D throughout (a planar robot's points have z = 0 and its pose
+(x, y, φ) is p = (x, y, 0), R = R_z(φ)), so a planar and a spatial robot run through the same lines; the
+only branch is on the pose space, where the twist has three coordinates (v_x, v_y, ω_z) or six (v, ω).
+
+With d_i = p + R P_i − B_i (leg kind: A_i = B_i, ℓ_i = q_i), the kernels use
+
+    Φ_i = d_iᵀ d_i − q_i²,   J_x = 2 A with row i of A = (d_iᵀ, ((R P_i) × d_i)ᵀ) restricted to the twist,
+    J_q = −2 diag(q),        J_f = −J_x⁻¹ J_q = A⁻¹ diag(q),   J_i = diag(1/q) A,
+
+as ``kinematics.DistanceConstraintMechanism`` (the NumPy reference they are tested against). Systems are
+solved by Gaussian elimination with partial pivoting; the inverse condition number of the homogeneous
+J_i diag(pose_scale) comes from a one-sided Jacobi SVD (Hestenes), accurate near singular matrices. A spatial
+pose stores the rotation vector r; every update of it goes through unit quaternions (R ← exp([δθ]×) R), so
+the integrator and Newton's method work on the rotation group, never on Euler angles.
+
+Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from envs.kernels import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
+
+__all__ = [
+    "C_SIZE",
+    "E_FIXED",
+    "allocate_step",
+    "evaluate_batch",
+    "evaluation_rows",
+    "initial_batch",
+    "observation_layout",
+    "pack_family",
+    "safe_batch",
+    "sample_reach_batch",
+    "sample_track_batch",
+    "segment_batch",
+    "singularity_batch",
+    "step_batch",
+    "transition_batch",
+]
+
+# -- offsets into the packed constants (fixed, sized for up to 6 legs) --------------------------------
+C_N = 0  # number of legs n (= pose coordinates m)
+C_SPATIAL = 1  # 1.0 for the spatial pose space, 0.0 for planar
+C_LC = 2  # characteristic length ℓ_c [m]
+C_LMIN = 3
+C_LMAX = 4
+C_DT = 5
+C_RATE = 6
+C_RK4 = 7
+C_SAFE = 8
+C_HARD = 9
+C_WP = 10
+C_WO = 11
+C_WS = 12
+C_WA = 13
+C_PENALTY = 14
+C_SUCC_P = 15
+C_SUCC_O = 16
+C_NEWTON_TOL = 17
+C_NEWTON_IT = 18
+C_JUMP = 19
+C_MAX_SUBSTEP = 20
+C_MAX_SUBSTEPS = 21
+C_OMEGA = 22  # angular frequency of the Track references [rad/s]
+C_MARGIN = 23  # stroke margin of the safe set [m]
+C_SPACING = 24  # largest distance between checked points of a certified segment [m]
+C_LOW = 25  # pose bounds, 6 entries
+C_HIGH = 31
+C_SCALE = 37  # pose_scale of the homogeneous Jacobian, 6 entries
+C_B = 43  # base anchors B_i (x, y, z) [m], 6 × 3 entries
+C_P = 61  # platform points P_i (x, y, z) in {P} [m], 6 × 3 entries
+C_SLOW = 79  # box tasks are drawn from, 6 entries
+C_SHIGH = 85
+C_HARD_KIND = 91  # 0: the straight path dips below k_safe and a detour is certified; 1: ill-conditioned targets
+C_SIZE = 92
+
+# Termination reason codes (the order of ``envs.core.TERMINATION_REASONS``).
+_NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
+
+# -- rows of the work array of one robot (each row holds up to 6 numbers) ------------------------------
+W_A = 0  # A = J_x / 2, n × m (rows 0..5)
+W_LU = 6  # elimination copy of A (rows 6..11)
+W_H = 12  # homogeneous J_i, for the SVD (rows 12..17)
+W_R = 18  # rotation matrix R (rows 18..20)
+W_SQ = 21  # squared leg lengths d_iᵀ d_i
+W_RHS = 22
+W_SOL = 23
+W_V = 24  # twist rate
+W_K1, W_K2, W_K3 = 25, 26, 27  # RK4 stages
+W_XM = 28  # an intermediate pose
+W_KQ, W_KX = 29, 30  # strokes and pose of the current substep
+W_NQ = 31  # strokes at the end of the step
+W_QR = 32  # achieved stroke rates
+W_PRED = 33  # predicted pose
+W_Y = 34  # Newton's pose
+W_T = 35  # strokes of a substep
+W_QM = 36  # intermediate strokes
+W_START_A = 37  # rows of A at the start of the step (rows 37..42)
+W_TGT = 43  # target pose
+W_VEL = 44  # target velocity
+W_DIFF = 45  # a pose difference
+W_SEG = 46  # a point of a segment
+W_SEG_D = 47  # a segment's direction
+W_SIZE = 48
+
+#: Rows of the evaluation that do not depend on m; the target, its velocity and the pose follow (m rows each).
+E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION, E_REWARD = 0, 1, 2, 3, 4
+E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_K, E_RESIDUAL = 5, 6, 7, 8, 9, 10
+E_FIXED = 11
+
+#: Robots per chunk of a batch: each chunk allocates its work array once.
+CHUNK = 64
+#: Candidates a sampler may reject before it reports failure.
+SAMPLER_TRIES = 2000
+#: Waypoints tried per hard pair to certify a detour.
+WAYPOINT_TRIES = 64
+#: Most points checked along one segment.
+SEGMENT_MAX_POINTS = 400
+
+_TWO_PI = 2.0 * math.pi
+
+
+def _jit(fn):
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+
+
+def _jit_parallel(fn):
+    return numba.njit(cache=True, nogil=True, error_model="numpy", parallel=True)(fn)
+
+
+def pack_family(params) -> np.ndarray:
+    """The constants of ``params`` (an ``envs.family.FamilyParams``) as the kernels' float64 vector, shape (C_SIZE,).
+
+    Args:
+        params: Environment constants with a ``DistanceConstraintMechanism`` as ``robot``.
+
+    Returns:
+        Read-only float64 vector indexed by the ``C_*`` offsets.
+    """
+    robot = params.robot
+    n, m = robot.n_actuators, robot.n_pose
+    c = np.zeros(C_SIZE)
+    c[C_N] = n
+    c[C_SPATIAL] = 1.0 if robot.pose_space.name == "spatial" else 0.0
+    c[C_LC] = robot.characteristic_length
+    c[C_LMIN], c[C_LMAX] = params.stroke_limits
+    c[C_DT], c[C_RATE] = params.dt, params.max_rate
+    c[C_RK4] = 1.0 if params.integrator == "rk4" else 0.0
+    c[C_SAFE], c[C_HARD] = params.safe_threshold, params.hard_threshold
+    c[C_WP], c[C_WO] = params.position_weight, params.orientation_weight
+    c[C_WS], c[C_WA] = params.singularity_weight, params.action_weight
+    c[C_PENALTY] = params.termination_penalty
+    c[C_SUCC_P], c[C_SUCC_O] = params.success_position_tolerance, params.success_orientation_tolerance
+    c[C_NEWTON_TOL], c[C_NEWTON_IT] = params.newton_tolerance, params.newton_max_iterations
+    c[C_JUMP], c[C_MAX_SUBSTEP], c[C_MAX_SUBSTEPS] = params.jump_tolerance, params.max_substep, params.max_substeps
+    c[C_OMEGA] = _TWO_PI / params.track_period
+    c[C_MARGIN], c[C_SPACING] = params.stroke_margin, params.segment_spacing
+    c[C_LOW : C_LOW + m] = params.pose_low
+    c[C_HIGH : C_HIGH + m] = params.pose_high
+    c[C_SCALE : C_SCALE + m] = robot.pose_scale
+    d = robot.base.shape[1]
+    c[C_B : C_B + 3 * n] = np.pad(robot.base, ((0, 0), (0, 3 - d))).ravel()
+    c[C_P : C_P + 3 * n] = np.pad(robot.platform, ((0, 0), (0, 3 - d))).ravel()
+    c[C_SLOW : C_SLOW + m] = params.sample_low
+    c[C_SHIGH : C_SHIGH + m] = params.sample_high
+    c[C_HARD_KIND] = 1.0 if params.hard_kind == "ill_conditioned" else 0.0
+    c.setflags(write=False)
+    return c
+
+
+def evaluation_rows(m: int) -> dict[str, int | slice]:
+    """Rows of the evaluation (``evaluate_batch``, ``step_batch``) for m pose coordinates; column i is robot i."""
+    return {
+        "reward_tracking": E_TRACKING,
+        "reward_singularity": E_SINGULARITY,
+        "reward_action": E_ACTION,
+        "reward_termination": E_TERMINATION,
+        "reward": E_REWARD,
+        "position_error": E_POSITION_ERROR,
+        "orientation_error": E_ORIENTATION_ERROR,
+        "is_success": E_SUCCESS,
+        "cost": E_COST,
+        "inverse_condition_number": E_K,
+        "constraint_residual": E_RESIDUAL,
+        "target": slice(E_FIXED, E_FIXED + m),
+        "target_velocity": slice(E_FIXED + m, E_FIXED + 2 * m),
+        "pose": slice(E_FIXED + 2 * m, E_FIXED + 3 * m),
+    }
+
+
+def observation_layout(spatial: bool, n: int, with_velocity: bool) -> dict[str, slice]:
+    """Slices of the observation vector (see ``envs.family.observation``)."""
+    pose = 7 if spatial else 4
+    m = 6 if spatial else 3
+    names = [("pose", pose), ("target", pose), ("error", m), ("strokes", n), ("stroke_error", n), ("k", 1)]
+    if with_velocity:
+        names.append(("target_velocity", m))
+    out, start = {}, 0
+    for name, size in names:
+        out[name] = slice(start, start + size)
+        start += size
+    return out
+
+
+# -- rotations: quaternions (w, x, y, z) and rotation vectors ------------------------------------------
+
+
+@_jit
+def _quat_from_rotvec(r0, r1, r2):
+    """Unit quaternion of the rotation vector r (exp([r]×)), with the series near r = 0."""
+    t2 = r0 * r0 + r1 * r1 + r2 * r2
+    if t2 < 1e-12:
+        w = 1.0 - t2 / 8.0
+        s = 0.5 - t2 / 48.0
+    else:
+        t = math.sqrt(t2)
+        w = math.cos(0.5 * t)
+        s = math.sin(0.5 * t) / t
+    return w, s * r0, s * r1, s * r2
+
+
+@_jit
+def _rotvec_from_quat(w, x, y, z):
+    """Rotation vector (|r| ≤ π) of a unit quaternion (either sign)."""
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    n = math.sqrt(x * x + y * y + z * z)
+    if n == 0.0:
+        return 0.0, 0.0, 0.0
+    scale = 2.0 * math.atan2(n, w) / n
+    return scale * x, scale * y, scale * z
+
+
+@_jit
+def _quat_mul(a0, a1, a2, a3, b0, b1, b2, b3):
+    """Hamilton product a ⊗ b (the rotation b, then a)."""
+    return (
+        a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+        a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+        a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
+        a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0,
+    )
+
+
+@_jit
+def _compose_rotvec(s0, s1, s2, r0, r1, r2):
+    """Rotation vector of exp([s]×) exp([r]×)."""
+    a0, a1, a2, a3 = _quat_from_rotvec(s0, s1, s2)
+    b0, b1, b2, b3 = _quat_from_rotvec(r0, r1, r2)
+    w, x, y, z = _quat_mul(a0, a1, a2, a3, b0, b1, b2, b3)
+    return _rotvec_from_quat(w, x, y, z)
+
+
+@_jit
+def _relative_rotvec(a0, a1, a2, b0, b1, b2):
+    """Rotation vector δθ with exp([δθ]×) exp([b]×) = exp([a]×)."""
+    qa0, qa1, qa2, qa3 = _quat_from_rotvec(a0, a1, a2)
+    qb0, qb1, qb2, qb3 = _quat_from_rotvec(b0, b1, b2)
+    w, x, y, z = _quat_mul(qa0, qa1, qa2, qa3, qb0, -qb1, -qb2, -qb3)
+    return _rotvec_from_quat(w, x, y, z)
+
+
+@_jit
+def _wrap(angle):
+    """Wrap an angle to [−π, π)."""
+    return (angle + math.pi) % _TWO_PI - math.pi
+
+
+# -- pose-space operations -----------------------------------------------------------------------------
+
+
+@_jit
+def _frame(c, x, R):
+    """Position p of {P} and rotation R (written into the 3 × 3 rows ``R``) of the pose x; returns p."""
+    if c[C_SPATIAL] != 0.0:
+        w, a, b, d = _quat_from_rotvec(x[3], x[4], x[5])
+        R[0, 0] = 1.0 - 2.0 * (b * b + d * d)
+        R[0, 1] = 2.0 * (a * b - d * w)
+        R[0, 2] = 2.0 * (a * d + b * w)
+        R[1, 0] = 2.0 * (a * b + d * w)
+        R[1, 1] = 1.0 - 2.0 * (a * a + d * d)
+        R[1, 2] = 2.0 * (b * d - a * w)
+        R[2, 0] = 2.0 * (a * d - b * w)
+        R[2, 1] = 2.0 * (b * d + a * w)
+        R[2, 2] = 1.0 - 2.0 * (a * a + b * b)
+        return x[0], x[1], x[2]
+    cs, sn = math.cos(x[2]), math.sin(x[2])
+    R[0, 0], R[0, 1], R[0, 2] = cs, -sn, 0.0
+    R[1, 0], R[1, 1], R[1, 2] = sn, cs, 0.0
+    R[2, 0], R[2, 1], R[2, 2] = 0.0, 0.0, 1.0
+    return x[0], x[1], 0.0
+
+
+@_jit
+def _retract(c, x, step, scale, out):
+    """Out = x ⊕ scale · step: p + scale δp and R ← exp([scale δθ]×) R (planar: x + scale · step)."""
+    if c[C_SPATIAL] != 0.0:
+        out[0] = x[0] + scale * step[0]
+        out[1] = x[1] + scale * step[1]
+        out[2] = x[2] + scale * step[2]
+        out[3], out[4], out[5] = _compose_rotvec(scale * step[3], scale * step[4], scale * step[5], x[3], x[4], x[5])
+    else:
+        out[0] = x[0] + scale * step[0]
+        out[1] = x[1] + scale * step[1]
+        out[2] = x[2] + scale * step[2]
+
+
+@_jit
+def _difference(c, x, y, out):
+    """Out = the twist step from y to x ((p_x − p_y, δθ) with exp([δθ]×) R_y = R_x; planar: x − y)."""
+    if c[C_SPATIAL] != 0.0:
+        out[0], out[1], out[2] = x[0] - y[0], x[1] - y[1], x[2] - y[2]
+        out[3], out[4], out[5] = _relative_rotvec(x[3], x[4], x[5], y[3], y[4], y[5])
+    else:
+        out[0], out[1], out[2] = x[0] - y[0], x[1] - y[1], x[2] - y[2]
+
+
+@_jit
+def _metric(c, step):
+    """‖(δp, ℓ_c δθ)‖ of a twist step [m]."""
+    lc = c[C_LC]
+    if c[C_SPATIAL] != 0.0:
+        a = step[0] * step[0] + step[1] * step[1] + step[2] * step[2]
+        b = step[3] * step[3] + step[4] * step[4] + step[5] * step[5]
+        return math.sqrt(a + lc * lc * b)
+    return math.sqrt(step[0] * step[0] + step[1] * step[1] + lc * lc * step[2] * step[2])
+
+
+@_jit
+def _all_finite(v, m):
+    for j in range(m):
+        if not math.isfinite(v[j]):
+            return False
+    return True
+
+
+# -- the constraint-level math -------------------------------------------------------------------------
+
+
+@_jit
+def _rows(c, x, w):
+    """Rows of A = J_x / 2 at x into w[W_A:], and d_iᵀ d_i into w[W_SQ]."""
+    n = int(c[C_N])
+    R = w[W_R : W_R + 3]
+    p0, p1, p2 = _frame(c, x, R)
+    spatial = c[C_SPATIAL] != 0.0
+    for i in range(n):
+        P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
+        rp0 = R[0, 0] * P0 + R[0, 1] * P1 + R[0, 2] * P2
+        rp1 = R[1, 0] * P0 + R[1, 1] * P1 + R[1, 2] * P2
+        rp2 = R[2, 0] * P0 + R[2, 1] * P1 + R[2, 2] * P2
+        d0 = p0 + rp0 - c[C_B + 3 * i]
+        d1 = p1 + rp1 - c[C_B + 3 * i + 1]
+        d2 = p2 + rp2 - c[C_B + 3 * i + 2]
+        m2 = rp0 * d1 - rp1 * d0  # ((R P_i) × d_i)_z
+        row = w[W_A + i]
+        if spatial:
+            row[0], row[1], row[2] = d0, d1, d2
+            row[3] = rp1 * d2 - rp2 * d1
+            row[4] = rp2 * d0 - rp0 * d2
+            row[5] = m2
+        else:
+            row[0], row[1], row[2] = d0, d1, m2
+        w[W_SQ, i] = d0 * d0 + d1 * d1 + d2 * d2
+
+
+@_jit
+def _inverse_kinematics(c, x, w, out):
+    """Leg lengths ‖p + R P_i − B_i‖ of the pose x into out (n,)."""
+    _rows(c, x, w)
+    for i in range(int(c[C_N])):
+        out[i] = math.sqrt(w[W_SQ, i])
+
+
+@_jit
+def _solve(w, m, src, rhs, sol):
+    """Solve (rows ``src`` of w) u = rhs by elimination with partial pivoting into sol; returns det (0: sol NaN)."""
+    lu = w[W_LU : W_LU + m]
+    for i in range(m):
+        for j in range(m):
+            lu[i, j] = w[src + i, j]
+        sol[i] = rhs[i]
+    det = 1.0
+    for k in range(m):
+        p = k
+        best = abs(lu[k, k])
+        for i in range(k + 1, m):
+            v = abs(lu[i, k])
+            if v > best:
+                best, p = v, i
+        if best == 0.0 or best != best:
+            for i in range(m):
+                sol[i] = np.nan
+            return 0.0 if best == 0.0 else np.nan
+        if p != k:
+            for j in range(m):
+                lu[k, j], lu[p, j] = lu[p, j], lu[k, j]
+            sol[k], sol[p] = sol[p], sol[k]
+            det = -det
+        pivot = lu[k, k]
+        det *= pivot
+        for i in range(k + 1, m):
+            f = lu[i, k] / pivot
+            if f != 0.0:
+                for j in range(k + 1, m):
+                    lu[i, j] -= f * lu[k, j]
+                sol[i] -= f * sol[k]
+    for i in range(m - 1, -1, -1):
+        s = sol[i]
+        for j in range(i + 1, m):
+            s -= lu[i, j] * sol[j]
+        sol[i] = s / lu[i, i]
+    return det
+
+
+@_jit
+def _twist_rate(c, q, rate, w, src, out):
+    """Out = J_f(q, x) q̇ = A⁻¹ (q ∘ q̇) from the rows ``src`` of A at x; NaN where J_x is singular."""
+    m = int(c[C_N])
+    rhs = w[W_RHS]
+    for i in range(m):
+        rhs[i] = q[i] * rate[i]
+    _solve(w, m, src, rhs, out)
+
+
+@_jit
+def _jacobi_ratio(w, n, m):
+    """σ_min/σ_max of the n × m rows at w[W_H:] by one-sided Jacobi SVD; 0 for a zero matrix, NaN if not finite."""
+    H = w[W_H : W_H + n]
+    for _ in range(60):
+        rotated = False
+        for j in range(m - 1):
+            for l2 in range(j + 1, m):
+                alpha = 0.0
+                beta = 0.0
+                gamma = 0.0
+                for i in range(n):
+                    a, b = H[i, j], H[i, l2]
+                    alpha += a * a
+                    beta += b * b
+                    gamma += a * b
+                if not abs(gamma) > 2.220446049250313e-16 * math.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                if abs(zeta) > 1e150:
+                    t = 0.5 / zeta
+                else:
+                    t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                cs = 1.0 / math.sqrt(1.0 + t * t)
+                sn = cs * t
+                for i in range(n):
+                    a, b = H[i, j], H[i, l2]
+                    H[i, j] = cs * a - sn * b
+                    H[i, l2] = sn * a + cs * b
+        if not rotated:
+            break
+    top = 0.0
+    low = np.inf
+    for j in range(m):
+        s = 0.0
+        for i in range(n):
+            s += H[i, j] * H[i, j]
+        if s != s:
+            return np.nan
+        top = max(top, s)
+        low = min(low, s)
+    if top == 0.0:
+        return 0.0
+    return math.sqrt(low / top)
+
+
+@_jit
+def _singularity(c, q, w, src):
+    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``src`` of A."""
+    m = int(c[C_N])
+    for i in range(m):
+        inv = 1.0 / q[i]
+        for j in range(m):
+            w[W_H + i, j] = w[src + i, j] * inv * c[C_SCALE + j]
+    k = _jacobi_ratio(w, m, m)
+    det = _solve(w, m, src, w[W_RHS], w[W_SOL])
+    sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
+    return k, sign
+
+
+@_jit
+def _residual(c, q, w):
+    """max_i |d_iᵀ d_i − q_i²| at the rows last computed (NaN if any is NaN)."""
+    res = 0.0
+    for i in range(int(c[C_N])):
+        v = abs(w[W_SQ, i] - q[i] * q[i])
+        if v != v:
+            return np.nan
+        res = max(res, v)
+    return res
+
+
+@_jit
+def _newton(c, q, guess, w, out, tolerance, max_iterations):
+    """Newton's method on Φ(q, x) = 0 from ``guess`` into ``out`` (on the rotation group); returns the residual.
+
+    Each step solves J_x δ = Φ (A δ = Φ / 2) and sets x ← x ⊖ δ; it stops once max_i |Φ_i| ≤ tolerance, at
+    a non-finite residual or iterate, or after ``max_iterations`` steps. The rows of A at ``out`` are left in w.
+    """
+    m = int(c[C_N])
+    for j in range(m):
+        out[j] = guess[j]
+    _rows(c, out, w)
+    residual = _residual(c, q, w)
+    rhs, sol, tmp = w[W_RHS], w[W_SOL], w[W_XM]
+    for _ in range(max_iterations):
+        if not residual > tolerance:
+            break
+        for i in range(m):
+            rhs[i] = 0.5 * (w[W_SQ, i] - q[i] * q[i])
+        _solve(w, m, W_A, rhs, sol)
+        _retract(c, out, sol, -1.0, tmp)
+        if not _all_finite(tmp, m):
+            break
+        for j in range(m):
+            out[j] = tmp[j]
+        _rows(c, out, w)
+        residual = _residual(c, q, w)
+    return residual
+
+
+@_jit
+def _substeps(c, v):
+    """Substeps so that each predicts at most ``max_substep`` of motion ‖(δp, ℓ_c δθ)‖ [m]."""
+    count = np.ceil(_metric(c, v) * c[C_DT] / c[C_MAX_SUBSTEP])
+    cap = c[C_MAX_SUBSTEPS]
+    if not math.isfinite(count):
+        return int(cap)
+    return int(min(max(count, 1.0), cap))
+
+
+@_jit
+def _copy_rows(w, src, dst, m):
+    for i in range(m):
+        for j in range(m):
+            w[dst + i, j] = w[src + i, j]
+
+
+@_jit
+def _rate_at(c, q, x, rate, w, out):
+    """Out = J_f(q, x) q̇ at an arbitrary (q, x) (computes the rows of A there)."""
+    _rows(c, x, w)
+    _twist_rate(c, q, rate, w, W_A, out)
+
+
+@_jit
+def _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
+    """Advance robot i by one control period (see ``envs.family.transition``); writes row i of the outputs."""
+    m = int(c[C_N])
+    dt = c[C_DT]
+    lo, hi = c[C_LMIN], c[C_LMAX]
+    stroke = c[C_RATE] * dt
+    q0, x0 = q[i], x[i]
+    nq, qr, kq, kx = w[W_NQ], w[W_QR], w[W_KQ], w[W_KX]
+    v, pred, y, t = w[W_V], w[W_PRED], w[W_Y], w[W_T]
+    for j in range(m):
+        a = min(max(action[i, j], -1.0), 1.0)
+        o_a[i, j] = a
+        nq[j] = min(max(q0[j] + a * stroke, lo), hi)
+        qr[j] = (nq[j] - q0[j]) / dt
+        kq[j] = q0[j]
+        kx[j] = x0[j]
+    _rows(c, kx, w)
+    _copy_rows(w, W_A, W_START_A, m)
+    _twist_rate(c, kq, qr, w, W_A, v)
+    count = _substeps(c, v)
+    h = dt / count
+    rk4 = c[C_RK4] != 0.0
+    tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])
+    res = residual[i]
+    jump = 0.0
+    failed = False
+    for s in range(count):
+        frac = (s + 1) / count
+        for j in range(m):
+            t[j] = q0[j] + frac * (nq[j] - q0[j])
+        if s > 0:  # at the pose Newton's method just returned, whose rows are in w
+            _twist_rate(c, kq, qr, w, W_A, v)
+        if rk4:
+            k1, k2, k3, xm, qm = w[W_K1], w[W_K2], w[W_K3], w[W_XM], w[W_QM]
+            for j in range(m):
+                qm[j] = kq[j] + 0.5 * h * qr[j]
+            _retract(c, kx, v, 0.5 * h, xm)
+            _rate_at(c, qm, xm, qr, w, k1)
+            _retract(c, kx, k1, 0.5 * h, xm)
+            _rate_at(c, qm, xm, qr, w, k2)
+            for j in range(m):
+                qm[j] = kq[j] + h * qr[j]
+            _retract(c, kx, k2, h, xm)
+            _rate_at(c, qm, xm, qr, w, k3)
+            for j in range(m):
+                k3[j] = (v[j] + 2.0 * k1[j] + 2.0 * k2[j] + k3[j]) / 6.0
+            _retract(c, kx, k3, h, pred)
+        else:
+            _retract(c, kx, v, h, pred)
+        if not _all_finite(pred, m):
+            failed = True
+            break
+        fres = _newton(c, t, pred, w, y, tolerance, iterations)
+        if not fres <= tolerance:
+            failed = True
+            break
+        _difference(c, y, pred, w[W_DIFF])
+        jump = max(jump, _metric(c, w[W_DIFF]))
+        for j in range(m):
+            kq[j] = t[j]
+            kx[j] = y[j]
+        res = fres
+    if failed:
+        for j in range(m):
+            kq[j] = q0[j]
+            kx[j] = x0[j]
+        res = residual[i]
+        _copy_rows(w, W_START_A, W_A, m)
+    k_new, sign = _singularity(c, kq, w, W_A)
+    out = False
+    for j in range(m):
+        if kx[j] < c[C_LOW + j] or kx[j] > c[C_HIGH + j]:
+            out = True
+    if failed:
+        reason = _NEWTON_FAILED
+    elif jump > c[C_JUMP]:
+        reason = _ASSEMBLY_MODE_CHANGE
+    elif sign != det_sign[i]:
+        reason = _SINGULARITY_CROSSED
+    elif k_new < c[C_HARD]:
+        reason = _SINGULAR
+    elif out:
+        reason = _OUT_OF_BOUNDS
+    else:
+        reason = 0
+    for j in range(m):
+        o_q[i, j] = kq[j]
+        o_x[i, j] = kx[j]
+        o_qr[i, j] = qr[j]
+    o_k[i] = k_new
+    o_res[i] = res
+    o_reason[i] = reason
+    o_jump[i] = jump
+
+
+@_jit
+def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
+    w = np.empty((W_SIZE, 6))
+    for i in range(q.shape[0]):
+        _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+
+
+def transition_batch(c, q, x, det_sign, residual, action):
+    """Advance N robots by one control period (the algorithm of ``envs.family.transition``).
+
+    Args:
+        c: Packed constants (``pack_family``), shape (C_SIZE,).
+        q: Strokes [m], shape (N, n), float64.
+        x: Poses, shape (N, m), float64.
+        det_sign: Working mode sign(det J_x) of each episode, shape (N,).
+        residual: Constraint residual at (q, x) [m²], shape (N,).
+        action: Normalised stroke rates, shape (N, n), finite.
+
+    Returns:
+        (q', x', k', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
+    """
+    n, m = q.shape
+    o_q, o_x, o_a, o_qr = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    o_k, o_res, o_jump = np.empty(n), np.empty(n), np.empty(n)
+    o_reason = np.empty(n, dtype=np.int64)
+    _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+    return o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+
+
+@_jit
+def _singularity_loop(c, q, x, o_k, o_sign):
+    w = np.empty((W_SIZE, 6))
+    for i in range(q.shape[0]):
+        _rows(c, x[i], w)
+        o_k[i], o_sign[i] = _singularity(c, q[i], w, W_A)
+
+
+def singularity_batch(c, q, x):
+    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) of N configurations, each shape (N,)."""
+    o_k, o_sign = np.empty(q.shape[0]), np.empty(q.shape[0])
+    _singularity_loop(c, q, x, o_k, o_sign)
+    return o_k, o_sign
+
+
+@_jit
+def _initial_loop(c, x, o_q, o_k, o_sign, o_res):
+    w = np.empty((W_SIZE, 6))
+    for i in range(x.shape[0]):
+        _inverse_kinematics(c, x[i], w, o_q[i])
+        o_k[i], o_sign[i] = _singularity(c, o_q[i], w, W_A)
+        o_res[i] = _residual(c, o_q[i], w)
+
+
+def initial_batch(c, x):
+    """Strokes (inverse kinematics), k, sign(det J_x) and residual of N robots at rest at poses x (N, m)."""
+    n, m = x.shape
+    o_q, o_k, o_sign, o_res = np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n)
+    _initial_loop(c, x, o_q, o_k, o_sign, o_res)
+    return o_q, o_k, o_sign, o_res
+
+
+# -- reference, errors, reward, observation -------------------------------------------------------------
+
+
+@_jit
+def _reference(c, t, center, amplitude, phase, i, o_pose, o_velocity):
+    """Target pose x*_j = c_j + a_j sin(ω t dt + θ_j) and its rate a_j ω cos(…) of robot i at step t."""
+    omega = c[C_OMEGA]
+    tau = omega * t * c[C_DT]
+    for j in range(int(c[C_N])):
+        a = amplitude[i, j]
+        if a == 0.0:
+            o_pose[j] = center[i, j]
+            o_velocity[j] = 0.0
+        else:
+            u = tau + phase[i, j]
+            o_pose[j] = center[i, j] + a * math.sin(u)
+            o_velocity[j] = a * omega * math.cos(u)
+
+
+@_jit
+def _errors(c, x, g, diff):
+    """(‖p* − p‖ [m], orientation error [rad]) of pose x against target g; diff gets the error vector."""
+    if c[C_SPATIAL] != 0.0:
+        diff[0], diff[1], diff[2] = g[0] - x[0], g[1] - x[1], g[2] - x[2]
+        diff[3], diff[4], diff[5] = _relative_rotvec(g[3], g[4], g[5], x[3], x[4], x[5])
+        position = math.sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2])
+        orientation = math.sqrt(diff[3] * diff[3] + diff[4] * diff[4] + diff[5] * diff[5])
+        return position, orientation
+    diff[0], diff[1] = g[0] - x[0], g[1] - x[1]
+    diff[2] = _wrap(g[2] - x[2])
+    return math.sqrt(diff[0] * diff[0] + diff[1] * diff[1]), abs(diff[2])
+
+
+@_jit
+def _clip32(o_obs, i, j, value, low, high):
+    o_obs[i, j] = min(max(value, low[j]), high[j])
+
+
+@_jit
+def _encode_pose(c, x, o_obs, i, start, low, high):
+    """Position and a continuous rotation code, (x, y, cos φ, sin φ) or (p, quaternion, w ≥ 0); next column."""
+    if c[C_SPATIAL] != 0.0:
+        qw, qx, qy, qz = _quat_from_rotvec(x[3], x[4], x[5])
+        if qw < 0.0:
+            qw, qx, qy, qz = -qw, -qx, -qy, -qz
+        values = (x[0], x[1], x[2], qw, qx, qy, qz)
+        for j in range(7):
+            _clip32(o_obs, i, start + j, values[j], low, high)
+        return start + 7
+    _clip32(o_obs, i, start, x[0], low, high)
+    _clip32(o_obs, i, start + 1, x[1], low, high)
+    _clip32(o_obs, i, start + 2, math.cos(x[2]), low, high)
+    _clip32(o_obs, i, start + 3, math.sin(x[2]), low, high)
+    return start + 4
+
+
+@_jit
+def _evaluate_row(
+    c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason, i, w, o_eval, o_obs
+):
+    """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.family.evaluate``)."""
+    m = int(c[C_N])
+    g, vel, diff = w[W_TGT], w[W_VEL], w[W_DIFF]
+    _reference(c, t[i], center, amplitude, phase, i, g, vel)
+    xi = x[i]
+    position_error, orientation_error = _errors(c, xi, g, diff)
+    ki = k[i]
+    tracking = -(c[C_WP] * position_error + c[C_WO] * c[C_LC] * orientation_error)
+    safe = c[C_SAFE]
+    singularity = 0.0
+    if ki < safe:
+        gap = (safe - ki) / safe
+        singularity = -c[C_WS] * gap * gap
+    a2 = 0.0
+    for j in range(m):
+        a2 += action[i, j] * action[i, j]
+    terminated = reason[i] != 0
+    termination = -c[C_PENALTY] if terminated else 0.0
+    o_eval[E_TRACKING, i] = tracking
+    o_eval[E_SINGULARITY, i] = singularity
+    o_eval[E_ACTION, i] = -c[C_WA] * a2
+    o_eval[E_TERMINATION, i] = termination
+    o_eval[E_REWARD, i] = tracking + singularity - c[C_WA] * a2 + termination
+    o_eval[E_POSITION_ERROR, i] = position_error
+    o_eval[E_ORIENTATION_ERROR, i] = orientation_error
+    success = (not terminated) and position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
+    o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
+    o_eval[E_COST, i] = 1.0 if ki < safe else 0.0
+    o_eval[E_K, i] = ki
+    o_eval[E_RESIDUAL, i] = residual[i]
+    for j in range(m):
+        o_eval[E_FIXED + j, i] = g[j]
+        o_eval[E_FIXED + m + j, i] = vel[j]
+        o_eval[E_FIXED + 2 * m + j, i] = xi[j]
+    col = _encode_pose(c, xi, o_obs, i, 0, low, high)
+    col = _encode_pose(c, g, o_obs, i, col, low, high)
+    for j in range(m):
+        _clip32(o_obs, i, col + j, diff[j], low, high)
+    col += m
+    lo, hi = c[C_LMIN], c[C_LMAX]
+    span = hi - lo
+    for j in range(m):
+        _clip32(o_obs, i, col + j, 2.0 * (q[i, j] - lo) / span - 1.0, low, high)
+    col += m
+    target_q = w[W_SEG]
+    _inverse_kinematics(c, g, w, target_q)
+    for j in range(m):
+        _clip32(o_obs, i, col + j, (target_q[j] - q[i, j]) / span, low, high)
+    col += m
+    _clip32(o_obs, i, col, ki, low, high)
+    col += 1
+    if with_velocity:
+        for j in range(m):
+            _clip32(o_obs, i, col + j, vel[j], low, high)
+
+
+@_jit
+def _evaluate_serial(
+    c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason, o_eval, o_obs
+):
+    w = np.empty((W_SIZE, 6))
+    for i in range(q.shape[0]):
+        _evaluate_row(
+            c,
+            low,
+            high,
+            with_velocity,
+            q,
+            x,
+            t,
+            k,
+            residual,
+            center,
+            amplitude,
+            phase,
+            action,
+            reason,
+            i,
+            w,
+            o_eval,
+            o_obs,
+        )
+
+
+def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason):
+    """Evaluation rows (``evaluation_rows``) and observations of N robots.
+
+    Args:
+        c: Packed constants.
+        low: Observation lower bounds, float32, shape (D,).
+        high: Observation upper bounds, float32, shape (D,).
+        with_velocity: Whether the observation ends with the target velocity.
+        q: Strokes [m], shape (N, n).
+        x: Poses, shape (N, m).
+        t: Step index, shape (N,) (int).
+        k: Inverse condition numbers, shape (N,).
+        residual: Constraint residuals [m²], shape (N,).
+        center: Reference centres, shape (N, m).
+        amplitude: Reference amplitudes, shape (N, m).
+        phase: Reference phases [rad], shape (N, m).
+        action: Applied actions, shape (N, n).
+        reason: Termination reason codes, shape (N,).
+
+    Returns:
+        (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
+    """
+    n, m = x.shape
+    o_eval = np.empty((E_FIXED + 3 * m, n))
+    o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
+    _evaluate_serial(
+        c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason, o_eval, o_obs
+    )
+    return o_eval, o_obs
+
+
+# -- the fused step: transition then evaluation, on every core for large batches ------------------------
+
+
+@_jit
+def _step_row(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, i, w, out):
+    o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
+    _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+    o_t[i] = t[i] + 1
+    _evaluate_row(
+        c,
+        low,
+        high,
+        with_velocity,
+        o_q,
+        o_x,
+        o_t,
+        o_k,
+        o_res,
+        center,
+        amplitude,
+        phase,
+        o_a,
+        o_reason,
+        i,
+        w,
+        o_eval,
+        o_obs,
+    )
+
+
+@_jit
+def _finite_actions(action):
+    for i in range(action.shape[0]):
+        for j in range(action.shape[1]):
+            if not math.isfinite(action[i, j]):
+                return False
+    return True
+
+
+@_jit
+def _step_serial(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out):
+    if not _finite_actions(action):
+        return True
+    w = np.empty((W_SIZE, 6))
+    for i in range(q.shape[0]):
+        _step_row(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, i, w, out)
+    return False
+
+
+@_jit_parallel
+def _step_parallel(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out):
+    if not _finite_actions(action):
+        return True
+    n = q.shape[0]
+    chunks = (n + CHUNK - 1) // CHUNK
+    for chunk in numba.prange(chunks):
+        w = np.empty((W_SIZE, 6))
+        for i in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            _step_row(
+                c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, i, w, out
+            )
+    return False
+
+
+def allocate_step(n, m, obs_dim):
+    """Output arrays of ``step_batch`` for n robots with m pose coordinates and obs_dim observations."""
+    return (
+        np.empty((n, m)),
+        np.empty((n, m)),
+        np.empty(n, dtype=np.int64),
+        np.empty(n),
+        np.empty(n),
+        np.empty((n, m)),
+        np.empty((n, m)),
+        np.empty(n, dtype=np.int64),
+        np.empty(n),
+        np.empty((E_FIXED + 3 * m, n)),
+        np.empty((n, obs_dim), dtype=np.float32),
+    )
+
+
+def step_batch(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out):
+    """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite."""
+    kernel = _step_parallel if q.shape[0] >= PARALLEL_MIN_BATCH else _step_serial
+    return kernel(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out)
+
+
+# -- the safe set and the task sampler ------------------------------------------------------------------
+
+
+@_jit
+def _safe(c, x, w, strokes):
+    """Whether x lies in the sampling box, its strokes within the limits less the margin, and k ≥ safe_threshold."""
+    m = int(c[C_N])
+    for j in range(m):
+        if not (c[C_SLOW + j] <= x[j] <= c[C_SHIGH + j]):
+            return False
+    _inverse_kinematics(c, x, w, strokes)
+    lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
+    for j in range(m):
+        if not (lo <= strokes[j] <= hi):
+            return False
+    k, _ = _singularity(c, strokes, w, W_A)
+    return k >= c[C_SAFE]
+
+
+@_jit
+def _segment_min_k(c, start, target, w, strokes, stop_below):
+    """Smallest k along the geodesic start → target (p linear, R along exp), points ≤ ``segment_spacing`` apart.
+
+    A point outside the safe set's box or stroke limits counts as k = −1. Stops early once k < ``stop_below``.
+    """
+    m = int(c[C_N])
+    direction, point = w[W_SEG_D], w[W_SEG]
+    _difference(c, target, start, direction)
+    count = int(min(max(math.ceil(_metric(c, direction) / c[C_SPACING]), 1), SEGMENT_MAX_POINTS))
+    lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
+    worst = np.inf
+    for s in range(count + 1):
+        _retract(c, start, direction, s / count, point)
+        inside = True
+        for j in range(m):
+            if not (c[C_SLOW + j] <= point[j] <= c[C_SHIGH + j]):
+                inside = False
+        _inverse_kinematics(c, point, w, strokes)
+        for j in range(m):
+            if not (lo <= strokes[j] <= hi):
+                inside = False
+        if not inside:
+            return -1.0
+        k, _ = _singularity(c, strokes, w, W_A)
+        worst = min(worst, k)
+        if worst < stop_below:
+            return worst
+    return worst
+
+
+@_jit
+def _draw_safe(c, fn, st, w, strokes, out):
+    """A pose drawn uniformly in the sampling box until it is safe; False after ``SAMPLER_TRIES`` rejections."""
+    m = int(c[C_N])
+    for _ in range(SAMPLER_TRIES):
+        for j in range(m):
+            lo, hi = c[C_SLOW + j], c[C_SHIGH + j]
+            out[j] = lo + (hi - lo) * _next_double(fn, st)
+        if _safe(c, out, w, strokes):
+            return True
+    return False
+
+
+@_jit
+def _draw_band(c, fn, st, w, strokes, low, high, out):
+    """A pose of the sampling box with strokes within the margin and low ≤ k < high; False after the tries."""
+    m = int(c[C_N])
+    lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
+    for _ in range(SAMPLER_TRIES):
+        for j in range(m):
+            out[j] = c[C_SLOW + j] + (c[C_SHIGH + j] - c[C_SLOW + j]) * _next_double(fn, st)
+        _inverse_kinematics(c, out, w, strokes)
+        inside = True
+        for j in range(m):
+            if not (lo <= strokes[j] <= hi):
+                inside = False
+        if inside:
+            k, _ = _singularity(c, strokes, w, W_A)
+            if low <= k < high:
+                return True
+    return False
+
+
+@_jit
+def _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
+    """Fill o_start, o_target, o_waypoint (M, m) with certified pairs; −1 on success, else the failing pair.
+
+    Standard pair: the geodesic start → target has k ≥ safe_threshold at every checked point. Hard pair
+    (``hard_kind`` "detour"): that geodesic dips below safe_threshold (it stays inside the box and stroke
+    limits), and the two geodesics start → waypoint → target are safe. Hard pair ("ill_conditioned"): a safe
+    start and a target in the ill-conditioned band 2 hard_threshold ≤ k < safe_threshold, joined by a
+    geodesic that keeps k ≥ 2 hard_threshold.
+    """
+    m = int(c[C_N])
+    shared = streams.shape[0] == 1
+    w = np.empty((W_SIZE, 6))
+    strokes = np.empty(6)
+    start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+    safe = c[C_SAFE]
+    for i in range(o_start.shape[0]):
+        s = 0 if shared else i
+        fn, st = streams[s, 0], streams[s, 1]
+        done = False
+        band = hard and c[C_HARD_KIND] != 0.0
+        floor = 2.0 * c[C_HARD]
+        for _ in range(SAMPLER_TRIES):
+            if not _draw_safe(c, fn, st, w, strokes, start):
+                return i
+            if band:
+                if not _draw_band(c, fn, st, w, strokes, floor, safe, target):
+                    return i
+            elif not _draw_safe(c, fn, st, w, strokes, target):
+                return i
+            _difference(c, target, start, step)
+            if not _metric(c, step) >= min_distance:
+                continue
+            if not hard:
+                if _segment_min_k(c, start, target, w, strokes, safe) >= safe:
+                    done = True
+            elif band:
+                if _segment_min_k(c, start, target, w, strokes, floor) >= floor:
+                    done = True
+            elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf) < safe:
+                for _ in range(WAYPOINT_TRIES):
+                    if not _draw_safe(c, fn, st, w, strokes, waypoint):
+                        return i
+                    if (
+                        _segment_min_k(c, start, waypoint, w, strokes, safe) >= safe
+                        and _segment_min_k(c, waypoint, target, w, strokes, safe) >= safe
+                    ):
+                        done = True
+                        break
+            if done:
+                break
+        if not done:
+            return i
+        for j in range(m):
+            o_start[i, j] = start[j]
+            o_target[i, j] = target[j]
+            o_waypoint[i, j] = waypoint[j] if hard and not band else target[j]
+    return -1
+
+
+def sample_reach_batch(c, streams, n, m, hard, min_distance):
+    """Draw n certified start/target pairs (see ``envs.family.sample_reach``), or None if one could not be found.
+
+    Args:
+        c: Packed constants.
+        streams: ``random_streams`` of one generator (shared) or of n generators, shape (1, 2) or (n, 2).
+        n: Number of pairs.
+        m: Pose coordinates.
+        hard: Whether the straight path must dip below the safe threshold (with a certified detour).
+        min_distance: Smallest ‖(δp, ℓ_c δθ)‖ between start and target [m].
+
+    Returns:
+        (starts (n, m), targets (n, m), waypoints (n, m): the detour's waypoint, or the target), or None.
+    """
+    o_start, o_target, o_waypoint = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    if _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint) >= 0:
+        return None
+    return o_start, o_target, o_waypoint
+
+
+@_jit
+def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
+    """Fill references (centre, amplitude, phase) whose poses at ``n_check`` times of a period are all safe."""
+    m = int(c[C_N])
+    shared = streams.shape[0] == 1
+    w = np.empty((W_SIZE, 6))
+    strokes, point, previous = np.empty(6), np.empty(6), np.empty(6)
+    center, amplitude, phase = np.empty(6), np.empty(6), np.empty(6)
+    for i in range(o_center.shape[0]):
+        s = 0 if shared else i
+        fn, st = streams[s, 0], streams[s, 1]
+        done = False
+        for _ in range(SAMPLER_TRIES):
+            if not _draw_safe(c, fn, st, w, strokes, center):
+                return i
+            for j in range(m):
+                amplitude[j] = max_amplitude[j] * (0.5 + 0.5 * _next_double(fn, st))
+                phase[j] = _TWO_PI * _next_double(fn, st)
+            ok = True
+            for step in range(n_check + 1):
+                tau = _TWO_PI * step / n_check
+                for j in range(m):
+                    point[j] = center[j] + amplitude[j] * math.sin(tau + phase[j])
+                if step > 0 and _segment_min_k(c, previous, point, w, strokes, c[C_SAFE]) < c[C_SAFE]:
+                    ok = False
+                    break
+                for j in range(m):
+                    previous[j] = point[j]
+            if ok:
+                done = True
+                break
+        if not done:
+            return i
+        for j in range(m):
+            o_center[i, j] = center[j]
+            o_amplitude[i, j] = amplitude[j]
+            o_phase[i, j] = phase[j]
+    return -1
+
+
+def sample_track_batch(c, streams, n, m, max_amplitude, n_check):
+    """Draw n references whose whole period stays in the safe set (checked between ``n_check`` points), or None."""
+    o_center, o_amplitude, o_phase = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    if (
+        _sample_track(c, streams, np.asarray(max_amplitude, dtype=np.float64), n_check, o_center, o_amplitude, o_phase)
+        >= 0
+    ):
+        return None
+    return o_center, o_amplitude, o_phase
+
+
+@_jit
+def _safe_loop(c, x, out):
+    w = np.empty((W_SIZE, 6))
+    strokes = np.empty(6)
+    for i in range(x.shape[0]):
+        out[i] = _safe(c, x[i], w, strokes)
+
+
+def safe_batch(c, x):
+    """Whether each pose (N, m) is in the safe set (sampling box, strokes with margin, k ≥ safe_threshold)."""
+    out = np.empty(x.shape[0], dtype=np.bool_)
+    _safe_loop(c, x, out)
+    return out
+
+
+@_jit
+def _segment_loop(c, start, target, out):
+    w = np.empty((W_SIZE, 6))
+    strokes = np.empty(6)
+    for i in range(start.shape[0]):
+        out[i] = _segment_min_k(c, start[i], target[i], w, strokes, -np.inf)
+    return out
+
+
+def segment_batch(c, start, target):
+    """Smallest k along each geodesic start → target (−1 if it leaves the safe box or stroke limits), shape (N,)."""
+    out = np.empty(start.shape[0])
+    _segment_loop(c, start, target, out)
+    return out

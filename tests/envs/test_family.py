@@ -1,0 +1,229 @@
+"""The family core: compiled kernels against the NumPy kinematics, and the hexapod environments' contract."""
+
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import envs
+from envs import family
+from envs import family_kernels as fk
+from envs.shield import SingularityShield
+from kinematics import DistanceConstraintMechanism, Planar3RPR, StewartGough
+from kinematics.stewart_gough import semi_regular_hexagon
+
+HEXAPOD_IDS = ("StewartGoughReach-v0", "StewartGoughReachHard-v0", "StewartGoughTrack-v0")
+
+
+def _random_poses(params, n, seed):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(params.sample_low, params.sample_high, size=(n, params.robot.n_pose))
+    return x[fk.safe_batch(params.packed, x)]
+
+
+@pytest.fixture(scope="module")
+def hexapod():
+    """Parameters of the default hexapod environment."""
+    return family.build_family_params()
+
+
+def test_kernels_match_the_kinematics_library(hexapod):
+    """Inverse kinematics, k and sign(det J_x) of the kernels equal the NumPy reference."""
+    x = _random_poses(hexapod, 400, 0)
+    q, k, sign, residual = fk.initial_batch(hexapod.packed, x)
+    robot = hexapod.robot
+    np.testing.assert_allclose(q, robot.inverse_kinematics(x), rtol=1e-13)
+    k_ref, det = robot.singularity_measures(q, x)
+    np.testing.assert_allclose(k, k_ref, rtol=1e-9)
+    np.testing.assert_array_equal(sign, np.sign(det))
+    assert residual.max() < 1e-14
+
+
+def test_transition_is_the_twist_integrated_and_corrected(hexapod):
+    """One step: the new pose satisfies Φ = 0 (≤ 1e-10), moved along J_f q̇ to first order, on the rotation group."""
+    x = _random_poses(hexapod, 50, 1)
+    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = family.initial_state(hexapod, x, ref)
+    action = np.random.default_rng(2).uniform(-1, 1, size=(len(x), 6))
+    new, outcome = family.transition(hexapod, state, action)
+    ok = outcome.reason == 0
+    assert ok.mean() > 0.9
+    robot = hexapod.robot
+    assert np.abs(robot.constraints(new.q[ok], new.x[ok])).max() <= 1e-10
+    np.testing.assert_allclose(new.q[ok], robot.inverse_kinematics(new.x[ok]), atol=1e-10)
+    twist = np.einsum("nij,nj->ni", robot.forward_jacobian(state.q[ok], x[ok]), outcome.q_rate[ok]) * hexapod.dt
+    moved = robot.pose_difference(new.x[ok], x[ok])
+    assert np.abs(moved - twist).max() < 0.05 * np.abs(twist).max()
+
+
+def test_newton_in_kernels_equals_library_forward_kinematics(hexapod):
+    """The compiled correction lands on the pose the library's Newton finds from the same guess."""
+    x = _random_poses(hexapod, 20, 3)
+    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = family.initial_state(hexapod, x, ref)
+    new, outcome = family.transition(hexapod, state, np.full((len(x), 6), 0.3))
+    result = hexapod.robot.forward_kinematics(new.q, x)
+    ok = outcome.reason == 0
+    np.testing.assert_allclose(result.x[ok], new.x[ok], atol=1e-9)
+
+
+@pytest.mark.parametrize("env_id", HEXAPOD_IDS)
+def test_checkers_pass_without_warnings(env_id):
+    """Gymnasium's and SB3's environment checkers pass with zero warnings."""
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gym.make(env_id).unwrapped
+    with __import__("warnings").catch_warnings():
+        __import__("warnings").simplefilter("error")
+        check_env(env, skip_render_check=True)
+        sb3_check_env(env, warn=True)
+
+
+@pytest.mark.parametrize("env_id", HEXAPOD_IDS)
+def test_reward_is_the_sum_of_its_terms_and_rollouts_are_deterministic(env_id):
+    """Same seed, same rollout; reward = Σ terms; residual ≤ 1e-10; spaces contain the observations."""
+
+    def rollout(seed):
+        env = gym.make(env_id)
+        env.action_space.seed(seed)
+        obs, info = env.reset(seed=seed)
+        out = [obs]
+        for _ in range(60):
+            obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+            assert env.observation_space.contains(obs)
+            terms = sum(info[name] for name in family.REWARD_TERMS)
+            assert reward == pytest.approx(terms, abs=1e-12)
+            assert info["constraint_residual"] <= 1e-10 or terminated
+            out.append(obs)
+            if terminated or truncated:
+                obs, info = env.reset()
+        return np.array(out)
+
+    np.testing.assert_array_equal(rollout(5), rollout(5))
+
+
+def test_vector_env_equals_single_envs():
+    """Sub-environment i of the native vector env is the single env reset with seed s + i, step by step."""
+    n = 4
+    vec = gym.make_vec("StewartGoughReach-v0", num_envs=n, vectorization_mode="vector_entry_point")
+    singles = [gym.make("StewartGoughReach-v0") for _ in range(n)]
+    obs, _ = vec.reset(seed=7)
+    for i, env in enumerate(singles):
+        o, _ = env.reset(seed=7 + i)
+        np.testing.assert_array_equal(obs[i], o)
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        actions = rng.uniform(-1, 1, size=(n, 6)).astype(np.float32)
+        obs, rewards, term, trunc, _ = vec.step(actions)
+        for i, env in enumerate(singles):
+            o, r, t, _, _ = env.step(actions[i])
+            np.testing.assert_array_equal(obs[i], o)
+            assert rewards[i] == r and term[i] == t
+
+
+def test_pickling_and_headless_rendering():
+    """Envs pickle; rgb_array frames need no display."""
+    env = gym.make("StewartGoughReach-v0", render_mode="rgb_array")
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (480, 480, 3) and frame.dtype == np.uint8
+    clone = pickle.loads(pickle.dumps(env.unwrapped.params))
+    assert clone.robot == env.unwrapped.params.robot
+
+
+def test_hard_targets_are_certified():
+    """Hard hexapod targets lie in the ill-conditioned band; the straight geodesic keeps k ≥ 2 k_hard."""
+    env = gym.make("StewartGoughReachHard-v0")
+    params = env.unwrapped.params
+    for seed in range(5):
+        _, info = env.reset(seed=seed)
+        target = info["target"][None]
+        q = params.robot.inverse_kinematics(target)
+        k = params.robot.inverse_condition_number(q, target)
+        assert 2 * params.hard_threshold <= k < params.safe_threshold
+        k_min = fk.segment_batch(params.packed, info["pose"][None], target)
+        assert k_min[0] >= 2 * params.hard_threshold
+
+
+def test_standard_targets_have_a_safe_straight_path(hexapod):
+    """A standard task's geodesic start → target keeps k ≥ k_safe (checked ≤ 1 cm apart)."""
+    env = gym.make("StewartGoughReach-v0")
+    for seed in range(5):
+        _, info = env.reset(seed=seed)
+        k_min = fk.segment_batch(hexapod.packed, info["pose"][None], info["target"][None])
+        assert k_min[0] >= hexapod.safe_threshold
+
+
+def test_shield_holds_the_hexapod_out_of_the_singular_zone():
+    """Behind the shield, full-speed random actions never terminate at a singularity."""
+    env = SingularityShield(gym.make("StewartGoughReachHard-v0"), k_guard=0.05)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        _, _, terminated, truncated, info = env.step(rng.choice([-1.0, 1.0], size=6).astype(np.float32))
+        assert info["termination_reason"] not in ("singular", "singularity_crossed", "newton_failed")
+        if terminated or truncated:
+            env.reset()
+
+
+def test_goal_view_reward_equals_step_reward():
+    """HER's compute_reward on the episode's own goal gives the reward step paid."""
+    env = envs.GoalReachWrapper(gym.make("StewartGoughReach-v0"))
+    obs, _ = env.reset(seed=1)
+    for _ in range(10):
+        obs, reward, terminated, _, info = env.step(env.action_space.sample())
+        assert env.compute_reward(obs["achieved_goal"], obs["desired_goal"], info) == pytest.approx(reward, abs=1e-5)
+
+
+def test_a_new_robot_is_data_a_6ups_and_a_3rpr_of_other_geometry():
+    """A 6-UPS and a 3-RPR of other geometries, given only as points, step through gym.make."""
+    base = semi_regular_hexagon(0.6, 20.0)
+    platform = semi_regular_hexagon(0.25, 40.0)
+    hexapod = DistanceConstraintMechanism(base, platform, pose_space="spatial")
+    env = gym.make("StewartGoughReach-v0", robot=hexapod, stroke_limits=(0.45, 0.85))
+    env.reset(seed=0)
+    for _ in range(20):
+        _, _, terminated, _, info = env.step(env.action_space.sample())
+        assert info["constraint_residual"] <= 1e-10 or terminated
+        assert info["pose"].shape == (6,)
+        if terminated:
+            env.reset()
+    planar = Planar3RPR(base=[[0, 0], [1.2, 0.1], [0.5, 1.0]], platform=[[0, -0.15], [0.2, 0.05], [-0.2, 0.0]])
+    env = gym.make("StewartGoughReach-v0", robot=planar)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (18,) and env.action_space.shape == (3,)
+    for _ in range(20):
+        _, _, terminated, _, info = env.step(env.action_space.sample())
+        if terminated:
+            env.reset()
+    assert isinstance(StewartGough(), DistanceConstraintMechanism)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"robot": "hexapod"}, "DistanceConstraintMechanism"),
+        ({"stroke_limits": (0.8, 0.4)}, "stroke_limits"),
+        ({"sample_low": (-1.0, -0.1, 0.4, -0.2, -0.2, -0.5)}, "sampling box"),
+        ({"pose_low": (-0.2, -0.2, 0.3)}, "pose_low must be 6"),
+        ({"safe_threshold": 0.01}, "thresholds"),
+        ({"integrator": "midpoint"}, "integrator"),
+        ({"hard_kind": "any"}, "hard_kind"),
+    ],
+)
+def test_bad_arguments_are_refused_with_the_expected_and_actual_value(kwargs, match):
+    """Constructor arguments are validated at the boundary."""
+    with pytest.raises((ValueError, TypeError), match=match):
+        family.FamilyReachEnv(**kwargs)
+
+
+def test_bad_actions_are_refused():
+    """Wrong shape and non-finite actions raise clear errors."""
+    env = gym.make("StewartGoughReach-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(6,\)"):
+        env.step(np.zeros(3))
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.full(6, np.nan))
