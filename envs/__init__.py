@@ -16,6 +16,8 @@ from envs.vector import Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv, Plan
 
 __all__ = [
     "ENV_IDS",
+    "FAMILY_IDS",
+    "PLANAR_3RPR_IDS",
     "FamilyReachEnv",
     "FamilyReachVectorEnv",
     "FamilyTrackEnv",
@@ -51,6 +53,9 @@ _SPECS = {
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)
+#: The planar 3-RPR ids (their own compiled kernels, ``envs.core``) and the ids on the family core (``envs.family``).
+PLANAR_3RPR_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.startswith("Planar3RPR"))
+FAMILY_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i not in PLANAR_3RPR_IDS)
 
 for _env_id, (_entry_point, _vector_entry_point, _steps, _kwargs) in _SPECS.items():
     if _env_id not in registry:

@@ -114,9 +114,7 @@ def load_controller(name: str, env: gym.Env) -> Agent:
     params = env.unwrapped.params
     table = FAMILY_CONTROLLERS if isinstance(params, FamilyParams) else CONTROLLERS
     if name not in table:
-        raise EvaluationError(
-            f"unknown controller {name!r} for {type(env.unwrapped).__name__}; valid choices: {sorted(table)}"
-        )
+        raise EvaluationError(f"unknown controller {name!r}; valid choices: {sorted(table)}")
     return table[name](params)
 
 

@@ -13,7 +13,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gymnasium_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from envs import ENV_IDS, core
+from envs import PLANAR_3RPR_IDS, core
 from tests.envs.helpers import INFO_KEYS, MAX_EPISODE_STEPS, REWARD_TERMS, component_node
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -37,7 +37,7 @@ def _rollout(env: gym.Env, steps: int, seed: int = 0) -> list[tuple]:
 
 
 @pytest.mark.parametrize("render_mode", [None, "rgb_array"])
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_gymnasium_env_checker_passes_without_warnings(env_id, render_mode, make_env):
     """Gymnasium's own checker accepts the bare environment and emits no warning."""
     env = make_env(env_id, render_mode=render_mode)
@@ -47,7 +47,7 @@ def test_gymnasium_env_checker_passes_without_warnings(env_id, render_mode, make
     assert not caught, f"gymnasium check_env warned:\n{_format(caught)}"
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_sb3_env_checker_passes_without_warnings(env_id, make_env):
     """Stable-Baselines3's checker accepts the made (wrapped) environment and emits no warning."""
     env = make_env(env_id)
@@ -58,9 +58,9 @@ def test_sb3_env_checker_passes_without_warnings(env_id, make_env):
 
 
 def test_registry_matches_expected_ids():
-    """ENV_IDS is exactly the documented set of ids, each registered."""
-    assert set(ENV_IDS) == set(MAX_EPISODE_STEPS)
-    for env_id in ENV_IDS:
+    """PLANAR_3RPR_IDS is exactly the documented set of ids, each registered."""
+    assert set(PLANAR_3RPR_IDS) == set(MAX_EPISODE_STEPS)
+    for env_id in PLANAR_3RPR_IDS:
         assert env_id in gym.registry, env_id
 
 
@@ -78,7 +78,7 @@ def test_make_with_module_prefix_in_fresh_interpreter():
     assert result.stdout.split() == ["Planar3RPRReachEnv", "200", "True"]
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_max_episode_steps_truncates(env_id, make_env):
     """The spec sets max_episode_steps and the TimeLimit truncates exactly there (robot at rest)."""
     expected = MAX_EPISODE_STEPS[env_id]
@@ -93,7 +93,7 @@ def test_max_episode_steps_truncates(env_id, make_env):
         assert truncated == (step == expected), f"truncated={truncated} at step {step}"
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_spaces(env_id, make_env):
     """Normalised Box(-1, 1, (3,), float32) actions; finite float32 observation bounds of the right size."""
     env = make_env(env_id)
@@ -108,7 +108,7 @@ def test_spaces(env_id, make_env):
     assert space.is_bounded("both")
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_observations_rewards_and_infos(env_id, make_env):
     """Observations are float32 members of the space; rewards are Python floats; infos carry every key."""
     env = make_env(env_id)
@@ -129,7 +129,7 @@ def test_observations_rewards_and_infos(env_id, make_env):
         assert (info["termination_reason"] != "") == terminated
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_reward_is_sum_of_terms(env_id, make_env):
     """The reward is reward_tracking + reward_singularity + reward_action + reward_termination, every step."""
     env = make_env(env_id)
@@ -146,7 +146,7 @@ def test_reward_is_sum_of_terms(env_id, make_env):
         assert terminated_seen, "600 random steps of the hard task never terminated"
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_cost_flags_low_conditioning(env_id, make_env):
     """info["cost"] is 1.0 exactly when the inverse condition number is below safe_threshold, else 0.0."""
     env = make_env(env_id)
@@ -161,7 +161,7 @@ def test_cost_flags_low_conditioning(env_id, make_env):
         assert 1.0 in costs, "600 random steps of the hard task never went below safe_threshold"
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_returned_arrays_are_fresh(env_id, make_env, rng):
     """Mutating a returned observation or info array changes neither the env nor the next results."""
     mutated, clean = make_env(env_id), make_env(env_id)
@@ -214,7 +214,7 @@ def _documented_observation(env: gym.Env) -> np.ndarray:
     return np.clip(expected, env.observation_space.low, env.observation_space.high)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_observation_matches_documented_layout(env_id, make_env, rng):
     """Every entry is what the Observation Space table says, in that order (pose, target, errors, k, …)."""
     env = make_env(env_id)

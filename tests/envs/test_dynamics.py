@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs import ENV_IDS, core
+from envs import PLANAR_3RPR_IDS, core
 from envs.tasks import is_safe
 from kinematics.linalg import determinant
 from tests.envs.helpers import SINGULAR_REASONS, best_node, pose_metric, straight_line_action
@@ -82,7 +82,7 @@ def test_stroke_clamp_uses_the_achieved_rate(make_env):
     assert error_achieved < 0.1 * error_commanded
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_out_of_range_actions_are_clipped(env_id, make_env):
     """[5, −5, 0.5] acts exactly like [1, −1, 0.5] (state, observation, reward)."""
     big, unit = make_env(env_id), make_env(env_id)
@@ -186,7 +186,7 @@ def test_driving_into_a_singularity_terminates(make_env):
     assert len(endings) >= 3, f"only {len(endings)} of 10 hard episodes met the singular zone: {endings}"
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_working_mode_never_changes_silently(env_id, make_env, rng):
     """sign(det J_x) at every non-terminal step equals its value at reset."""
     env = make_env(env_id)

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envs import ENV_IDS
+from envs import PLANAR_3RPR_IDS
 
 
 @pytest.fixture
@@ -18,7 +18,7 @@ def headless(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_rgb_array_frames(env_id, headless, make_env):
     """render() gives uint8 (H, W, 3) frames with a drawing on them, identical while nothing moves."""
     env = make_env(env_id, render_mode="rgb_array")
@@ -31,7 +31,7 @@ def test_rgb_array_frames(env_id, headless, make_env):
     np.testing.assert_array_equal(env.render(), frame)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_frames_change_when_the_robot_moves(env_id, headless, make_env):
     """After a few steps that move the platform, the frame is different."""
     env = make_env(env_id, render_mode="rgb_array")

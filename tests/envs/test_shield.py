@@ -69,7 +69,7 @@ def test_shield_bad_input(make_env):
     """A bad guard, a foreign env and a step before reset are refused with clear errors."""
     with pytest.raises(ValueError, match=r"k_guard must be a number in \(0, 1\), got 1.5"):
         SingularityShield(make_env(), k_guard=1.5)
-    with pytest.raises(TypeError, match="needs a planar 3-RPR environment, got CartPoleEnv"):
+    with pytest.raises(TypeError, match="needs a parallel-robot environment of envs, got CartPoleEnv"):
         SingularityShield(gym.make("CartPole-v1"))
     with pytest.raises(gym.error.ResetNeeded):
         SingularityShield(make_env()).step(np.zeros(3, dtype=np.float32))

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envs import ENV_IDS, Planar3RPRReachEnv, Planar3RPRTrackEnv
+from envs import PLANAR_3RPR_IDS, Planar3RPRReachEnv, Planar3RPRTrackEnv
 
 ENV_CLASSES = [Planar3RPRReachEnv, Planar3RPRTrackEnv]
 
@@ -47,7 +47,7 @@ def _terminate(env, rng: np.random.Generator) -> dict:
 
 
 @pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_non_finite_action_raises(env_id, value, make_env):
     """A NaN or infinite action is refused before it reaches the dynamics; the state is untouched."""
     env = make_env(env_id)
@@ -60,7 +60,7 @@ def test_non_finite_action_raises(env_id, value, make_env):
 
 
 @pytest.mark.parametrize("shape", [(2,), (3, 1), (4,), ()])
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_wrong_action_shape_raises(env_id, shape, make_env):
     """An action that is not of shape (3,) is refused, naming the shape it got."""
     env = make_env(env_id)
@@ -70,7 +70,7 @@ def test_wrong_action_shape_raises(env_id, shape, make_env):
         env.unwrapped.step(np.zeros(shape, dtype=np.float32))
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_step_before_reset_raises(env_id, make_env):
     """step() before reset() raises ResetNeeded, on the bare env and through gym.make's wrappers."""
     env = make_env(env_id)

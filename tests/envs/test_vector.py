@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
-from envs import ENV_IDS, Planar3RPRReachEnv, Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv
+from envs import PLANAR_3RPR_IDS, Planar3RPRReachEnv, Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv
 from envs.vector import Planar3RPRVectorEnv
 from tests.envs.helpers import INFO_KEYS, MAX_EPISODE_STEPS
 
@@ -78,7 +78,7 @@ def large_actions(steps: int, n: int, seed: int = 0, hold: int = 5) -> np.ndarra
 # -- registration ------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_make_vec_returns_the_native_env(env_id):
     """make_vec(vector_entry_point) builds the native class with batched spaces and the registered length."""
     env = make_native(env_id, n=3)
@@ -109,7 +109,7 @@ def test_registered_kwargs_reach_the_vector_env():
 
 
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP], ids=lambda m: m.value)
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 def test_equals_sync_vector_env_of_single_envs(env_id, mode):
     """Same seeds and actions ⇒ same observations, rewards, flags and infos, across many autoresets."""
     # Hard tasks are slow to sample (rejection of straight lines): shorter episodes, fewer steps.

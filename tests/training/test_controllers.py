@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from envs import ENV_IDS
+from envs import PLANAR_3RPR_IDS
 from tests.training.conftest import REACH
 from training import evaluate
 from training.controllers import CONTROLLERS, ResolvedRateController, SingularityAwareController
@@ -55,7 +55,7 @@ def test_registry_names():
     assert CONTROLLERS == {"resolved-rate": ResolvedRateController, "singularity-aware": SingularityAwareController}
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 @pytest.mark.parametrize("name", NAMES)
 def test_actions_are_bounded_float32(name, env_id, make_env):
     """On real observations the actions are finite float32 in [-1, 1] with shape (N, 3) and in the action space."""
@@ -71,7 +71,7 @@ def test_actions_are_bounded_float32(name, env_id, make_env):
     assert np.max(np.abs(actions)) > 0.5, "a controller that never moves is not a baseline"
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
 @pytest.mark.parametrize("name", NAMES)
 def test_batch_equals_stacked_single_calls(name, env_id, make_env):
     """A batch of N = 5 observations gives (5, 3), equal to five one-row calls stacked."""

@@ -10,7 +10,7 @@ import pytest
 import yaml
 from PIL import Image
 
-from envs import ENV_IDS
+from envs import PLANAR_3RPR_IDS
 from training import demo
 from training.demo import PRETRAINED_RUN
 from training.evaluate import aggregate, evaluate_agent, load_run
@@ -43,7 +43,7 @@ def regression(pretrained_run: Path) -> dict:
         value = record[key]
         ok = isinstance(value, kind) and not isinstance(value, bool)
         assert ok or (kind is float and type(value) is int), f"{key} = {value!r} is not {kind.__name__}"
-    assert record["env_id"] in ENV_IDS
+    assert record["env_id"] in PLANAR_3RPR_IDS
     assert record["targets"] == "standard"
     assert record["episodes"] >= 1
     assert 0.0 <= record["success_rate"] <= 1.0

@@ -13,7 +13,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
 
-from envs import ENV_IDS
+from envs import PLANAR_3RPR_IDS
 from training.train import VEC_KINDS, build_parser, make_training_env, read_monitor
 from training.vec_adapter import NativeVecEnvAdapter
 
@@ -142,11 +142,11 @@ def test_ppo_learns_a_few_hundred_steps_through_the_adapter(tmp_path: Path):
 def test_native_is_the_default_vectorisation():
     """--vec defaults to native, which every registered id supports."""
     assert VEC_KINDS[0] == "native"
-    args = build_parser().parse_args(["--algo", "ppo", "--env", ENV_IDS[0]])
+    args = build_parser().parse_args(["--algo", "ppo", "--env", PLANAR_3RPR_IDS[0]])
     assert args.vec == "native"
-    for env_id in ENV_IDS:
+    for env_id in PLANAR_3RPR_IDS:
         assert gym.spec(env_id).vector_entry_point is not None
     native = gym.make_vec(
-        ENV_IDS[0], num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode=AutoresetMode.SAME_STEP
+        PLANAR_3RPR_IDS[0], num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode=AutoresetMode.SAME_STEP
     )
     assert isinstance(NativeVecEnvAdapter(native), VecEnv)

@@ -1,0 +1,64 @@
+"""Write the hexapod results table (Markdown) from the ``metrics.json`` files of ``training.evaluate`` runs.
+
+Run as ``python -m training.family_report OUT.md EVAL_DIR [EVAL_DIR ...]``; every figure of the table comes
+from those files, so re-running the evaluations and this command is how the table is updated.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+from pathlib import Path
+
+__all__ = ["main", "table"]
+
+
+def _row(label: str, metrics: list[dict]) -> str:
+    success = [100.0 * m["success_rate"] for m in metrics]
+    spread = f" ± {statistics.stdev(success):.1f}" if len(success) > 1 else ""
+    position = statistics.mean(m["final_position_error_mm"]["median"] for m in metrics)
+    orientation = statistics.mean(m["final_orientation_error_deg"]["median"] for m in metrics)
+    k_mean = statistics.mean(m["min_inverse_condition"]["mean"] for m in metrics)
+    k_min = min(m["min_inverse_condition"]["min"] for m in metrics)
+    singular = sum(m["singularity_terminations"] for m in metrics)
+    episodes = sum(m["episodes"] for m in metrics)
+    cost = statistics.mean(m["cost_fraction"]["mean"] for m in metrics)
+    return (
+        f"| {label} | {len(metrics)} | {statistics.mean(success):.1f}{spread} % | {position:.2f} | {orientation:.2f} "
+        f"| {k_mean:.3f} / {k_min:.3f} | {singular} / {episodes} | {cost:.3f} |"
+    )
+
+
+def table(groups: dict[str, list[dict]]) -> str:
+    """A Markdown table with one row per group of evaluations (seeds of one agent on one target set)."""
+    lines = [
+        "| agent @ targets | runs | success (mean ± std over runs) | final pos. error [mm] (median) "
+        "| final orient. error [°] (median) | min k (mean / worst) | singularity terminations | cost fraction |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    lines += [_row(label, metrics) for label, metrics in groups.items()]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Group the evaluations by agent and target set (their label without the run name) and write the table."""
+    parser = argparse.ArgumentParser(prog="python -m training.family_report", description=__doc__.split("\n")[0])
+    parser.add_argument("out")
+    parser.add_argument("evals", nargs="+", help="folders holding a metrics.json")
+    args = parser.parse_args(argv)
+    groups: dict[str, list[dict]] = {}
+    for folder in args.evals:
+        metrics = json.loads((Path(folder) / "metrics.json").read_text())
+        label = metrics["label"]
+        if "(" in label:  # "ppo (run-s0) @ standard" → "ppo @ standard"
+            label = label.split(" (")[0] + " @" + label.rsplit("@", 1)[1]
+        if "shield" in str(folder):
+            label += " + shield"
+        groups.setdefault(label, []).append(metrics)
+    Path(args.out).write_text(table(groups))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
