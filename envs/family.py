@@ -20,12 +20,10 @@ from typing import Any, ClassVar, NamedTuple
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.utils import seeding
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
 
 from envs import family_kernels as fk
 from envs.core import TERMINATION_REASONS, NonFiniteActionError
+from envs.vector import Planar3RPRVectorEnv
 from kinematics import DistanceConstraintMechanism, StewartGough
 
 __all__ = [
@@ -918,145 +916,43 @@ FamilyReachEnv.__doc__ = FamilyReachEnv.__doc__.replace("{arguments}", _ARGUMENT
 FamilyTrackEnv.__doc__ = FamilyTrackEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)
 
 
-class FamilyVectorEnv(VectorEnv):
+class FamilyVectorEnv(Planar3RPRVectorEnv):
     """N robots of the family in one batch: the native vector form of ``FamilyReachEnv`` / ``FamilyTrackEnv``.
 
-    Sub-environment i of ``reset(seed=s)`` is the single env reset with seed s + i; the step is one
-    compiled pass over the robots (``step``) and new episodes one compiled sampler call. Autoreset follows
-    Gymnasium 1.x's ``NEXT_STEP`` mode: the step after an episode ends resets it, ignores its action and
-    returns the first observation with reward 0. Truncation after ``max_episode_steps``.
+    The vector semantics (seeding, ``reset_mask``, the three autoreset modes of Gymnasium 1.x, the vector info
+    layout, ``get_attr`` / ``set_attr``) are those of ``envs.vector.Planar3RPRVectorEnv``, whose machinery this
+    class reuses; only the physics differs: ``envs.family.step`` / ``evaluate`` / ``initial_state`` (one
+    compiled pass over the robots, on every core for large N) and each sub-environment's task drawn by the
+    single env's compiled sampler. Sub-environment i of ``reset(seed=s)`` is the single env reset with s + i.
 
     Args:
         num_envs: Number of robots N.
         max_episode_steps: Truncation length (default: the registered one of the class).
+        autoreset_mode: ``AutoresetMode`` (NEXT_STEP by default, SAME_STEP for SB3, DISABLED).
         render_mode: "rgb_array" or None.
         **kwargs: The single env's arguments.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": ["rgb_array"],
-        "render_fps": 20,
-        "autoreset_mode": AutoresetMode.NEXT_STEP,
-    }
     single_env_class: ClassVar[type[FamilyEnvBase] | None] = None
-    default_max_episode_steps: ClassVar[int] = 200
+    _physics = None  # set below to this module
 
-    def __init__(
-        self, num_envs: int = 1, *, max_episode_steps: int | None = None, render_mode: str | None = None, **kwargs: Any
-    ) -> None:
-        cls = type(self).single_env_class
-        if cls is None:
-            raise TypeError("FamilyVectorEnv is abstract; use FamilyReachVectorEnv or FamilyTrackVectorEnv")
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an int ≥ 1, got {num_envs!r}")
-        self.num_envs = int(num_envs)
-        steps = type(self).default_max_episode_steps if max_episode_steps is None else max_episode_steps
-        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-            raise ValueError(f"max_episode_steps must be an int ≥ 1, got {steps!r}")
-        self.max_episode_steps = int(steps)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
-        self._sampler = cls(render_mode=render_mode, **kwargs)
-        self.params = self._sampler.params
-        self.with_velocity = cls.with_velocity
-        self.metadata = {**type(self).metadata, "render_fps": 1.0 / self.params.dt}
-        self.single_action_space = self._sampler.action_space
-        self.single_observation_space = self._sampler.observation_space
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self._generators: list[np.random.Generator | None] = [None] * self.num_envs
-        self._seeds: list[int | None] = [None] * self.num_envs
-        self._state: FamilyState | None = None
-        self._buffers = (
-            StepBuffers(self.params, self.num_envs, self.with_velocity),
-            StepBuffers(self.params, self.num_envs, self.with_velocity),
-        )
-        self._next = 0
-        self._ended = np.zeros(self.num_envs, dtype=bool)
+    @property
+    def _reward_row(self) -> int:
+        return self.params.evaluation_rows["reward"]
 
-    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
-        """Start new episodes in every sub-environment (seed s: sub-environment i gets s + i)."""
-        if seed is None:
-            seeds: list[int | None] = [None] * self.num_envs
-        elif isinstance(seed, (int, np.integer)):
-            seeds = [int(seed) + i for i in range(self.num_envs)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"seed must be None, an int or {self.num_envs} seeds, got {len(seeds)}")
-        options = {} if options is None else dict(options)
-        unknown = set(options) - set(self._sampler.reset_options)
-        if unknown:
-            raise ValueError(
-                f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self._sampler.reset_options)}"
-            )
-        for i in range(self.num_envs):
-            if seeds[i] is not None or self._generators[i] is None:
-                self._generators[i], self._seeds[i] = seeding.np_random(seeds[i])
-        rows = np.arange(self.num_envs)
-        self._state = self._start(rows, options)
-        self._ended[:] = False
-        n = self.params.robot.n_actuators
-        evaluation, observations = evaluate(
-            self.params,
-            self._state,
-            np.zeros((self.num_envs, n)),
-            np.zeros(self.num_envs, dtype=np.int64),
-            self.with_velocity,
-        )
-        return observations.copy(), self._vector_info(
-            step_info(self.params, evaluation, np.zeros(self.num_envs, dtype=np.int64))
-        )
+    def _new_buffers(self) -> StepBuffers:
+        return StepBuffers(self.params, self.num_envs, self.with_velocity)
 
-    def step(self, actions: Any):
-        """Advance every robot by dt; ended sub-environments are reset (NEXT_STEP autoreset)."""
-        if self._state is None:
-            raise gym.error.ResetNeeded("Cannot call step() before reset()")
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != (self.num_envs, self.params.robot.n_actuators):
-            raise ValueError(f"actions must have shape {(self.num_envs, self.params.robot.n_actuators)}, got {a.shape}")
-        out = self._buffers[self._next]
-        try:
-            state, outcome, evaluation, observations = step(self.params, self._state, a, self.with_velocity, out)
-        except NonFiniteActionError as exc:
-            raise ValueError(f"actions must be finite; sub-environment(s) {exc.rows[:10].tolist()} are not") from None
-        self._next ^= 1
-        info = step_info(self.params, evaluation, outcome.reason)
-        rewards = evaluation[self.params.evaluation_rows["reward"]].copy()
-        terminations = outcome.reason != 0
-        truncations = state.t >= self.max_episode_steps
-        restarted = np.flatnonzero(self._ended)
-        self._state = state
-        if restarted.size:
-            rewards[restarted] = 0.0
-            terminations[restarted] = False
-            truncations[restarted] = False
-            fresh = self._start(restarted, {})
-            for field_name, value in zip(FamilyState._fields[:-1], fresh[:-1]):
-                getattr(state, field_name)[restarted] = value
-            for array, value in zip(state.reference, fresh.reference):
-                array[restarted] = value
-            n = self.params.robot.n_actuators
-            new_eval, new_obs = evaluate(
-                self.params,
-                fresh,
-                np.zeros((restarted.size, n)),
-                np.zeros(restarted.size, dtype=np.int64),
-                self.with_velocity,
-            )
-            observations[restarted] = new_obs
-            for key, value in step_info(self.params, new_eval, np.zeros(restarted.size, dtype=np.int64)).items():
-                info[key][restarted] = value
-        self._ended = terminations | truncations
-        return observations.copy(), rewards, terminations, truncations, self._vector_info(info)
+    def _initial_state(self, start: np.ndarray, reference: FamilyReference) -> FamilyState:
+        return initial_state(self.params, start, reference)
 
-    def render(self):
-        """Frames of the N sub-environments (``rgb_array``)."""
-        if self.render_mode is None:
-            return None
-        if self._state is None:
-            raise gym.error.ResetNeeded("Cannot call render() before reset()")
+    def _step_info(self, state: FamilyState, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
+        return step_info(self.params, evaluation, reason)
+
+    def _trail_point(self, i: int) -> np.ndarray:
+        return self.params.robot.pose_space.position(self._state.x[i]).copy()
+
+    def _frames(self) -> tuple[np.ndarray, ...]:
         from envs.rendering_family import render_family_frame
 
         state = self._state
@@ -1074,41 +970,22 @@ class FamilyVectorEnv(VectorEnv):
                 hard_threshold=self.params.hard_threshold,
                 view_low=self.params.pose_low,
                 view_high=self.params.pose_high,
+                trail=list(self._trails[i]),
                 step=int(state.t[i]),
             )
             for i in range(self.num_envs)
         )
 
-    @property
-    def state(self) -> FamilyState | None:
-        """A copy of the batched state, or None before the first reset."""
-        return None if self._state is None else copy_state(self._state)
-
-    def _start(self, rows: np.ndarray, options: dict[str, Any]) -> FamilyState:
-        for i in rows:
-            if self._generators[i] is None:
-                self._generators[i], self._seeds[i] = seeding.np_random()
-        start, reference = self._sampler.sample_tasks([self._generators[i] for i in rows.tolist()], options)
-        return initial_state(self.params, start, reference)
-
-    def _vector_info(self, info: dict[str, np.ndarray]) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        mask = np.ones(self.num_envs, dtype=bool)
-        for key, value in info.items():
-            out[key] = value
-            out[f"_{key}"] = mask
-        return out
-
 
 class FamilyReachVectorEnv(FamilyVectorEnv):
-    """Native vector form of ``FamilyReachEnv`` (see ``FamilyVectorEnv``)."""
+    """N robots of ``FamilyReachEnv`` (``StewartGoughReach-v0``, ``StewartGoughReachHard-v0``) in one batch."""
 
     single_env_class = FamilyReachEnv
     default_max_episode_steps = 200
 
 
 class FamilyTrackVectorEnv(FamilyVectorEnv):
-    """Native vector form of ``FamilyTrackEnv`` (see ``FamilyVectorEnv``)."""
+    """N robots of ``FamilyTrackEnv`` (``StewartGoughTrack-v0``) in one batch."""
 
     single_env_class = FamilyTrackEnv
     default_max_episode_steps = 400
@@ -1121,4 +998,5 @@ def _module():
 
 
 FamilyEnvBase.physics = _module()
+FamilyVectorEnv._physics = _module()
 del replace

@@ -12,8 +12,8 @@ With d_i = p + R P_i − B_i (leg kind: A_i = B_i, ℓ_i = q_i), the kernels use
     J_q = −2 diag(q),        J_f = −J_x⁻¹ J_q = A⁻¹ diag(q),   J_i = diag(1/q) A,
 
 as ``kinematics.DistanceConstraintMechanism`` (the NumPy reference they are tested against). Systems are
-solved by Gaussian elimination with partial pivoting; the inverse condition number of the homogeneous
-J_i diag(pose_scale) comes from a one-sided Jacobi SVD (Hestenes), accurate near singular matrices. A spatial
+solved and conditioned by ``envs.linalg_kernels`` (closed forms for m = 3; pivoted elimination and a one-sided
+Jacobi SVD for m = 6), accurate near singular matrices. A spatial
 pose stores the rotation vector r; every update of it goes through unit quaternions (R ← exp([δθ]×) R), so
 the integrator and Newton's method work on the rotation group, never on Euler angles.
 
@@ -28,6 +28,7 @@ import numba
 import numpy as np
 
 from envs.kernels import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
+from envs.linalg_kernels import inverse_condition6, singular_value_ratio3, solve3, solve6
 
 __all__ = [
     "C_SIZE",
@@ -383,43 +384,18 @@ def _inverse_kinematics(c, x, w, out):
 
 @_jit
 def _solve(w, m, src, rhs, sol):
-    """Solve (rows ``src`` of w) u = rhs by elimination with partial pivoting into sol; returns det (0: sol NaN)."""
-    lu = w[W_LU : W_LU + m]
-    for i in range(m):
-        for j in range(m):
-            lu[i, j] = w[src + i, j]
-        sol[i] = rhs[i]
-    det = 1.0
-    for k in range(m):
-        p = k
-        best = abs(lu[k, k])
-        for i in range(k + 1, m):
-            v = abs(lu[i, k])
-            if v > best:
-                best, p = v, i
-        if best == 0.0 or best != best:
-            for i in range(m):
-                sol[i] = np.nan
-            return 0.0 if best == 0.0 else np.nan
-        if p != k:
-            for j in range(m):
-                lu[k, j], lu[p, j] = lu[p, j], lu[k, j]
-            sol[k], sol[p] = sol[p], sol[k]
-            det = -det
-        pivot = lu[k, k]
-        det *= pivot
-        for i in range(k + 1, m):
-            f = lu[i, k] / pivot
-            if f != 0.0:
-                for j in range(k + 1, m):
-                    lu[i, j] -= f * lu[k, j]
-                sol[i] -= f * sol[k]
-    for i in range(m - 1, -1, -1):
-        s = sol[i]
-        for j in range(i + 1, m):
-            s -= lu[i, j] * sol[j]
-        sol[i] = s / lu[i, i]
-    return det
+    """Solve (rows ``src`` of w) u = rhs into sol (m = 3: adjugate; m = 6: pivoted elimination); returns det.
+
+    Where the matrix is exactly singular, sol is NaN and det 0.
+    """
+    if m == 3:
+        a = w[src]
+        b = w[src + 1]
+        c = w[src + 2]
+        u0, u1, u2, det = solve3(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], rhs[0], rhs[1], rhs[2])
+        sol[0], sol[1], sol[2] = u0, u1, u2
+        return det
+    return solve6(w[src : src + 6], rhs, w[W_LU : W_LU + 6], sol)
 
 
 @_jit
@@ -433,62 +409,42 @@ def _twist_rate(c, q, rate, w, src, out):
 
 
 @_jit
-def _jacobi_ratio(w, n, m):
-    """σ_min/σ_max of the n × m rows at w[W_H:] by one-sided Jacobi SVD; 0 for a zero matrix, NaN if not finite."""
-    H = w[W_H : W_H + n]
-    for _ in range(60):
-        rotated = False
-        for j in range(m - 1):
-            for l2 in range(j + 1, m):
-                alpha = 0.0
-                beta = 0.0
-                gamma = 0.0
-                for i in range(n):
-                    a, b = H[i, j], H[i, l2]
-                    alpha += a * a
-                    beta += b * b
-                    gamma += a * b
-                if not abs(gamma) > 2.220446049250313e-16 * math.sqrt(alpha * beta):
-                    continue
-                rotated = True
-                zeta = (beta - alpha) / (2.0 * gamma)
-                if abs(zeta) > 1e150:
-                    t = 0.5 / zeta
-                else:
-                    t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
-                cs = 1.0 / math.sqrt(1.0 + t * t)
-                sn = cs * t
-                for i in range(n):
-                    a, b = H[i, j], H[i, l2]
-                    H[i, j] = cs * a - sn * b
-                    H[i, l2] = sn * a + cs * b
-        if not rotated:
-            break
-    top = 0.0
-    low = np.inf
-    for j in range(m):
-        s = 0.0
-        for i in range(n):
-            s += H[i, j] * H[i, j]
-        if s != s:
-            return np.nan
-        top = max(top, s)
-        low = min(low, s)
-    if top == 0.0:
-        return 0.0
-    return math.sqrt(low / top)
-
-
-@_jit
 def _singularity(c, q, w, src):
-    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``src`` of A."""
+    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``src`` of A.
+
+    J_i diag(pose_scale) = diag(1/q) A diag(pose_scale); its σ_min/σ_max in closed form (m = 3) or by a
+    one-sided Jacobi SVD (m = 6). sign(det J_x) = sign(det A).
+    """
     m = int(c[C_N])
-    for i in range(m):
-        inv = 1.0 / q[i]
-        for j in range(m):
-            w[W_H + i, j] = w[src + i, j] * inv * c[C_SCALE + j]
-    k = _jacobi_ratio(w, m, m)
-    det = _solve(w, m, src, w[W_RHS], w[W_SOL])
+    if m == 3:
+        a = w[src]
+        b = w[src + 1]
+        d = w[src + 2]
+        i0, i1, i2 = 1.0 / q[0], 1.0 / q[1], 1.0 / q[2]
+        s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
+        k = singular_value_ratio3(
+            a[0] * i0 * s0,
+            a[1] * i0 * s1,
+            a[2] * i0 * s2,
+            b[0] * i1 * s0,
+            b[1] * i1 * s1,
+            b[2] * i1 * s2,
+            d[0] * i2 * s0,
+            d[1] * i2 * s1,
+            d[2] * i2 * s2,
+        )
+        det = (
+            a[0] * (b[1] * d[2] - b[2] * d[1]) + a[1] * (b[2] * d[0] - b[0] * d[2]) + a[2] * (b[0] * d[1] - b[1] * d[0])
+        )
+    else:
+        Ht = w[W_H : W_H + 6]  # column j of J_i diag(pose_scale) as row j
+        for i in range(6):
+            inv = 1.0 / q[i]
+            row = w[src + i]
+            for j in range(6):
+                Ht[j, i] = row[j] * inv * c[C_SCALE + j]
+        k = inverse_condition6(Ht)
+        det = _solve(w, m, src, w[W_RHS], w[W_SOL])
     sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
     return k, sign
 

@@ -8,13 +8,12 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from envs import core
-from envs.core import Reference, State
+from envs.core import State
 from envs.planar_3rpr import (
     TRAIL_LENGTH,
     Planar3RPREnvBase,
@@ -37,9 +36,9 @@ def _positive_int(name: str, value: Any) -> int:
 
 
 def _take(state: State, rows: np.ndarray) -> State:
-    """The rows ``rows`` of a batched state (copies)."""
-    reference = Reference(*(field[rows] for field in state.reference))
-    return State(*(field[rows] for field in state[:-1]), reference=reference)
+    """The rows ``rows`` of a batched state (copies); works for any state NamedTuple ending with its reference."""
+    reference = type(state.reference)(*(field[rows] for field in state.reference))
+    return type(state)(*(field[rows] for field in state[:-1]), reference)
 
 
 def _put(state: State, rows: np.ndarray, values: State) -> None:
@@ -171,9 +170,9 @@ class Planar3RPRVectorEnv(VectorEnv):
             "autoreset_mode": self.autoreset_mode,
         }
 
-        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
-        low, high = core.observation_bounds(self.params, self.with_velocity)
-        self.single_observation_space = spaces.Box(low.copy(), high.copy(), dtype=np.float32)
+        self.single_action_space = self._sampler.action_space
+        self.single_observation_space = self._sampler.observation_space
+        self._n_actions = self.single_action_space.shape[0]
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
 
@@ -183,10 +182,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         self._observations: np.ndarray | None = None
         # Two sets of step outputs, used in turn (a step never writes over the state it starts from),
         # so that stepping allocates no large arrays.
-        self._buffers = (
-            core.StepBuffers(self.num_envs, self.with_velocity),
-            core.StepBuffers(self.num_envs, self.with_velocity),
-        )
+        self._buffers = (self._new_buffers(), self._new_buffers())
         self._next = 0
         self._ended = np.zeros(self.num_envs, dtype=bool)
         self._trails: list[deque[np.ndarray]] = []
@@ -233,7 +229,9 @@ class Planar3RPRVectorEnv(VectorEnv):
         else:
             _put(self._state, rows, fresh)
         self._ended[rows] = False
-        observations, info = self._evaluate(fresh, np.zeros((rows.size, 3)), np.zeros(rows.size, dtype=np.int64))
+        observations, info = self._evaluate(
+            fresh, np.zeros((rows.size, self._n_actions)), np.zeros(rows.size, dtype=np.int64)
+        )
         if self._observations is None:
             self._observations = observations
         else:
@@ -262,7 +260,9 @@ class Planar3RPRVectorEnv(VectorEnv):
             )
         out = self._buffers[self._next]  # not the one holding self._state
         try:
-            state, outcome, evaluation, observations = core.step(self.params, self._state, a, self.with_velocity, out)
+            state, outcome, evaluation, observations = self._physics.step(
+                self.params, self._state, a, self.with_velocity, out
+            )
         except core.NonFiniteActionError as exc:  # checked inside the compiled pass; no robot has moved
             bad = exc.rows
             raise ValueError(
@@ -270,8 +270,8 @@ class Planar3RPRVectorEnv(VectorEnv):
             ) from None
         self._next ^= 1
         self._state = state
-        info = step_info(state, evaluation, outcome.reason)
-        rewards = evaluation[core.EVALUATION_ROWS["reward"]].copy()
+        info = self._step_info(state, evaluation, outcome.reason)
+        rewards = evaluation[self._reward_row].copy()
         terminations = outcome.reason != 0
         truncations = state.t >= self.max_episode_steps
         extra: dict[str, Any] = {}
@@ -317,6 +317,30 @@ class Planar3RPRVectorEnv(VectorEnv):
             return None
         if self._state is None:
             raise gym.error.ResetNeeded("Cannot call render() before reset()")
+        return self._frames()
+
+    # -- what depends on the physics (the planar 3-RPR's ``envs.core`` here; ``envs.family`` overrides) ------
+
+    #: The module of pure batched functions the step calls.
+    _physics = core
+
+    @property
+    def _reward_row(self) -> int:
+        return core.EVALUATION_ROWS["reward"]
+
+    def _new_buffers(self) -> Any:
+        return core.StepBuffers(self.num_envs, self.with_velocity)
+
+    def _initial_state(self, start: np.ndarray, reference: Any) -> State:
+        return initial_state(self.params, start, reference)
+
+    def _step_info(self, state: State, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
+        return step_info(state, evaluation, reason)
+
+    def _trail_point(self, i: int) -> np.ndarray:
+        return self._state.x[i, :2].copy()
+
+    def _frames(self) -> tuple[np.ndarray, ...]:
         state = self._state
         target, _ = core.reference_pose(self.params, state.reference, state.t)
         return tuple(
@@ -432,8 +456,8 @@ class Planar3RPRVectorEnv(VectorEnv):
         self, state: State, action: np.ndarray, reason: np.ndarray
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Observations and per-robot info arrays (fresh, writable) of a batched state."""
-        evaluation, observations = core.evaluate(self.params, state, action, reason, self.with_velocity)
-        return observations, step_info(state, evaluation, reason)
+        evaluation, observations = self._physics.evaluate(self.params, state, action, reason, self.with_velocity)
+        return observations, self._step_info(state, evaluation, reason)
 
     def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> State:
         """Draw a task for each sub-environment of ``rows`` with its own generator; their state at t = 0.
@@ -441,7 +465,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         One compiled call for all of them (``sample_tasks``), each drawing from its own generator.
         """
         start, reference = self._sampler.sample_tasks([self._generators[i] for i in rows.tolist()], options)
-        return initial_state(self.params, start, reference)
+        return self._initial_state(start, reference)
 
     def _restart(self, rows: np.ndarray, observations: np.ndarray, info: dict[str, np.ndarray]) -> None:
         """Autoreset the sub-environments ``rows``: new episodes, their observations and reset infos."""
@@ -450,7 +474,9 @@ class Planar3RPRVectorEnv(VectorEnv):
                 self._generators[i], self._seeds[i] = seeding.np_random()
         fresh = self._start_episodes(rows, {})
         _put(self._state, rows, fresh)
-        new_obs, new_info = self._evaluate(fresh, np.zeros((rows.size, 3)), np.zeros(rows.size, dtype=np.int64))
+        new_obs, new_info = self._evaluate(
+            fresh, np.zeros((rows.size, self._n_actions)), np.zeros(rows.size, dtype=np.int64)
+        )
         observations[rows] = new_obs
         for key, value in new_info.items():
             info[key][rows] = value
@@ -479,13 +505,13 @@ class Planar3RPRVectorEnv(VectorEnv):
             return
         for i in rows:
             self._trails[i].clear()
-            self._trails[i].append(self._state.x[i, :2].copy())
+            self._trails[i].append(self._trail_point(i))
 
     def _extend_trails(self, restarted: np.ndarray) -> None:
         if self.render_mode is None:
             return
         for i in range(self.num_envs):
-            self._trails[i].append(self._state.x[i, :2].copy())
+            self._trails[i].append(self._trail_point(i))
         self._restart_trails(restarted)
 
     def _seed_list(self, seed: Any) -> list[int | None]:
@@ -514,9 +540,11 @@ class Planar3RPRVectorEnv(VectorEnv):
         try:
             a = np.asarray(actions, dtype=np.float64)
         except (TypeError, ValueError) as exc:
-            raise TypeError(f"actions must be an array of shape ({self.num_envs}, 3) of real numbers") from exc
-        if a.shape != (self.num_envs, 3):
-            raise ValueError(f"actions must have shape ({self.num_envs}, 3), got shape {a.shape}")
+            raise TypeError(
+                f"actions must be an array of shape ({self.num_envs}, {self._n_actions}) of real numbers"
+            ) from exc
+        if a.shape != (self.num_envs, self._n_actions):
+            raise ValueError(f"actions must have shape ({self.num_envs}, {self._n_actions}), got shape {a.shape}")
         return a  # finiteness is checked inside the compiled step
 
 

@@ -227,3 +227,39 @@ def test_bad_actions_are_refused():
         env.step(np.zeros(3))
     with pytest.raises(ValueError, match="finite"):
         env.step(np.full(6, np.nan))
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+def test_vector_env_autoreset_modes_and_sb3_adapter(mode):
+    """The family vector env runs both autoreset modes; in SAME_STEP it serves SB3 through the native adapter."""
+    from gymnasium.vector import AutoresetMode
+
+    from training.vec_adapter import NativeVecEnvAdapter
+
+    vec = gym.make_vec(
+        "StewartGoughReach-v0",
+        num_envs=3,
+        vectorization_mode="vector_entry_point",
+        autoreset_mode=AutoresetMode(mode),
+        max_episode_steps=5,
+    )
+    vec.reset(seed=0)
+    ended_seen = False
+    for _ in range(12):
+        _, _, term, trunc, infos = vec.step(vec.action_space.sample())
+        ended_seen |= bool((term | trunc).any())
+        if mode == "SameStep" and (term | trunc).any():
+            assert infos["_final_obs"].any()
+    assert ended_seen
+    if mode == "SameStep":
+        adapter = NativeVecEnvAdapter.from_id("StewartGoughReach-v0", 2, max_episode_steps=4)
+        adapter.seed(1)
+        obs = adapter.reset()
+        assert obs.shape == (2, 33)
+        finals = 0
+        for _ in range(5):
+            adapter.step_async(np.zeros((2, 6), dtype=np.float32))
+            obs, rewards, dones, infos = adapter.step_wait()
+            finals += sum("terminal_observation" in info for info in infos)
+            assert finals == 0 or dones.any() or finals == 2
+        assert finals == 2  # both robots truncated at step 4, with their last observation
