@@ -91,7 +91,7 @@ _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_
 W_A = 0  # A = J_x / 2, n × m (rows 0..5)
 W_LU = 6  # elimination copy of A (rows 6..11)
 W_H = 12  # homogeneous J_i, for the SVD (rows 12..17)
-W_R = 18  # rotation matrix R (rows 18..20)
+W_R = 18  # (unused rows 18..20)
 W_SQ = 21  # squared leg lengths d_iᵀ d_i
 W_RHS = 22
 W_SOL = 23
@@ -280,25 +280,26 @@ def _wrap(angle):
 
 
 @_jit
-def _frame(c, x, R):
-    """Position p of {P} and rotation R (written into the 3 × 3 rows ``R``) of the pose x; returns p."""
+def _frame(c, x):
+    """Position p of {P} and the rotation R (row by row) of the pose x: (p0, p1, p2, r00, …, r22)."""
     if c[C_SPATIAL] != 0.0:
         w, a, b, d = _quat_from_rotvec(x[3], x[4], x[5])
-        R[0, 0] = 1.0 - 2.0 * (b * b + d * d)
-        R[0, 1] = 2.0 * (a * b - d * w)
-        R[0, 2] = 2.0 * (a * d + b * w)
-        R[1, 0] = 2.0 * (a * b + d * w)
-        R[1, 1] = 1.0 - 2.0 * (a * a + d * d)
-        R[1, 2] = 2.0 * (b * d - a * w)
-        R[2, 0] = 2.0 * (a * d - b * w)
-        R[2, 1] = 2.0 * (b * d + a * w)
-        R[2, 2] = 1.0 - 2.0 * (a * a + b * b)
-        return x[0], x[1], x[2]
+        return (
+            x[0],
+            x[1],
+            x[2],
+            1.0 - 2.0 * (b * b + d * d),
+            2.0 * (a * b - d * w),
+            2.0 * (a * d + b * w),
+            2.0 * (a * b + d * w),
+            1.0 - 2.0 * (a * a + d * d),
+            2.0 * (b * d - a * w),
+            2.0 * (a * d - b * w),
+            2.0 * (b * d + a * w),
+            1.0 - 2.0 * (a * a + b * b),
+        )
     cs, sn = math.cos(x[2]), math.sin(x[2])
-    R[0, 0], R[0, 1], R[0, 2] = cs, -sn, 0.0
-    R[1, 0], R[1, 1], R[1, 2] = sn, cs, 0.0
-    R[2, 0], R[2, 1], R[2, 2] = 0.0, 0.0, 1.0
-    return x[0], x[1], 0.0
+    return x[0], x[1], 0.0, cs, -sn, 0.0, sn, cs, 0.0, 0.0, 0.0, 1.0
 
 
 @_jit
@@ -351,14 +352,14 @@ def _all_finite(v, m):
 def _rows(c, x, w):
     """Rows of A = J_x / 2 at x into w[W_A:], and d_iᵀ d_i into w[W_SQ]."""
     n = int(c[C_N])
-    R = w[W_R : W_R + 3]
-    p0, p1, p2 = _frame(c, x, R)
+    p0, p1, p2, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _frame(c, x)
     spatial = c[C_SPATIAL] != 0.0
+    sq = w[W_SQ]
     for i in range(n):
         P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
-        rp0 = R[0, 0] * P0 + R[0, 1] * P1 + R[0, 2] * P2
-        rp1 = R[1, 0] * P0 + R[1, 1] * P1 + R[1, 2] * P2
-        rp2 = R[2, 0] * P0 + R[2, 1] * P1 + R[2, 2] * P2
+        rp0 = r00 * P0 + r01 * P1 + r02 * P2
+        rp1 = r10 * P0 + r11 * P1 + r12 * P2
+        rp2 = r20 * P0 + r21 * P1 + r22 * P2
         d0 = p0 + rp0 - c[C_B + 3 * i]
         d1 = p1 + rp1 - c[C_B + 3 * i + 1]
         d2 = p2 + rp2 - c[C_B + 3 * i + 2]
@@ -371,7 +372,7 @@ def _rows(c, x, w):
             row[5] = m2
         else:
             row[0], row[1], row[2] = d0, d1, m2
-        w[W_SQ, i] = d0 * d0 + d1 * d1 + d2 * d2
+        sq[i] = d0 * d0 + d1 * d1 + d2 * d2
 
 
 @_jit

@@ -20,6 +20,7 @@ from importlib import resources
 from pathlib import Path
 
 import gymnasium as gym
+import numpy as np
 
 import envs  # registers the ids
 from training import plots
@@ -33,13 +34,16 @@ from training.evaluate import (
     print_table,
 )
 
-__all__ = ["PRETRAINED_RUN", "main", "record_regression", "run_demo"]
+__all__ = ["PRETRAINED_HEXAPOD_RUN", "PRETRAINED_RUN", "main", "record_regression", "run_demo", "run_hexapod_demo"]
 
 #: The run folder of the policy that ships with the project (trained by ``training.train``).
 PRETRAINED_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReach-v0")))
 #: A second shipped policy, trained on hard targets (Planar3RPRReachHard-v0), shown when present.
 PRETRAINED_HARD_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReachHard-v0")))
 
+
+#: The shipped Stewart–Gough hexapod policy (StewartGoughReach-v0), shown in its own section when present.
+PRETRAINED_HEXAPOD_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-StewartGoughReach-v0")))
 
 #: Guard level of the singularity shield in the demo's shielded rows.
 DEMO_SHIELD = 0.05
@@ -115,6 +119,51 @@ def run_demo(
     return metrics
 
 
+def run_hexapod_demo(run: Path, out: Path, episodes: int, seed: int = 1000, shield: float | None = DEMO_SHIELD) -> dict:
+    """Evaluate the hexapod policy and resolved-rate on standard and hard hexapod targets; write ``hexapod.md``.
+
+    Standard targets come from ``StewartGoughReach-v0``, hard (ill-conditioned) ones from
+    ``StewartGoughReachHard-v0``; every agent is also evaluated behind the shield when ``shield`` is set.
+
+    Args:
+        run: Run folder of the hexapod policy.
+        out: Report folder (created).
+        episodes: Episodes per agent and target set.
+        seed: Seed of the first episode.
+        shield: Guard level of ``envs.SingularityShield`` (None: no shielded rows).
+
+    Returns:
+        Label → aggregated metrics.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    policy, config = load_run(run)
+    ids = {"standard": "StewartGoughReach-v0", "hard": "StewartGoughReachHard-v0"}
+    metrics: dict = {}
+    frames: list[np.ndarray] = []
+    for targets, env_id in ids.items():
+        env = gym.make(env_id, render_mode="rgb_array")
+        agents = {f"{config['algo'].upper()} policy": policy, "resolved-rate": load_controller("resolved-rate", env)}
+        for name, agent in agents.items():
+            film = frames if (targets == "standard" and name != "resolved-rate") else None
+            recs = evaluate_agent(agent, env, episodes, seed, targets, film, 2)
+            metrics[f"{name} @ {targets}"] = aggregate(recs)
+            if shield is not None:
+                shielded = envs.SingularityShield(gym.make(env_id), k_guard=shield)
+                metrics[f"{name} + shield @ {targets}"] = aggregate(
+                    evaluate_agent(agent, shielded, episodes, seed, targets)
+                )
+                shielded.close()
+        env.close()
+    plots.save_gif(frames, out / "hexapod_policy.gif", fps=20)
+    (out / "hexapod_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    (out / "hexapod.md").write_text(
+        f"# Stewart–Gough hexapod\n\nStandard targets: `StewartGoughReach-v0`; hard (ill-conditioned) targets: "
+        f"`StewartGoughReachHard-v0`. {episodes} episodes per row (reset seeds {seed}…{seed + episodes - 1}). "
+        f"Policy: `{run}`.\n\n{format_table(metrics)}\nPicture: `hexapod_policy.gif`.\n"
+    )
+    return metrics
+
+
 def record_regression(run: Path, episodes: int = 20, seed: int = 5000) -> dict:
     """Evaluate a run on fixed standard-target seeds and store the result as ``regression.json``.
 
@@ -183,7 +232,12 @@ def main(argv: list[str] | None = None) -> int:
     except EvaluationError as exc:
         parser.error(str(exc))
     print_table(metrics)
-    print(f"report written to {args.out}/report.md ({time.perf_counter() - start:.0f} s)")
+    if PRETRAINED_HEXAPOD_RUN.is_dir() and Path(args.run) == PRETRAINED_RUN:
+        hexapod = run_hexapod_demo(
+            PRETRAINED_HEXAPOD_RUN, Path(args.out), args.episodes, args.seed, args.shield or None
+        )
+        print_table(hexapod)
+    print(f"report written to {args.out}/report.md and hexapod.md ({time.perf_counter() - start:.0f} s)")
     return 0
 
 

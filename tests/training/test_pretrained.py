@@ -110,3 +110,38 @@ def test_demo_writes_report(pretrained_run, tmp_path, capsys):
     with Image.open(out / "policy_hard.gif") as gif:
         assert gif.format == "GIF" and gif.n_frames > 2
     assert "report written to" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_pretrained_hexapod_policy_keeps_its_recorded_performance():
+    """The shipped hexapod policy reaches its recorded success on the recorded episodes, without singularities."""
+    run = demo.PRETRAINED_HEXAPOD_RUN
+    record = json.loads((run / "regression.json").read_text())
+    assert set(record) == set(REGRESSION_KEYS)
+    assert record["env_id"] == "StewartGoughReach-v0"
+    agent, config = load_run(run)
+    assert config["env_id"] == record["env_id"]
+    env = gym.make(record["env_id"])
+    try:
+        metrics = aggregate(evaluate_agent(agent, env, record["episodes"], record["seed"], record["targets"]))
+    finally:
+        env.close()
+    assert metrics["success_rate"] >= record["success_rate"] - 0.1, metrics
+    assert metrics["singularity_terminations"] <= record["singularity_terminations"] + 1, metrics
+
+
+@pytest.mark.slow
+def test_demo_reports_the_hexapod(pretrained_run, tmp_path):
+    """The main job's report has the hexapod section: policy and resolved-rate, standard and hard, and a GIF."""
+    out = tmp_path / "demo"
+    metrics = demo.run_hexapod_demo(demo.PRETRAINED_HEXAPOD_RUN, out, episodes=2)
+    expected = {
+        f"{agent}{shield} @ {targets}"
+        for agent in ("PPO policy", "resolved-rate")
+        for shield in ("", " + shield")
+        for targets in ("standard", "hard")
+    }
+    assert set(metrics) == expected
+    assert "StewartGoughReachHard-v0" in (out / "hexapod.md").read_text()
+    with Image.open(out / "hexapod_policy.gif") as gif:
+        assert gif.format == "GIF" and gif.n_frames > 2
