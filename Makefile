@@ -38,6 +38,11 @@ bench: $(STAMP)
 	$(PY) -m benchmarks.bench_env_step
 	$(PY) -m benchmarks.bench_vector_env
 	$(PY) -m benchmarks.bench_sb3_ppo
+	$(PY) -m pip install --quiet -e ".[bench]"  # MuJoCo, for the Reacher-v5 anchor
+	$(PY) -m benchmarks.bench_family_step
+	$(PY) -m benchmarks.bench_family_vector
+	$(PY) -m benchmarks.bench_family_kinematics
+	$(PY) -m benchmarks.count_lines
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info

@@ -50,7 +50,8 @@ class SteppedVectorEnv:
         self.env = gym.make_vec(env_id, num_envs=n, vectorization_mode=mode)
         total = WARM_UP_STEPS + steps * rounds
         rng = np.random.default_rng(seed)
-        self.actions = rng.uniform(-1.0, 1.0, size=(total, n, 3)).astype(np.float32)
+        shape = (total, n, *self.env.single_action_space.shape)
+        self.actions = rng.uniform(-1.0, 1.0, size=shape).astype(np.float32)
         self.cursor = 0
         self.ends = 0
         self.sampling_seconds = 0.0
@@ -97,7 +98,7 @@ def memory_per_robot(env_id: str, n: int, seed: int) -> dict[str, float]:
     """Bytes per robot of the native env at N = n: state arrays, observations, generator, step peak."""
     env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
     env.reset(seed=seed)
-    actions = np.zeros((n, 3), dtype=np.float32)
+    actions = np.zeros((n, *env.single_action_space.shape), dtype=np.float32)
     env.step(actions)
     tracemalloc.start()
     generators = [seeding.np_random(i)[0] for i in range(256)]
@@ -127,7 +128,7 @@ def profile_native(env_id: str, n: int, steps: int, seed: int, top: int = 20) ->
     stepper = SteppedVectorEnv(env_id, "vector_entry_point", n, steps, 1, seed)
     quiet = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", max_episode_steps=10**9)
     quiet.reset(seed=seed)
-    zeros = np.zeros((n, 3), dtype=np.float32)
+    zeros = np.zeros((n, *quiet.single_action_space.shape), dtype=np.float32)
     quiet.step(zeros)
     for title, run in (
         (f"{steps} native steps at N = {n}, random actions, autoresets included", stepper.run),

@@ -50,11 +50,10 @@ def main(argv: list[str] | None = None) -> int:
     groups: dict[str, list[dict]] = {}
     for folder in args.evals:
         metrics = json.loads((Path(folder) / "metrics.json").read_text())
-        label = metrics["label"]
-        if "(" in label:  # "ppo (run-s0) @ standard" → "ppo @ standard"
-            label = label.split(" (")[0] + " @" + label.rsplit("@", 1)[1]
-        if "shield" in str(folder):
-            label += " + shield"
+        agent, targets = metrics["label"].rsplit(" @ ", 1)
+        shielded = " + shield" in agent or "shield" in Path(folder).name
+        agent = agent.replace(" + shield", "").split(" (")[0]  # "ppo (run-s0)" → "ppo": seeds are grouped
+        label = f"{agent}{' + shield' if shielded else ''} @ {targets}"
         groups.setdefault(label, []).append(metrics)
     Path(args.out).write_text(table(groups))
     return 0
