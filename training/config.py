@@ -17,6 +17,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 
 __all__ = [
     "ALGORITHMS",
+    "EVAL_DEFAULTS",
     "ConfigError",
     "algorithm_class",
     "load_hyperparams",
@@ -37,11 +38,14 @@ RUN_KEYS = (
     "n_timesteps",
     "policy",
     "normalize",
-    "eval_freq",
-    "n_eval_episodes",
     "env_kwargs",
     "env_wrapper",
 )
+
+#: Periodic evaluation during training, per algorithm: (every so many environment steps, episodes). These are run
+#: settings, not hyperparameters (the RL Zoo's ``--eval-freq`` and ``--eval-episodes`` flags, which
+#: ``training.train`` takes under the same names), so the YAML files stay loadable by the RL Zoo unchanged.
+EVAL_DEFAULTS = {"ppo": (100_000, 20), "sac": (20_000, 20), "td3": (20_000, 20), "tqc": (20_000, 20)}
 
 #: Run keys of the off-policy algorithms (those whose constructor takes ``action_noise``), as in the RL Zoo:
 #: ``noise_type`` names the exploration noise added to the deterministic actor's output, ``noise_std`` its

@@ -118,14 +118,47 @@ def load_controller(name: str, env: gym.Env) -> Agent:
     return table[name](params)
 
 
+class _ZooLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that also reads the RL Zoo's ``config.yml`` (an ``OrderedDict`` of key, value pairs)."""
+
+
+def _ordered_dict(loader: yaml.SafeLoader, node: yaml.Node) -> dict[str, Any]:
+    (pairs,) = loader.construct_sequence(node, deep=True)  # apply:collections.OrderedDict [[[key, value], ...]]
+    return {key: value for key, value in pairs}
+
+
+_ZooLoader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.OrderedDict", _ordered_dict)
+
+
+def zoo_layout(run_dir: str | Path) -> tuple[str, str, Path] | None:
+    """(algo, env id, parameter folder) of a run folder written by the RL Zoo, or None for any other folder.
+
+    The RL Zoo writes ``<log>/<algo>/<env id>_<n>/`` holding the model ``<env id>.zip`` (and ``best_model.zip``)
+    and a folder ``<env id>/`` with ``config.yml``, ``args.yml`` and ``vecnormalize.pkl``.
+
+    Args:
+        run_dir: A folder.
+
+    Returns:
+        The layout, or None.
+    """
+    run = Path(run_dir)
+    env_id = run.name.rsplit("_", 1)[0]
+    params = run / env_id
+    if (params / "config.yml").is_file() and (params / "args.yml").is_file():
+        return run.parent.name, env_id, params
+    return None
+
+
 def read_run_config(run_dir: str | Path) -> dict[str, Any]:
     """The resolved configuration a run folder was trained with.
 
     Args:
-        run_dir: The run folder written by ``training.train``.
+        run_dir: A run folder written by ``training.train``, or by the RL Zoo (``rl_zoo3.train``).
 
     Returns:
-        The contents of ``config.yml``.
+        The contents of ``config.yml`` (for an RL Zoo folder: its algorithm, env id and hyperparameters, with
+        ``"source": "rl_zoo3"``).
 
     Raises:
         EvaluationError: If the folder or its ``config.yml`` is missing or unreadable.
@@ -133,6 +166,23 @@ def read_run_config(run_dir: str | Path) -> dict[str, Any]:
     run = Path(run_dir)
     if not run.is_dir():
         raise EvaluationError(f"run folder {str(run)!r} does not exist")
+    zoo = zoo_layout(run)
+    if zoo is not None:
+        algo, env_id, params = zoo
+        try:
+            hyperparams = yaml.load((params / "config.yml").read_text(), Loader=_ZooLoader)
+            args = yaml.load((params / "args.yml").read_text(), Loader=_ZooLoader)
+        except yaml.YAMLError as exc:
+            raise EvaluationError(f"{str(params)!r} holds a corrupt RL Zoo config: {exc}") from exc
+        if not isinstance(hyperparams, dict) or not isinstance(args, dict):
+            raise EvaluationError(f"{str(params)!r} holds a corrupt RL Zoo config")
+        return {
+            "algo": algo,
+            "env_id": env_id,
+            "seed": args.get("seed"),
+            "hyperparams": hyperparams,
+            "source": "rl_zoo3",
+        }
     path = run / "config.yml"
     if not path.is_file():
         present = sorted(p.name for p in run.iterdir())
@@ -165,7 +215,8 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
     torch.set_num_threads(1)  # small MLPs: threads only contend with the environment
     config = read_run_config(run_dir)
     run = Path(run_dir)
-    names = {"final": "model.zip", "best": "best_model.zip"}
+    zoo = config.get("source") == "rl_zoo3"
+    names = {"final": f"{config['env_id']}.zip" if zoo else "model.zip", "best": "best_model.zip"}
     if which not in names:
         raise EvaluationError(f"--model must be one of {sorted(names)}, got {which!r}")
     model_path = run / names[which]
@@ -188,7 +239,10 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
     except Exception as exc:  # SB3 raises many kinds on a damaged zip
         raise EvaluationError(f"cannot load {str(model_path)!r}: {type(exc).__name__}: {exc}") from exc
     normalizer = None
-    stats = run / ("best_vecnormalize.pkl" if which == "best" else "vecnormalize.pkl")
+    if zoo:  # the RL Zoo keeps one set of statistics, saved with the model
+        stats = run / config["env_id"] / "vecnormalize.pkl"
+    else:
+        stats = run / ("best_vecnormalize.pkl" if which == "best" else "vecnormalize.pkl")
     if config.get("hyperparams", {}).get("normalize"):
         if not stats.is_file():
             raise EvaluationError(f"run folder {str(run)!r} normalises observations but has no {stats.name}")
@@ -452,7 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
     parser = argparse.ArgumentParser(prog="python -m training.evaluate", description=__doc__.split("\n")[0])
     source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--run", help="run folder written by training.train")
+    source.add_argument("--run", help="run folder written by training.train or by the RL Zoo (rl_zoo3.train)")
     source.add_argument("--controller", help=f"one of {sorted(CONTROLLERS)}")
     parser.add_argument("--env", default=None, help=f"one of {list(envs.ENV_IDS)}; default: the run's env")
     parser.add_argument("--episodes", type=int, default=100)

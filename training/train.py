@@ -31,6 +31,7 @@ import yaml
 import envs
 from training.config import (
     ALGORITHMS,
+    EVAL_DEFAULTS,
     ConfigError,
     algorithm_class,
     load_hyperparams,
@@ -192,6 +193,8 @@ def train(
     vec: str = "dummy",
     progress_bar: bool = True,
     command: str | None = None,
+    eval_freq: int | None = None,
+    eval_episodes: int | None = None,
 ) -> Path:
     """Train ``algo`` on ``env_id`` with the shipped hyperparameters (plus overrides); return the run folder.
 
@@ -207,6 +210,8 @@ def train(
         vec: Vectorisation, "dummy" or "subproc".
         progress_bar: Show SB3's progress bar.
         command: The command line to record; default ``sys.argv``.
+        eval_freq: Evaluate every so many environment steps; default ``config.EVAL_DEFAULTS`` of ``algo``.
+        eval_episodes: Episodes per periodic evaluation; default ``config.EVAL_DEFAULTS`` of ``algo``.
 
     Returns:
         The run folder.
@@ -232,8 +237,12 @@ def train(
     count = int(hyper.pop("n_envs", 1))
     policy = hyper.pop("policy", "MlpPolicy")
     normalize = hyper.pop("normalize", False)
-    eval_freq = int(hyper.pop("eval_freq", 10_000))
-    n_eval = int(hyper.pop("n_eval_episodes", 20))
+    default_freq, default_episodes = EVAL_DEFAULTS[algo]
+    eval_freq = default_freq if eval_freq is None else eval_freq
+    n_eval = default_episodes if eval_episodes is None else eval_episodes
+    for name, value in (("eval_freq", eval_freq), ("eval_episodes", n_eval)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ConfigError(f"{name} must be an integer ≥ 1, got {value!r}")
     env_kwargs = hyper.pop("env_kwargs", None) or {}
     wrapper = resolve_env_wrapper(hyper.pop("env_wrapper", None))
     if wrapper is not None and vec == "native":
@@ -250,6 +259,8 @@ def train(
         "seed": seed,
         "vec": vec,
         "hyperparams": {**config, "n_timesteps": total, "n_envs": count},
+        "eval_freq": eval_freq,
+        "eval_episodes": n_eval,
         "versions": _versions(),
     }
     (run / "config.yml").write_text(yaml.safe_dump(resolved, sort_keys=False))
@@ -344,6 +355,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--hyperparams", nargs="*", default=[], metavar="KEY=VALUE", help="override config keys (YAML values)"
     )
     parser.add_argument("--no-progress-bar", action="store_true", help="hide SB3's progress bar")
+    parser.add_argument(
+        "--eval-freq", type=int, default=None, help="evaluate every so many env steps (default per algorithm)"
+    )
+    parser.add_argument(
+        "--eval-episodes", type=int, default=None, help="episodes per periodic evaluation (default per algorithm)"
+    )
     return parser
 
 
@@ -367,6 +384,8 @@ def main(argv: list[str] | None = None) -> int:
             config_path=args.config,
             vec=args.vec,
             progress_bar=not args.no_progress_bar,
+            eval_freq=args.eval_freq,
+            eval_episodes=args.eval_episodes,
         )
     except ConfigError as exc:
         parser.error(str(exc))

@@ -116,7 +116,7 @@ def test_vector_env_equals_single_envs():
     rng = np.random.default_rng(0)
     for _ in range(30):
         actions = rng.uniform(-1, 1, size=(n, 6)).astype(np.float32)
-        obs, rewards, term, trunc, _ = vec.step(actions)
+        obs, rewards, term, _trunc, _ = vec.step(actions)
         for i, env in enumerate(singles):
             o, r, t, _, _ = env.step(actions[i])
             np.testing.assert_array_equal(obs[i], o)
@@ -197,7 +197,7 @@ def test_goal_view_reward_equals_step_reward():
     env = envs.GoalReachWrapper(gym.make("StewartGoughReach-v0"))
     obs, _ = env.reset(seed=1)
     for _ in range(10):
-        obs, reward, terminated, _, info = env.step(env.action_space.sample())
+        obs, reward, _terminated, _, info = env.step(env.action_space.sample())
         assert env.compute_reward(obs["achieved_goal"], obs["desired_goal"], info) == pytest.approx(reward, abs=1e-5)
 
 
@@ -283,7 +283,7 @@ def test_vector_env_autoreset_modes_and_sb3_adapter(mode):
         finals = 0
         for _ in range(5):
             adapter.step_async(np.zeros((2, 6), dtype=np.float32))
-            obs, rewards, dones, infos = adapter.step_wait()
+            obs, _rewards, dones, infos = adapter.step_wait()
             finals += sum("terminal_observation" in info for info in infos)
             assert finals == 0 or dones.any() or finals == 2
         assert finals == 2  # both robots truncated at step 4, with their last observation

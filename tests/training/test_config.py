@@ -14,6 +14,7 @@ from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckA
 from envs import ENV_IDS
 from training.config import (
     ALGORITHMS,
+    EVAL_DEFAULTS,
     NOISE_KEYS,
     NOISE_TYPES,
     RUN_KEYS,
@@ -55,8 +56,11 @@ def test_shipped_hyperparams_load(algo, env_id):
     config = load_hyperparams(algo, env_id)
     assert set(config) <= valid_keys(algo)
     assert config["policy"] == "MlpPolicy"
-    for key in ("n_envs", "n_timesteps", "eval_freq", "n_eval_episodes"):
+    for key in ("n_envs", "n_timesteps"):
         assert isinstance(config[key], int) and config[key] >= 1, (key, config[key])
+    assert not {"eval_freq", "n_eval_episodes"} & set(config), "run settings are flags, as in the RL Zoo"
+    freq, episodes = EVAL_DEFAULTS[algo]
+    assert freq >= 1 and episodes >= 1
     learning_rate = resolve_schedules(config)["learning_rate"]
     initial = learning_rate(1.0) if callable(learning_rate) else learning_rate
     assert 0.0 < initial < 1.0

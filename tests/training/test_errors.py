@@ -249,7 +249,7 @@ def test_train_unknown_vectorisation_writes_nothing(tmp_path, capsys):
 @pytest.mark.parametrize("kwargs", [{"n_envs": 0}, {"timesteps": 0}, {"timesteps": -5}, {"n_envs": -1}])
 def test_train_function_validates_counts(tmp_path, kwargs):
     """train() itself (not only main) rejects non-positive timesteps and n_envs with a ConfigError."""
-    overrides = {"n_steps": 64, "batch_size": 64, "eval_freq": 64, "n_eval_episodes": 1}
+    overrides = {"n_steps": 64, "batch_size": 64}
     kwargs = {"timesteps": 64, "n_envs": 1, **kwargs}
     with pytest.raises(ConfigError, match=r"timesteps|n_envs"):
         train.train("ppo", REACH, run_dir=tmp_path / "run", overrides=overrides, progress_bar=False, **kwargs)

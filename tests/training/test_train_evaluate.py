@@ -27,12 +27,11 @@ TINY = {
     "ppo": {
         "timesteps": 400,
         "n_envs": 2,
+        "eval": {"eval_freq": 200, "eval_episodes": 1},
         "overrides": {
             "n_steps": 64,
             "batch_size": 64,
             "n_epochs": 2,
-            "eval_freq": 200,
-            "n_eval_episodes": 1,
             "policy_kwargs": {"net_arch": [32, 32]},
         },
     },
@@ -40,12 +39,11 @@ TINY = {
         algo: {
             "timesteps": 300,
             "n_envs": 1,
+            "eval": {"eval_freq": 150, "eval_episodes": 1},
             "overrides": {
                 "learning_starts": 50,
                 "buffer_size": 1000,
                 "batch_size": 32,
-                "eval_freq": 150,
-                "n_eval_episodes": 1,
                 "policy_kwargs": {"net_arch": [32, 32]},
             },
         }
@@ -107,7 +105,7 @@ def _check_run_folder(run: Path, algo: str, spec: dict, command: str) -> None:
 
     data = np.load(run / "evaluations.npz")
     assert len(data["timesteps"]) >= 1
-    assert data["results"].shape[1] == spec["overrides"]["n_eval_episodes"]
+    assert data["results"].shape[1] == spec["eval"]["eval_episodes"]
     assert "successes" in data.files, "EvalCallback saw no is_success in the infos"
 
     summary = json.loads((run / "summary.json").read_text())
@@ -147,6 +145,7 @@ def test_train_then_evaluate(algo, tmp_path, capsys):
         n_envs=spec["n_envs"],
         run_dir=tmp_path / "run",
         overrides=spec["overrides"],
+        **spec["eval"],
         progress_bar=False,
         command=command,
     )
@@ -213,9 +212,11 @@ def test_train_cli_entry_point(tmp_path):
         "n_steps=64",
         "batch_size=64",
         "n_epochs=1",
-        "eval_freq=64",
-        "n_eval_episodes=1",
         "policy_kwargs={net_arch: [16]}",
+        "--eval-freq",
+        "64",
+        "--eval-episodes",
+        "1",
         "--no-progress-bar",
     ]
     env = {**os.environ, "MPLBACKEND": "Agg"}
@@ -258,10 +259,10 @@ def test_sac_with_her_trains_and_evaluates(tmp_path):
             "learning_starts": 50,
             "buffer_size": 1000,
             "batch_size": 32,
-            "eval_freq": 150,
-            "n_eval_episodes": 1,
             "policy_kwargs": {"net_arch": [32, 32]},
         },
+        eval_freq=150,
+        eval_episodes=1,
     )
     config = yaml.safe_load((run / "config.yml").read_text())
     assert config["vec"] == "dummy" and config["hyperparams"]["env_wrapper"] == "envs.GoalReachWrapper"
