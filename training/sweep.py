@@ -73,13 +73,19 @@ def plan_trials(
     return trials
 
 
-def _target_sets(env_id: str) -> list[tuple[str, str]]:
-    """(env id, target set) pairs a trial is scored on: standard on the env, hard on its ReachHard sibling."""
-    sets = [(env_id, "standard")]
-    if "Reach-" in env_id:
-        hard = env_id.replace("Reach-", "ReachHard-")
-        if hard in envs.ENV_IDS:
-            sets.append((hard, "hard"))
+def _target_sets(env_id: str) -> list[tuple[str, str | None, str]]:
+    """(env id, target option, label) of each target set a trial is scored on.
+
+    A Reach or ReachHard id is scored on standard targets (the Reach id) and on hard ones (the ReachHard id),
+    whichever it was trained on; any other id on its own task ("track").
+    """
+    if "Reach" not in env_id:
+        return [(env_id, None, "track")]
+    standard = env_id.replace("ReachHard-", "Reach-")
+    hard = standard.replace("Reach-", "ReachHard-")
+    sets = [(standard, "standard", "standard")]
+    if hard in envs.ENV_IDS:
+        sets.append((hard, "hard", "hard"))
     return sets
 
 
@@ -120,7 +126,7 @@ def run_trial(trial: dict[str, Any], folder: str | Path, timesteps: int | None, 
     )
     agent, config = load_run(run)
     scores = {}
-    for env_id, targets in _target_sets(trial["env_id"]):
+    for env_id, targets, label in _target_sets(trial["env_id"]):
         for shielded in (False, True):
             env = wrap_for_run(gym.make(env_id), config)
             if shielded:
@@ -129,7 +135,7 @@ def run_trial(trial: dict[str, Any], folder: str | Path, timesteps: int | None, 
                 records = evaluate_agent(agent, env, episodes, seed, targets)
             finally:
                 env.close()
-            scores[targets + ("+shield" if shielded else "")] = aggregate(records)
+            scores[label + ("+shield" if shielded else "")] = aggregate(records)
     result = {
         "trial": trial,
         "summary": json.loads((run / "summary.json").read_text()),
