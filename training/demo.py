@@ -45,6 +45,11 @@ PRETRAINED_HARD_RUN = Path(str(resources.files("training").joinpath("pretrained"
 #: The shipped Stewart–Gough hexapod policy (StewartGoughReach-v0), shown in its own section when present.
 PRETRAINED_HEXAPOD_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-StewartGoughReach-v0")))
 
+#: The shipped hexapod policy trained on hard (ill-conditioned) targets, shown beside it when present.
+PRETRAINED_HEXAPOD_HARD_RUN = Path(
+    str(resources.files("training").joinpath("pretrained", "ppo-StewartGoughReachHard-v0"))
+)
+
 #: Guard level of the singularity shield in the demo's shielded rows.
 DEMO_SHIELD = 0.05
 
@@ -137,14 +142,18 @@ def run_hexapod_demo(run: Path, out: Path, episodes: int, seed: int = 1000, shie
     """
     out.mkdir(parents=True, exist_ok=True)
     policy, config = load_run(run)
+    policies = {f"{config['algo'].upper()} policy": policy}
+    if PRETRAINED_HEXAPOD_HARD_RUN.is_dir():
+        hard_policy, hard_config = load_run(PRETRAINED_HEXAPOD_HARD_RUN)
+        policies[f"{hard_config['algo'].upper()} policy (hard-trained)"] = hard_policy
     ids = {"standard": "StewartGoughReach-v0", "hard": "StewartGoughReachHard-v0"}
     metrics: dict = {}
     frames: list[np.ndarray] = []
     for targets, env_id in ids.items():
         env = gym.make(env_id, render_mode="rgb_array")
-        agents = {f"{config['algo'].upper()} policy": policy, "resolved-rate": load_controller("resolved-rate", env)}
+        agents = {**policies, "resolved-rate": load_controller("resolved-rate", env)}
         for name, agent in agents.items():
-            film = frames if (targets == "standard" and name != "resolved-rate") else None
+            film = frames if (targets == "standard" and name == next(iter(policies))) else None
             recs = evaluate_agent(agent, env, episodes, seed, targets, film, 2)
             metrics[f"{name} @ {targets}"] = aggregate(recs)
             if shield is not None:
@@ -159,7 +168,8 @@ def run_hexapod_demo(run: Path, out: Path, episodes: int, seed: int = 1000, shie
     (out / "hexapod.md").write_text(
         f"# Stewart–Gough hexapod\n\nStandard targets: `StewartGoughReach-v0`; hard (ill-conditioned) targets: "
         f"`StewartGoughReachHard-v0`. {episodes} episodes per row (reset seeds {seed}…{seed + episodes - 1}). "
-        f"Policy: `{run}`.\n\n{format_table(metrics)}\nPicture: `hexapod_policy.gif`.\n"
+        f"Policies: `{run}`, and `{PRETRAINED_HEXAPOD_HARD_RUN}` (hard-trained) when shipped.\n\n"
+        f"{format_table(metrics)}\nPicture: `hexapod_policy.gif`.\n"
     )
     return metrics
 

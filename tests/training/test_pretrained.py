@@ -135,9 +135,12 @@ def test_demo_reports_the_hexapod(pretrained_run, tmp_path):
     """The main job's report has the hexapod section: policy and resolved-rate, standard and hard, and a GIF."""
     out = tmp_path / "demo"
     metrics = demo.run_hexapod_demo(demo.PRETRAINED_HEXAPOD_RUN, out, episodes=2)
+    agents = ["PPO policy", "resolved-rate"]
+    if demo.PRETRAINED_HEXAPOD_HARD_RUN.is_dir():
+        agents.append("PPO policy (hard-trained)")
     expected = {
         f"{agent}{shield} @ {targets}"
-        for agent in ("PPO policy", "resolved-rate")
+        for agent in agents
         for shield in ("", " + shield")
         for targets in ("standard", "hard")
     }
