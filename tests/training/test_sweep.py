@@ -55,3 +55,16 @@ def test_tiny_sweep_on_local_ray_resumes_without_rerunning(tmp_path, capsys):
     with pytest.raises(SystemExit):
         sweep.main(argv)
     assert "exists" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_a_failing_trial_is_reported_and_left_for_resume(tmp_path, capsys):
+    """A trial that raises is reported by name with the resume command; the sweep exits 1 and keeps the others."""
+    argv = ["--root", str(tmp_path), "--name", "bad", "--algos", "ppo", "--envs", "Planar3RPRReach-v0"]
+    argv += ["--seeds", "0", "--grid", "n_epochs=1,0", "--timesteps", "64", "--episodes", "1"]
+    argv += ["--max-concurrent", "2"]
+    assert sweep.main(argv) == 1
+    printed = capsys.readouterr().out
+    assert "trial ppo-Planar3RPRReach-v0-n_epochs=0-s0 failed" in printed and "--resume" in printed
+    assert (tmp_path / "bad" / "trials" / "ppo-Planar3RPRReach-v0-n_epochs=1-s0" / "result.json").is_file()
+    assert not (tmp_path / "bad" / "trials" / "ppo-Planar3RPRReach-v0-n_epochs=0-s0" / "result.json").exists()
