@@ -105,7 +105,7 @@ W_PRED = 33  # predicted pose
 W_Y = 34  # Newton's pose
 W_T = 35  # strokes of a substep
 W_QM = 36  # intermediate strokes
-W_START_A = 37  # rows of A at the start of the step (rows 37..42)
+W_SPARE = 37  # (unused rows 37..42)
 W_TGT = 43  # target pose
 W_VEL = 44  # target velocity
 W_DIFF = 45  # a pose difference
@@ -376,6 +376,18 @@ def _rows(c, x, w):
 
 
 @_jit
+def _leg_lengths(c, x, out):
+    """Leg lengths ‖p + R P_i − B_i‖ of the pose x into out (n,), without the rows of J_x."""
+    p0, p1, p2, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _frame(c, x)
+    for i in range(int(c[C_N])):
+        P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
+        d0 = p0 + r00 * P0 + r01 * P1 + r02 * P2 - c[C_B + 3 * i]
+        d1 = p1 + r10 * P0 + r11 * P1 + r12 * P2 - c[C_B + 3 * i + 1]
+        d2 = p2 + r20 * P0 + r21 * P1 + r22 * P2 - c[C_B + 3 * i + 2]
+        out[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@_jit
 def _inverse_kinematics(c, x, w, out):
     """Leg lengths ‖p + R P_i − B_i‖ of the pose x into out (n,)."""
     _rows(c, x, w)
@@ -502,13 +514,6 @@ def _substeps(c, v):
 
 
 @_jit
-def _copy_rows(w, src, dst, m):
-    for i in range(m):
-        for j in range(m):
-            w[dst + i, j] = w[src + i, j]
-
-
-@_jit
 def _rate_at(c, q, x, rate, w, out):
     """Out = J_f(q, x) q̇ at an arbitrary (q, x) (computes the rows of A there)."""
     _rows(c, x, w)
@@ -533,7 +538,6 @@ def _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_
         kq[j] = q0[j]
         kx[j] = x0[j]
     _rows(c, kx, w)
-    _copy_rows(w, W_A, W_START_A, m)
     _twist_rate(c, kq, qr, w, W_A, v)
     count = _substeps(c, v)
     h = dt / count
@@ -583,7 +587,7 @@ def _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_
             kq[j] = q0[j]
             kx[j] = x0[j]
         res = residual[i]
-        _copy_rows(w, W_START_A, W_A, m)
+        _rows(c, kx, w)  # back at the start pose (rare: only when the correction failed)
     k_new, sign = _singularity(c, kq, w, W_A)
     out = False
     for j in range(m):
@@ -777,7 +781,7 @@ def _evaluate_row(
         _clip32(o_obs, i, col + j, 2.0 * (q[i, j] - lo) / span - 1.0, low, high)
     col += m
     target_q = w[W_SEG]
-    _inverse_kinematics(c, g, w, target_q)
+    _leg_lengths(c, g, target_q)
     for j in range(m):
         _clip32(o_obs, i, col + j, (target_q[j] - q[i, j]) / span, low, high)
     col += m
