@@ -72,6 +72,8 @@ class EpisodeRecord:
         poses: Platform poses, one per step including the start, shape (length + 1, 3).
         targets: Target poses, same shape.
         inverse_condition: Inverse condition number per step, shape (length + 1,).
+        tracking: For a Track environment, the tracking metrics after ``TRACKING_SETTLING_S`` (see
+            ``tracking_metrics``); None otherwise.
     """
 
     episode: int
@@ -87,10 +89,75 @@ class EpisodeRecord:
     poses: np.ndarray = field(repr=False)
     targets: np.ndarray = field(repr=False)
     inverse_condition: np.ndarray = field(repr=False)
+    tracking: dict[str, float] | None = field(default=None, repr=False)
 
     def row(self) -> dict[str, Any]:
-        """The scalar fields, for ``episodes.csv``."""
-        return {k: v for k, v in asdict(self).items() if k not in ("poses", "targets", "inverse_condition")}
+        """The scalar fields, for ``episodes.csv`` (the tracking metrics go to ``metrics.json``)."""
+        skip = ("poses", "targets", "inverse_condition", "tracking")
+        return {k: v for k, v in asdict(self).items() if k not in skip}
+
+
+#: Settling time excluded from the tracking metrics [s]: the platform starts on the reference, and the first
+#: second is the controller's transient.
+TRACKING_SETTLING_S = 1.0
+#: Largest lag searched when estimating the tracking lag [s].
+TRACKING_MAX_LAG_S = 1.0
+
+
+def tracking_metrics(
+    position_errors: np.ndarray,
+    orientation_errors: np.ndarray,
+    costs: np.ndarray,
+    positions: np.ndarray,
+    target_positions: np.ndarray,
+    dt: float,
+) -> dict[str, float]:
+    """RMS and maximum tracking errors, cost fraction and lag of one Track episode, after the settling time.
+
+    The lag is the delay τ (a multiple of dt, 0 … ``TRACKING_MAX_LAG_S``) that minimises the mean distance
+    between the platform position at t and the target position at t − τ.
+
+    Args:
+        position_errors: ‖p* − p‖ per step, including the start [m], shape (T + 1,).
+        orientation_errors: Orientation error per step [rad], shape (T + 1,).
+        costs: ``cost`` per step (after each action), shape (T,).
+        positions: Platform positions [m], shape (T + 1, d).
+        target_positions: Target positions [m], shape (T + 1, d).
+        dt: Control period [s].
+
+    Returns:
+        {"rms_position_mm", "max_position_mm", "rms_orientation_deg", "max_orientation_deg", "cost_fraction",
+        "lag_s", "settling_s"}; NaN where the episode ended before the settling time.
+    """
+    skip = int(round(TRACKING_SETTLING_S / dt))
+    pe, oe, cost = position_errors[skip:], orientation_errors[skip:], costs[skip:]
+    if pe.size == 0:
+        nan = float("nan")
+        return dict.fromkeys(
+            (
+                "rms_position_mm",
+                "max_position_mm",
+                "rms_orientation_deg",
+                "max_orientation_deg",
+                "cost_fraction",
+                "lag_s",
+            ),
+            nan,
+        ) | {"settling_s": TRACKING_SETTLING_S}
+    lags = range(min(int(round(TRACKING_MAX_LAG_S / dt)), len(positions) - skip - 1) + 1)
+    mismatch = [
+        float(np.mean(np.linalg.norm(positions[skip + s :] - target_positions[skip : len(positions) - s], axis=-1)))
+        for s in lags
+    ]
+    return {
+        "rms_position_mm": 1000.0 * float(np.sqrt(np.mean(pe**2))),
+        "max_position_mm": 1000.0 * float(np.max(pe)),
+        "rms_orientation_deg": float(np.degrees(np.sqrt(np.mean(oe**2)))),
+        "max_orientation_deg": float(np.degrees(np.max(oe))),
+        "cost_fraction": float(np.mean(cost)) if cost.size else 0.0,
+        "lag_s": float(np.argmin(mismatch)) * dt,
+        "settling_s": TRACKING_SETTLING_S,
+    }
 
 
 # -- agents ----------------------------------------------------------------------------------------
@@ -346,6 +413,7 @@ def evaluate_agent(
     for episode in range(episodes):
         obs, info = env.reset(seed=seed + episode, options=options)
         poses, goal, ks, costs = [info["pose"]], [info["target"]], [info["inverse_condition_number"]], []
+        position_errors, orientation_errors = [info["position_error"]], [info["orientation_error"]]
         total, done, terminated = 0.0, False, False
         film = frames is not None and episode < video_episodes
         if film:
@@ -360,9 +428,23 @@ def evaluate_agent(
             goal.append(info["target"])
             ks.append(info["inverse_condition_number"])
             costs.append(info["cost"])
+            position_errors.append(info["position_error"])
+            orientation_errors.append(info["orientation_error"])
             if film:
                 frames.append(env.render())
         reason = info["termination_reason"]
+        tracking = None
+        if getattr(env.unwrapped, "with_velocity", False):  # a Track environment
+            d = 3 if len(poses[0]) == 6 else 2  # position coordinates of the pose (spatial or planar)
+            pose_arr, goal_arr = np.array(poses), np.array(goal)
+            tracking = tracking_metrics(
+                np.array(position_errors),
+                np.array(orientation_errors),
+                np.array(costs),
+                pose_arr[:, :d],
+                goal_arr[:, :d],
+                float(env.unwrapped.params.dt),
+            )
         records.append(
             EpisodeRecord(
                 episode=episode,
@@ -378,6 +460,7 @@ def evaluate_agent(
                 poses=np.array(poses),
                 targets=np.array(goal),
                 inverse_condition=np.array(ks),
+                tracking=tracking,
             )
         )
     return records
@@ -398,6 +481,15 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
         return {"mean": float(arr.mean()), "std": float(arr.std()), "median": float(np.median(arr))}
 
     reasons = [r.termination_reason for r in records]
+    tracking = {}
+    if records and all(r.tracking is not None for r in records):
+        keys = [k for k in records[0].tracking if k != "settling_s"]
+        tracking = {
+            "tracking": {
+                "settling_s": records[0].tracking["settling_s"],
+                **{k: stats([r.tracking[k] for r in records if np.isfinite(r.tracking[k])] or [np.nan]) for k in keys},
+            }
+        }
     return {
         "episodes": len(records),
         "success_rate": float(np.mean([r.success for r in records])),
@@ -412,6 +504,7 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
         "terminations": {name: reasons.count(name) for name in TERMINATION_REASONS[1:] if reasons.count(name)},
         "cost_fraction": stats([r.cost_fraction for r in records]),
         "episode_length": stats([r.length for r in records]),
+        **tracking,
     }
 
 

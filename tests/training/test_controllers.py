@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from PIL import Image
@@ -190,3 +191,34 @@ def test_evaluate_shield_removes_the_straight_line_singularity_terminations(tmp_
     metrics = json.loads((shielded / "metrics.json").read_text())
     assert metrics["singularity_terminations"] == 0
     assert metrics["label"] == "resolved-rate + shield @ hard"
+
+
+def test_tracking_metrics_find_a_known_lag_and_errors():
+    """A target delayed by 0.25 s gives lag 0.25 s; RMS and max come from the errors after the settling time."""
+    from training.evaluate import TRACKING_SETTLING_S, tracking_metrics
+
+    dt, steps = 0.05, 400
+    t = np.arange(steps + 1) * dt
+    target = np.stack([0.1 * np.sin(t), 0.1 * np.cos(t)], axis=-1)
+    pose = np.stack([0.1 * np.sin(t - 0.25), 0.1 * np.cos(t - 0.25)], axis=-1)
+    errors = np.linalg.norm(target - pose, axis=-1)
+    metrics = tracking_metrics(errors, np.full(steps + 1, 0.01), np.zeros(steps), pose, target, dt)
+    assert metrics["lag_s"] == pytest.approx(0.25)
+    skip = int(round(TRACKING_SETTLING_S / dt))
+    assert metrics["rms_position_mm"] == pytest.approx(1000 * np.sqrt(np.mean(errors[skip:] ** 2)))
+    assert metrics["max_orientation_deg"] == pytest.approx(np.degrees(0.01))
+    assert metrics["cost_fraction"] == 0.0
+
+
+@pytest.mark.parametrize("env_id", ["Planar3RPRTrack-v0", "StewartGoughTrack-v0"])
+def test_track_evaluations_report_tracking_metrics(env_id):
+    """Track envs get RMS / max errors, cost fraction and lag in the aggregate; Reach envs do not."""
+    env = gym.make(env_id)
+    agent = load_controller("resolved-rate", env)
+    metrics = aggregate(evaluate_agent(agent, env, 1, 0))
+    tracking = metrics["tracking"]
+    assert tracking["settling_s"] == 1.0
+    assert tracking["rms_position_mm"]["mean"] <= tracking["max_position_mm"]["mean"]
+    assert 0.0 <= tracking["lag_s"]["mean"] <= 1.0
+    reach = gym.make(env_id.replace("Track", "Reach"))
+    assert "tracking" not in aggregate(evaluate_agent(load_controller("resolved-rate", reach), reach, 1, 0))
