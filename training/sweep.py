@@ -195,6 +195,16 @@ def aggregate_results(results: list[dict], out: Path, reps: int = 2000) -> dict[
                     min(m["scores"][task]["min_inverse_condition"]["min"] for m in members)
                 ),
             }
+            if all("tracking" in m["scores"][task] for m in members):  # Track envs: errors after settling
+                per_task[task]["tracking_rms_position_mm"] = float(
+                    np.mean([m["scores"][task]["tracking"]["rms_position_mm"]["mean"] for m in members])
+                )
+                per_task[task]["tracking_rms_orientation_deg"] = float(
+                    np.mean([m["scores"][task]["tracking"]["rms_orientation_deg"]["mean"] for m in members])
+                )
+                per_task[task]["tracking_lag_s"] = float(
+                    np.mean([m["scores"][task]["tracking"]["lag_s"]["mean"] for m in members])
+                )
         rows[label] = {
             "seeds": sorted(m["trial"]["seed"] for m in members),
             "tasks": per_task,
@@ -241,6 +251,25 @@ def report_markdown(data: dict[str, Any]) -> str:
                 f"| [{100 * lo:.1f}, {100 * hi:.1f}] % "
                 f"| {100 * t['iqm']:.1f} % | {t['singularity_terminations']} / {t['episodes']} "
                 f"| {t['final_position_error_mm_median']:.2f} | {t['min_inverse_condition_worst']:.3f} | {wall} |"
+            )
+    tracked = [
+        (label, task, t)
+        for label, row in data["groups"].items()
+        for task, t in row["tasks"].items()
+        if "tracking_rms_position_mm" in t
+    ]
+    if tracked:
+        lines += [
+            "",
+            "Tracking (after a 1 s settling time; means over seeds of the per-seed means):",
+            "",
+            "| algo @ env | task | RMS position error [mm] | RMS orientation error [°] | lag [s] |",
+            "|---|---|---|---|---|",
+        ]
+        for label, task, t in tracked:
+            lines.append(
+                f"| {label} | {task} | {t['tracking_rms_position_mm']:.2f} | {t['tracking_rms_orientation_deg']:.2f} "
+                f"| {t['tracking_lag_s']:.2f} |"
             )
     lines += ["", "![performance profile](performance_profile.png)", ""]
     return "\n".join(lines)
