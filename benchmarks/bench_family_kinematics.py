@@ -25,7 +25,7 @@ import time
 import numpy as np
 import sympy as sp
 
-from benchmarks.bench_kinematics import median_seconds
+from benchmarks.bench_kinematics import median_seconds, random_configurations
 from kinematics import StewartGough
 from kinematics.stewart_gough import DEFAULT_HEXAPOD_BASE, DEFAULT_HEXAPOD_PLATFORM
 
@@ -102,22 +102,6 @@ def jacobians_6ups(L_vals, pose):
 # -- The benchmark -----------------------------------------------------------------------------------
 
 
-def random_configurations(robot: StewartGough, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` consistent configurations: x uniform in [POSE_LOW, POSE_HIGH], q = IK(x), each (n, 6).
-
-    Poses within 1e-6 (inverse condition number) of a Type II singularity, where J_f does not exist,
-    are redrawn.
-    """
-    rng = np.random.default_rng(seed)
-    kept = np.empty((0, 6))
-    while len(kept) < n:
-        X = rng.uniform(POSE_LOW, POSE_HIGH, (n, 6))
-        icn = robot.inverse_condition_number(robot.inverse_kinematics(X), X)
-        kept = np.concatenate([kept, X[icn > 1e-6]])
-    X = kept[:n]
-    return robot.inverse_kinematics(X), X
-
-
 def main(argv: list[str] | None = None) -> None:
     """Check agreement, time the ways of computing J_f and print a table, the speed-up and the target."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -137,7 +121,7 @@ def main(argv: list[str] | None = None) -> None:
     lesson_n = args.n if args.lesson_n is None else min(max(args.lesson_n, 1), args.n)
 
     robot = StewartGough()
-    Q, X = random_configurations(robot, args.n, args.seed)
+    Q, X = random_configurations(robot, args.n, args.seed, POSE_LOW, POSE_HIGH)
     Q_lesson, X_lesson = Q[:lesson_n], X[:lesson_n]
     pairs = list(zip(Q, X, strict=True))  # the same per-configuration rows the lesson's loop receives
 

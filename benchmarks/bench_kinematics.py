@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 import sympy as sp
 
-from kinematics import Planar3RPR
+from kinematics import ParallelMechanism, Planar3RPR
 
 # -- The lesson's section 7 code (Chapter 16, Lesson 2), as printed ----------------------------------
 
@@ -89,16 +89,22 @@ def jacobians_3rpr(L_vals, pose):
 # -- The benchmark -----------------------------------------------------------------------------------
 
 
-def random_configurations(robot: Planar3RPR, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` consistent configurations: x in [0.2, 0.8] × [0.1, 0.6] × [−1, 1], q = IK(x).
+def random_configurations(
+    robot: ParallelMechanism,
+    n: int,
+    seed: int,
+    low: tuple[float, ...] = (0.2, 0.1, -1.0),
+    high: tuple[float, ...] = (0.8, 0.6, 1.0),
+) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` consistent configurations: x uniform in [low, high] (default: the 3-RPR's box), q = IK(x).
 
     Poses within 1e-6 (inverse condition number) of a Type II singularity, where J_f does not exist,
     are redrawn.
     """
     rng = np.random.default_rng(seed)
-    kept = np.empty((0, 3))
+    kept = np.empty((0, len(low)))
     while len(kept) < n:
-        X = rng.uniform([0.2, 0.1, -1.0], [0.8, 0.6, 1.0], (n, 3))
+        X = rng.uniform(low, high, (n, len(low)))
         icn = robot.inverse_condition_number(robot.inverse_kinematics(X), X)
         kept = np.concatenate([kept, X[icn > 1e-6]])
     X = kept[:n]

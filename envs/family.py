@@ -14,7 +14,7 @@ import functools
 import math
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple
 
 import gymnasium as gym
@@ -23,6 +23,7 @@ from gymnasium import spaces
 
 from envs import family_kernels as fk
 from envs.core import TERMINATION_REASONS, NonFiniteActionError
+from envs.planar_3rpr import step_info as planar_step_info
 from envs.vector import Planar3RPRVectorEnv
 from kinematics import DistanceConstraintMechanism, StewartGough
 
@@ -214,7 +215,7 @@ class FamilyOutcome(NamedTuple):
 
 
 def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
-    n, m = params.robot.n_actuators, params.robot.n_pose
+    n = params.robot.n_actuators
     low_p, high_p = np.array(params.pose_low), np.array(params.pose_high)
     d = 3 if params.spatial else 2
     span = high_p[:d] - low_p[:d]
@@ -234,12 +235,8 @@ def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.n
         low += list(-v_max)
         high += list(v_max)
     low_arr, high_arr = np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
-    assert low_arr.shape[0] == sum(
-        s.stop - s.start for s in fk.observation_layout(params.spatial, n, with_velocity).values()
-    )
     low_arr.setflags(write=False)
     high_arr.setflags(write=False)
-    del m
     return low_arr, high_arr
 
 
@@ -436,35 +433,12 @@ def copy_state(state: FamilyState) -> FamilyState:
     return FamilyState(*(a.copy() for a in state[:-1]), FamilyReference(*(a.copy() for a in state.reference)))
 
 
-_REASON_NAMES = np.asarray(TERMINATION_REASONS, dtype=object)
-#: The keys of an env's ``info``, in order.
-INFO_KEYS = (
-    "reward_tracking",
-    "reward_singularity",
-    "reward_action",
-    "reward_termination",
-    "position_error",
-    "orientation_error",
-    "inverse_condition_number",
-    "constraint_residual",
-    "is_success",
-    "cost",
-    "termination_reason",
-    "pose",
-    "target",
-)
-
-
 def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
-    """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order."""
-    rows = params.evaluation_rows
-    info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS[:8]}
-    info["is_success"] = evaluation[rows["is_success"]] != 0.0
-    info["cost"] = evaluation[rows["cost"]].copy()
-    info["termination_reason"] = _REASON_NAMES[reason]
-    info["pose"] = evaluation[rows["pose"]].T.copy()
-    info["target"] = evaluation[rows["target"]].T.copy()
-    return info
+    """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order.
+
+    The 3-RPR's ``step_info`` over this core's row layout (``params.evaluation_rows``).
+    """
+    return planar_step_info(None, evaluation, reason, params.evaluation_rows)
 
 
 # -- argument checks ---------------------------------------------------------------------------------------
@@ -621,9 +595,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._next = 0
         self._terminated = False
         self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
-        rows = params.evaluation_rows
-        self._rows = tuple(rows[name] for name in INFO_KEYS if name not in ("termination_reason",))
-        self._reward_row = rows["reward"]
+        self._reward_row = params.evaluation_rows["reward"]
 
     #: The pure functions of this env's physics (the shield and the HER view call them).
     physics = None  # set below to this module
@@ -999,4 +971,3 @@ def _module():
 
 FamilyEnvBase.physics = _module()
 FamilyVectorEnv._physics = _module()
-del replace

@@ -17,14 +17,29 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.family import FamilyParams
 from envs.family_kernels import observation_layout
 
-__all__ = ["OBSERVATION_INDEX", "GoalReachWrapper"]
+__all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]
 
-#: Entries of the flat observation that do not depend on the goal: pose (x, y, cos φ, sin φ), the
-#: normalised strokes and the inverse condition number (see ``core.observation`` for the layout).
-OBSERVATION_INDEX = np.array([0, 1, 2, 3, 11, 12, 13, 17])
+
+def goal_free_index(spatial: bool, n: int) -> np.ndarray:
+    """Entries of the flat observation that do not depend on the goal: pose code, normalised strokes and k.
+
+    The layout is ``envs.family_kernels.observation_layout``, which the 3-RPR's ``core.observation`` shares.
+
+    Args:
+        spatial: Whether the pose space is spatial.
+        n: Number of actuators.
+
+    Returns:
+        Indices into the observation vector, int array.
+    """
+    layout = observation_layout(spatial, n, False)
+    return np.concatenate([np.arange(layout[name].start, layout[name].stop) for name in ("pose", "strokes", "k")])
+
+
+#: The 3-RPR's goal-free entries: pose (x, y, cos φ, sin φ), the normalised strokes and k.
+OBSERVATION_INDEX = goal_free_index(False, 3)
 
 
 class GoalReachWrapper(gym.Wrapper):
@@ -49,11 +64,8 @@ class GoalReachWrapper(gym.Wrapper):
             raise TypeError(f"GoalReachWrapper needs a Reach environment of envs, got {type(base).__name__}")
         self.params = base.params
         self._physics = base.physics
-        self._index = OBSERVATION_INDEX
         self._n = base.action_space.shape[0]
-        if isinstance(self.params, FamilyParams):  # a robot of the family: its own observation layout
-            layout = observation_layout(self.params.spatial, self._n, False)
-            self._index = np.concatenate([np.arange(64)[layout[name]] for name in ("pose", "strokes", "k")])
+        self._index = goal_free_index(self.params.robot.pose_space.name == "spatial", self._n)
         flat = env.observation_space
         goal_low = np.array(self.params.pose_low, dtype=np.float32)
         goal_high = np.array(self.params.pose_high, dtype=np.float32)

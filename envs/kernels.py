@@ -34,6 +34,10 @@ from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
+from envs.linalg_kernels import _jacobi_pair, _singular_value_ratio  # noqa: F401  (the 3 × 3 forms live there)
+from envs.linalg_kernels import singular_value_ratio3 as _singular_value_ratio_closed
+from envs.linalg_kernels import solve3 as _solve3
+
 
 def _load_tbb() -> bool:
     """Make Intel TBB (the ``tbb`` wheel) loadable by Numba; True if Numba's TBB threading layer then imports.
@@ -296,29 +300,6 @@ def _rows(c, px, py, phi):
 
 
 @_jit
-def _solve3(a00, a01, a02, a10, a11, a12, a20, a21, a22, r0, r1, r2):
-    """Solve A u = r by the adjugate; returns (u0, u1, u2, det A); u is NaN when det A = 0."""
-    c00 = a11 * a22 - a12 * a21
-    c01 = a12 * a20 - a10 * a22
-    c02 = a10 * a21 - a11 * a20
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    if det == 0.0:
-        return np.nan, np.nan, np.nan, det
-    c10 = a02 * a21 - a01 * a22
-    c11 = a00 * a22 - a02 * a20
-    c12 = a01 * a20 - a00 * a21
-    c20 = a01 * a12 - a02 * a11
-    c21 = a02 * a10 - a00 * a12
-    c22 = a00 * a11 - a01 * a10
-    return (
-        (c00 * r0 + c10 * r1 + c20 * r2) / det,
-        (c01 * r0 + c11 * r1 + c21 * r2) / det,
-        (c02 * r0 + c12 * r1 + c22 * r2) / det,
-        det,
-    )
-
-
-@_jit
 def _max_abs3(a, b, c):
     """max(|a|, |b|, |c|), NaN if any is NaN (as ``np.max``)."""
     a, b, c = abs(a), abs(b), abs(c)
@@ -338,92 +319,6 @@ def _pose_rate_rows(a, q0, q1, q2, r0, r1, r2):
 def _pose_rate(c, q0, q1, q2, x0, x1, x2, r0, r1, r2):
     """ẋ = J_f(q, x) q̇ = A⁻¹ (L ∘ q̇) [m/s, m/s, rad/s]; NaN where J_x is exactly singular."""
     return _pose_rate_rows(_rows(c, x0, x1, x2), q0, q1, q2, r0, r1, r2)
-
-
-@_jit
-def _jacobi_pair(a0, a1, a2, b0, b1, b2):
-    """One Hestenes rotation making columns a and b orthogonal; returns the new columns and whether it rotated."""
-    alpha = a0 * a0 + a1 * a1 + a2 * a2
-    beta = b0 * b0 + b1 * b1 + b2 * b2
-    gamma = a0 * b0 + a1 * b1 + a2 * b2
-    if abs(gamma) <= 2.220446049250313e-16 * math.sqrt(alpha * beta):
-        return a0, a1, a2, b0, b1, b2, False
-    zeta = (beta - alpha) / (2.0 * gamma)
-    if abs(zeta) > 1e150:
-        t = 0.5 / zeta
-    else:
-        t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
-    cs = 1.0 / math.sqrt(1.0 + t * t)
-    sn = cs * t
-    return (
-        cs * a0 - sn * b0,
-        cs * a1 - sn * b1,
-        cs * a2 - sn * b2,
-        sn * a0 + cs * b0,
-        sn * a1 + cs * b1,
-        sn * a2 + cs * b2,
-        True,
-    )
-
-
-@_jit
-def _singular_value_ratio(m00, m01, m02, m10, m11, m12, m20, m21, m22):
-    """σ_min/σ_max of a 3 × 3 matrix by one-sided Jacobi SVD; 0 for the zero matrix, NaN if not finite."""
-    u0, u1, u2 = m00, m10, m20
-    v0, v1, v2 = m01, m11, m21
-    w0, w1, w2 = m02, m12, m22
-    for _ in range(60):
-        u0, u1, u2, v0, v1, v2, r1 = _jacobi_pair(u0, u1, u2, v0, v1, v2)
-        u0, u1, u2, w0, w1, w2, r2 = _jacobi_pair(u0, u1, u2, w0, w1, w2)
-        v0, v1, v2, w0, w1, w2, r3 = _jacobi_pair(v0, v1, v2, w0, w1, w2)
-        if not (r1 or r2 or r3):
-            break
-    s0 = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-    s1 = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-    s2 = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    if s0 != s0 or s1 != s1 or s2 != s2:
-        return np.nan
-    top = max(s0, max(s1, s2))
-    if top == 0.0:
-        return 0.0
-    return min(s0, min(s1, s2)) / top
-
-
-@_jit
-def _singular_value_ratio_closed(m00, m01, m02, m10, m11, m12, m20, m21, m22):
-    """σ_min/σ_max of a 3 × 3 matrix M in closed form; 0 for a singular or zero M, NaN if not finite.
-
-    σ_max² ≥ σ_mid² are the two largest eigenvalues of G = MᵀM, from the trigonometric solution of its
-    characteristic cubic (both have full relative accuracy); σ_min = |det M| / (σ_max σ_mid), so the
-    ratio |det M| / (σ_max² σ_mid) keeps the relative accuracy of det M instead of losing it in λ_min(G).
-    """
-    g00 = m00 * m00 + m10 * m10 + m20 * m20
-    g11 = m01 * m01 + m11 * m11 + m21 * m21
-    g22 = m02 * m02 + m12 * m12 + m22 * m22
-    g01 = m00 * m01 + m10 * m11 + m20 * m21
-    g02 = m00 * m02 + m10 * m12 + m20 * m22
-    g12 = m01 * m02 + m11 * m12 + m21 * m22
-    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)
-    if not math.isfinite(det + g00 + g11 + g22):
-        return np.nan
-    mean = (g00 + g11 + g22) / 3.0
-    off = g01 * g01 + g02 * g02 + g12 * g12
-    d0, d1, d2 = g00 - mean, g11 - mean, g22 - mean
-    p = math.sqrt((d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * off) / 6.0)
-    if p == 0.0:  # G = mean · I: all singular values equal
-        return 1.0 if mean > 0.0 else 0.0
-    # r = det((G − mean I) / p) / 2, in [−1, 1]
-    r = (d0 * (d1 * d2 - g12 * g12) - g01 * (g01 * d2 - g12 * g02) + g02 * (g01 * g12 - d1 * g02)) / (2.0 * p * p * p)
-    r = min(max(r, -1.0), 1.0)
-    angle = math.acos(r) / 3.0
-    top = mean + 2.0 * p * math.cos(angle)
-    low = mean + 2.0 * p * math.cos(angle + 2.0 * math.pi / 3.0)
-    mid = 3.0 * mean - top - low
-    if 1.0 - abs(r) < 1e-6 or not mid >= 1e-4 * top:
-        # Two eigenvalues of G (nearly) coincide, where the cubic's roots lose accuracy, or the two
-        # smallest singular values are both tiny: take the one-sided Jacobi SVD instead.
-        return _singular_value_ratio(m00, m01, m02, m10, m11, m12, m20, m21, m22)
-    return min(abs(det) / (top * math.sqrt(mid)), 1.0)
 
 
 @_jit

@@ -170,18 +170,21 @@ def initial_state(params: EnvParams, start: np.ndarray, reference: Reference) ->
     )
 
 
-def step_info(state: State, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
+def step_info(
+    state: Any, evaluation: np.ndarray, reason: np.ndarray, rows: dict[str, Any] | None = None
+) -> dict[str, np.ndarray]:
     """Per-robot diagnostics of a state (batched): reward terms, errors, conditioning, success, cost.
 
     Args:
-        state: The robots' state after the step.
+        state: The robots' state after the step (kept for a uniform signature).
         evaluation: ``core.evaluate`` / ``core.step`` output for that state, shape (E, N).
         reason: Termination reason codes, shape (N,).
+        rows: The evaluation's row layout; default ``core.EVALUATION_ROWS`` (the family core passes its own).
 
     Returns:
         Fresh arrays with a leading dimension N, in the order of the single env's ``info``.
     """
-    rows = core.EVALUATION_ROWS
+    rows = core.EVALUATION_ROWS if rows is None else rows
     info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS[:8]}
     info["is_success"] = evaluation[rows["is_success"]] != 0.0
     info["cost"] = evaluation[rows["cost"]].copy()

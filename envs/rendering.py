@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -9,7 +10,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 from envs.core import EnvParams
 
-__all__ = ["HumanWindow", "condition_color", "render_frame"]
+__all__ = ["HumanWindow", "condition_color", "leg_color", "render_frame"]
 
 _BACKGROUND = (250, 250, 247)
 _BASE = (90, 90, 90)
@@ -19,8 +20,30 @@ _TRAIL = (120, 160, 220)
 _TEXT = (20, 20, 20)
 
 
-def condition_color(k: float, params: EnvParams) -> tuple[int, int, int]:
+def leg_color(k: float, safe_threshold: float, hard_threshold: float) -> tuple[int, int, int]:
     """Leg colour for an inverse condition number: green when safe, through orange, to red at the hard stop.
+
+    The colour is interpolated linearly between red (k ≤ hard_threshold) and green (k ≥ safe_threshold).
+    A non-finite k (a singular pose) is drawn red.
+
+    Args:
+        k: Homogeneous inverse condition number in [0, 1].
+        safe_threshold: k at and above which the legs are green.
+        hard_threshold: k at and below which the legs are red; less than ``safe_threshold``.
+
+    Returns:
+        An RGB triple.
+    """
+    k = float(k)
+    if not math.isfinite(k):
+        k = hard_threshold
+    s = min(max((k - hard_threshold) / (safe_threshold - hard_threshold), 0.0), 1.0)
+    red, green = (215, 40, 40), (40, 160, 70)
+    return tuple(int(round(r + s * (g - r))) for r, g in zip(red, green))
+
+
+def condition_color(k: float, params: EnvParams) -> tuple[int, int, int]:
+    """Leg colour for an inverse condition number with the thresholds of ``params`` (see ``leg_color``).
 
     Args:
         k: Homogeneous inverse condition number in [0, 1].
@@ -29,9 +52,7 @@ def condition_color(k: float, params: EnvParams) -> tuple[int, int, int]:
     Returns:
         An RGB triple.
     """
-    s = float(np.clip((k - params.hard_threshold) / (params.safe_threshold - params.hard_threshold), 0.0, 1.0))
-    red, green = (215, 40, 40), (40, 160, 70)
-    return tuple(int(round(r + s * (g - r))) for r, g in zip(red, green))
+    return leg_color(k, params.safe_threshold, params.hard_threshold)
 
 
 class _View:

@@ -10,17 +10,14 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from envs.rendering import _BACKGROUND, _BASE, _PLATFORM, _TARGET, _TEXT, _TRAIL, leg_color
+
 __all__ = ["leg_color", "render_family_frame"]
 
-_BACKGROUND = (250, 250, 247)
+# The palette of the 3-RPR's renderer (``envs.rendering``), plus the fills and grid of the 3-D view.
 _GRID = (226, 226, 220)
-_BASE = (90, 90, 90)
 _BASE_FILL = (232, 232, 226)
-_PLATFORM = (40, 90, 180)
 _PLATFORM_FILL = (168, 194, 234)
-_TARGET = (200, 40, 160)
-_TRAIL = (120, 160, 220)
-_TEXT = (20, 20, 20)
 #: Axis colours of a frame triad: x red, y green, z blue; the target's are paler.
 _AXES = ((215, 40, 40), (40, 160, 70), (40, 80, 215))
 _GHOST_AXES = ((235, 150, 150), (140, 205, 155), (150, 170, 235))
@@ -32,28 +29,6 @@ _ELEVATION_DEG = 25.0
 _CAMERA_DISTANCE = 3.0
 #: Fraction of the image side left empty on each edge.
 _MARGIN = 0.05
-
-
-def leg_color(k: float, safe_threshold: float, hard_threshold: float) -> tuple[int, int, int]:
-    """Leg colour for an inverse condition number: green when safe, through orange, to red at the hard stop.
-
-    The colour is interpolated linearly between red (k ≤ hard_threshold) and green (k ≥ safe_threshold),
-    as ``envs.rendering.condition_color`` does. A non-finite k (a singular pose) is drawn red.
-
-    Args:
-        k: Homogeneous inverse condition number in [0, 1].
-        safe_threshold: k at and above which the legs are green.
-        hard_threshold: k at and below which the legs are red; less than ``safe_threshold``.
-
-    Returns:
-        An RGB triple.
-    """
-    k = float(k)
-    if not math.isfinite(k):
-        k = hard_threshold
-    s = min(max((k - hard_threshold) / (safe_threshold - hard_threshold), 0.0), 1.0)
-    red, green = (215, 40, 40), (40, 160, 70)
-    return tuple(int(round(r + s * (g - r))) for r, g in zip(red, green))
 
 
 @lru_cache(maxsize=8)

@@ -99,35 +99,6 @@ class Planar3RPR(DistanceConstraintMechanism):
             f"characteristic_length={self._l_c!r}, singular_tolerance={self.singular_tolerance!r})"
         )
 
-    def __eq__(self, other: object) -> bool:
-        """Mechanisms are equal when their geometry and tolerances are."""
-        if not isinstance(other, Planar3RPR):
-            return NotImplemented
-        return (
-            np.array_equal(self._B, other._B)
-            and np.array_equal(self._P, other._P)
-            and self._l_c == other._l_c
-            and self.singular_tolerance == other.singular_tolerance
-        )
-
-    def __hash__(self) -> int:
-        """Hash of the geometry, consistent with ``__eq__``."""
-        return hash((self._B.tobytes(), self._P.tobytes(), self._l_c, self.singular_tolerance))
-
-    def platform_points_in_base(self, x: Any, *, validate: bool = True) -> FloatArray:
-        """Platform points in {B}: p + R(φ) P_i.
-
-        Args:
-            x: Platform pose of {P} in {B}, shape (..., 3).
-            validate: Check shape and values.
-
-        Returns:
-            Points [m] in {B}, shape (..., 3, 2); row i is platform point i.
-        """
-        if validate:
-            x = self._x(x)
-        return x[..., None, :2] + self._rotated_platform(x)
-
     def _rotated_platform(self, x: FloatArray) -> FloatArray:
         """R(φ) P_i in {B} axes, shape (..., 3, 2)."""
         RPx, RPy = self._rotated_platform_xy(x)
@@ -139,20 +110,6 @@ class Planar3RPR(DistanceConstraintMechanism):
         c, s = np.cos(phi), np.sin(phi)
         Px, Py = self._P[:, 0], self._P[:, 1]
         return c * Px - s * Py, s * Px + c * Py
-
-    def leg_vectors(self, x: Any, *, validate: bool = True) -> FloatArray:
-        """Leg vectors d_i = p + R(φ) P_i − B_i in {B}.
-
-        Args:
-            x: Platform pose of {P} in {B}, shape (..., 3).
-            validate: Check shape and values.
-
-        Returns:
-            d [m], shape (..., 3, 2); row i is leg i.
-        """
-        if validate:
-            x = self._x(x)
-        return x[..., None, :2] + self._rotated_platform(x) - self._B
 
     # -- the constraint-level math ----------------------------------------------------------------
 
