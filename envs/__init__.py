@@ -11,6 +11,7 @@ from envs.family import (
 )
 from envs.goal import GoalReachWrapper
 from envs.planar_3rpr import Planar3RPRReachEnv, Planar3RPRTrackEnv
+from envs.planner import PlannerWaypointWrapper
 from envs.shield import SingularityShield
 from envs.vector import Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv, Planar3RPRVectorEnv
 
@@ -28,6 +29,7 @@ __all__ = [
     "Planar3RPRTrackEnv",
     "Planar3RPRTrackVectorEnv",
     "Planar3RPRVectorEnv",
+    "PlannerWaypointWrapper",
     "SingularityShield",
 ]
 
@@ -39,6 +41,13 @@ _SPECS = {
         "envs.vector:Planar3RPRReachVectorEnv",
         200,
         {"targets": "hard"},
+    ),
+    # Standard or hard targets, one of the two at random per episode (one policy for both kinds).
+    "Planar3RPRReachMixed-v0": (
+        "envs.planar_3rpr:Planar3RPRReachEnv",
+        "envs.vector:Planar3RPRReachVectorEnv",
+        200,
+        {"targets": "mixed"},
     ),
     "Planar3RPRTrack-v0": ("envs.planar_3rpr:Planar3RPRTrackEnv", "envs.vector:Planar3RPRTrackVectorEnv", 400, {}),
     # The Stewart–Gough hexapod on the family core (``envs.family``; ``robot=`` takes any other member).

@@ -21,7 +21,7 @@ from kinematics import Planar3RPR
 
 __all__ = ["Planar3RPREnvBase", "Planar3RPRReachEnv", "Planar3RPRTrackEnv", "build_params"]
 
-_TARGET_MODES = ("standard", "hard")
+_TARGET_MODES = ("standard", "hard", "mixed")
 _INTEGRATORS = ("euler", "rk4")
 #: Platform positions kept for the rendered trail.
 TRAIL_LENGTH = 200
@@ -471,6 +471,7 @@ class Planar3RPRReachEnv(Planar3RPREnvBase):
     apart in (x, y, ℓ_c φ): a singularity-free path between them exists. With `targets="hard"` (or
     `reset(options={"targets": "hard"})`) the straight line from start to target in pose space also
     passes below `hard_threshold`, so a straight-line controller meets the ill-conditioned zone.
+    With `targets="mixed"` each episode is hard with probability 1/2 (to train one policy for both).
     `options` may also give `"start"` and/or `"target"` poses explicitly (they must be safe).
 
     ## Episode End
@@ -486,7 +487,7 @@ class Planar3RPRReachEnv(Planar3RPREnvBase):
     | Parameter | Type | Default | Description |
     |-----------|------|---------|-------------|
     | `render_mode` | str or None | `None` | "rgb_array" (headless) or "human" (a window) |
-    | `targets` | str | `"standard"` | "standard" or "hard" targets |
+    | `targets` | str | `"standard"` | "standard", "hard" or "mixed" (each episode hard with probability 1/2) |
     | `base` | array (3, 2) or None | `None` | base anchors B_i [m]; None: the lesson's |
     | `platform` | array (3, 2) or None | `None` | platform points P_i [m]; None: the lesson's |
     | `characteristic_length` | float or None | `None` | ℓ_c [m]; None: farthest platform point |
@@ -513,6 +514,7 @@ class Planar3RPRReachEnv(Planar3RPREnvBase):
     """
 
     reset_options = ("targets", "start", "target")
+    target_modes = _TARGET_MODES
 
     def __init__(
         self,
@@ -563,12 +565,26 @@ class Planar3RPRReachEnv(Planar3RPREnvBase):
                 )
             starts, targets = np.tile(start, (m, 1)), np.tile(target, (m, 1))
         else:
-            try:
-                starts, targets = sample_reach(
-                    self.params, self.workspace, generators, m, mode == "hard", start=start, target=target
-                )
-            except RuntimeError as exc:
-                raise ValueError(f"no {mode} task exists for the given pose: {exc}") from exc
+            # "mixed": each episode draws its kind first, from its own generator
+            hard = np.array([g.random() < 0.5 for g in generators]) if mode == "mixed" else np.full(m, mode == "hard")
+            starts, targets = np.empty((m, 3)), np.empty((m, 3))
+            for kind in (False, True):
+                rows = np.flatnonzero(hard == kind)
+                if rows.size == 0:
+                    continue
+                try:
+                    starts[rows], targets[rows] = sample_reach(
+                        self.params,
+                        self.workspace,
+                        [generators[i] for i in rows],
+                        rows.size,
+                        bool(kind),
+                        start=start,
+                        target=target,
+                    )
+                except RuntimeError as exc:
+                    what = "hard" if kind else "standard"
+                    raise ValueError(f"no {what} task exists for the given pose: {exc}") from exc
         reference = Reference(center=targets, radius=np.zeros(m), phase=np.zeros(m), amplitude=np.zeros(m))
         return starts, reference
 

@@ -56,7 +56,7 @@ NOISE_KEYS = ("noise_type", "noise_std")
 NOISE_TYPES = {"normal": "NormalActionNoise", "ornstein-uhlenbeck": "OrnsteinUhlenbeckActionNoise"}
 
 #: Wrappers that ``env_wrapper`` may name (the RL Zoo's key; an allow-list, nothing is imported by name).
-ENV_WRAPPERS = ("envs.GoalReachWrapper",)
+ENV_WRAPPERS = ("envs.GoalReachWrapper", "envs.PlannerWaypointWrapper")
 
 #: Replay buffers that ``replay_buffer_class`` may name.
 REPLAY_BUFFERS = ("HerReplayBuffer",)
@@ -338,7 +338,7 @@ def resolve_env_wrapper(name: Any) -> type | None:
         raise ConfigError(f"env_wrapper {name!r} is not one of {list(ENV_WRAPPERS)}")
     import envs
 
-    return envs.GoalReachWrapper
+    return getattr(envs, name.removeprefix("envs."))
 
 
 def resolve_replay_buffer(hyperparams: dict[str, Any]) -> dict[str, Any]:

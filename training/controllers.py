@@ -1,4 +1,4 @@
-"""Classical controllers in the evaluation harness: resolved-rate and singularity-aware resolved-rate.
+"""Classical controllers in the evaluation harness: resolved-rate, singularity-aware resolved-rate and the planner.
 
 Both read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, 3).
 They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here.
@@ -14,6 +14,7 @@ __all__ = [
     "CONTROLLERS",
     "FAMILY_CONTROLLERS",
     "FamilyResolvedRateController",
+    "PlannerController",
     "ResolvedRateController",
     "SingularityAwareController",
     "decode_observation",
@@ -91,7 +92,10 @@ class ResolvedRateController:
         Returns:
             Normalised stroke rates in [−1, 1], shape (N, 3), float32.
         """
-        pose, target, velocity = decode_observation(self.params, obs)
+        return self.act(*decode_observation(self.params, obs))
+
+    def act(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Actions toward ``target`` from ``pose`` with feed-forward ``velocity`` (each (N, 3)): (N, 3) float32."""
         robot = self.params.robot
         q = robot.inverse_kinematics(pose, validate=False)
         x_dot = self._cap(self.desired_velocity(pose, target, velocity))
@@ -229,7 +233,47 @@ class FamilyResolvedRateController:
         return a.astype(np.float32)
 
 
+class PlannerController(ResolvedRateController):
+    """Follow a planned safe path (``envs.planner``) with resolved-rate control: the ceiling on hard targets.
+
+    At the first observation of an episode (a new target, or a pose jump no control period can make) it
+    plans a certified path from the pose to the target (``envs.planner.SafeGraph``). Then it steers, with
+    ``ResolvedRateController``'s law, speed cap and stroke-limit handling, toward the carrot of
+    ``envs.planner.PathFollower``: ``lookahead`` ahead of the platform's closest point on the path, and the
+    target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
+
+    Args:
+        params: Environment constants of a planar 3-RPR environment.
+        gain: K [1/s].
+        max_speed: Cap on the scaled platform speed [m/s].
+        lookahead: Distance of the carrot ahead of the closest point of the path, in z [m].
+    """
+
+    name = "planner"
+
+    def __init__(self, params: EnvParams, gain: float = 2.0, max_speed: float = 0.25, lookahead: float = 0.1) -> None:
+        from envs.planner import PathFollower
+
+        super().__init__(params, gain, max_speed)
+        self.follower = PathFollower(params, lookahead)
+
+    @property
+    def log(self) -> list:
+        """Every plan made, in order."""
+        return self.follower.log
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Actions for a batch of observations (row i is followed along its own plan), shape (N, 3), float32."""
+        pose, target, velocity = decode_observation(self.params, obs)
+        carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
+        return self.act(pose, carrot, velocity)
+
+    def episode_metrics(self) -> dict[str, float] | None:
+        """The last plan's figures (path found, planned / straight length, min k, planning time), or None."""
+        return self.follower.last_plan_metrics()
+
+
 #: Controllers by command-line name.
-CONTROLLERS = {cls.name: cls for cls in (ResolvedRateController, SingularityAwareController)}
+CONTROLLERS = {cls.name: cls for cls in (ResolvedRateController, SingularityAwareController, PlannerController)}
 #: Controllers for the robots of ``envs.family`` (by command-line name).
 FAMILY_CONTROLLERS = {cls.name: cls for cls in (FamilyResolvedRateController,)}

@@ -74,6 +74,9 @@ class EpisodeRecord:
         inverse_condition: Inverse condition number per step, shape (length + 1,).
         tracking: For a Track environment, the tracking metrics after ``TRACKING_SETTLING_S`` (see
             ``tracking_metrics``); None otherwise.
+        planner: For an agent that plans (``PlannerController``), its ``episode_metrics()`` at the episode's
+            end: whether a certified path was found, planned length / straight length, the planned path's
+            smallest k and the planning time [s]; None otherwise.
     """
 
     episode: int
@@ -90,11 +93,12 @@ class EpisodeRecord:
     targets: np.ndarray = field(repr=False)
     inverse_condition: np.ndarray = field(repr=False)
     tracking: dict[str, float] | None = field(default=None, repr=False)
+    planner: dict[str, float] | None = field(default=None, repr=False)
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, for ``episodes.csv`` (the tracking metrics go to ``metrics.json``)."""
-        skip = ("poses", "targets", "inverse_condition", "tracking")
-        return {k: v for k, v in asdict(self).items() if k not in skip}
+        skip = ("poses", "targets", "inverse_condition", "tracking", "planner")
+        return {k: v for k, v in asdict(self).items() if k not in skip} | (self.planner or {})
 
 
 #: Settling time excluded from the tracking metrics [s]: the platform starts on the reference, and the first
@@ -461,6 +465,7 @@ def evaluate_agent(
                 targets=np.array(goal),
                 inverse_condition=np.array(ks),
                 tracking=tracking,
+                planner=agent.episode_metrics() if hasattr(agent, "episode_metrics") else None,
             )
         )
     return records
@@ -490,6 +495,17 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
                 **{k: stats([r.tracking[k] for r in records if np.isfinite(r.tracking[k])] or [np.nan]) for k in keys},
             }
         }
+    planner = {}
+    if records and all(r.planner is not None for r in records):
+        planner = {
+            "planner": {
+                "path_found_rate": float(np.mean([r.planner["path_found"] for r in records])),
+                **{
+                    k: stats([r.planner[k] for r in records])
+                    for k in ("planned_length_ratio", "planned_min_k", "planning_s")
+                },
+            }
+        }
     return {
         "episodes": len(records),
         "success_rate": float(np.mean([r.success for r in records])),
@@ -505,6 +521,7 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
         "cost_fraction": stats([r.cost_fraction for r in records]),
         "episode_length": stats([r.length for r in records]),
         **tracking,
+        **planner,
     }
 
 

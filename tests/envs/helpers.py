@@ -14,6 +14,7 @@ from envs.workspace import WorkspaceMap
 MAX_EPISODE_STEPS = {
     "Planar3RPRReach-v0": 200,
     "Planar3RPRReachHard-v0": 200,
+    "Planar3RPRReachMixed-v0": 200,
     "Planar3RPRTrack-v0": 400,
 }
 

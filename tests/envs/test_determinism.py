@@ -13,8 +13,9 @@ from tests.envs.helpers import all_finite, assert_steps_equal, numeric_info_valu
 
 #: Random-action steps per id of the long rollout (100 000 in all).
 LONG_ROLLOUT_STEPS = {
-    "Planar3RPRReach-v0": 40_000,
+    "Planar3RPRReach-v0": 30_000,
     "Planar3RPRReachHard-v0": 30_000,
+    "Planar3RPRReachMixed-v0": 10_000,
     "Planar3RPRTrack-v0": 30_000,
 }
 

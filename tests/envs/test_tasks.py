@@ -155,7 +155,7 @@ def test_explicit_start_or_target_alone(given, make_env):
         ({"start": [0.5, np.nan, 0.0]}, r"options\['start'\] must be a finite pose"),
         ({"start": [5.0, 5.0, 0.0]}, r"options\['start'\] = \[5.0, 5.0, 0.0\] is not in the certified safe"),
         ({"target": [0.5, 0.0, 0.0]}, r"options\['target'\] .* is not in the certified safe workspace"),
-        ({"targets": "impossible"}, r"options\['targets'\] must be one of \('standard', 'hard'\)"),
+        ({"targets": "impossible"}, r"options\['targets'\] must be one of \('standard', 'hard', 'mixed'\)"),
         ({"goal": [0.5, 0.3, 0.0]}, r"unknown reset option\(s\) \['goal'\]"),
     ],
 )

@@ -104,7 +104,7 @@ def test_invalid_constructor_arguments(cls, kwargs, error, match):
 
 def test_invalid_targets_argument():
     """Reach refuses an unknown targets mode, naming the valid ones; gym.make forwards the refusal."""
-    with pytest.raises(ValueError, match=r"targets must be one of \('standard', 'hard'\), got 'impossible'"):
+    with pytest.raises(ValueError, match=r"targets must be one of \('standard', 'hard', 'mixed'\), got 'impossible'"):
         Planar3RPRReachEnv(targets="impossible")
     with pytest.raises(ValueError, match="targets must be one of"):
         gym.make("Planar3RPRReach-v0", targets="impossible")

@@ -212,7 +212,7 @@ def test_bad_actions_are_refused(actions, error, pattern):
     [
         ({"dt": -1}, ValueError, r"dt must be > 0, got -1\.0"),
         ({"integrator": "rk5"}, ValueError, r"integrator must be one of \('euler', 'rk4'\), got 'rk5'"),
-        ({"targets": "easy"}, ValueError, r"targets must be one of \('standard', 'hard'\), got 'easy'"),
+        ({"targets": "easy"}, ValueError, r"targets must be one of \('standard', 'hard', 'mixed'\), got 'easy'"),
         ({"colour": "red"}, TypeError, r"unexpected keyword argument 'colour'"),
         ({"num_envs": 0}, ValueError, r"num_envs must be ≥ 1, got 0"),
         ({"num_envs": 2.0}, TypeError, r"num_envs must be an int, got float 2\.0"),

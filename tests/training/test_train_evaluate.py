@@ -275,7 +275,11 @@ def test_sac_with_her_trains_and_evaluates(tmp_path):
 @pytest.mark.parametrize(
     ("key", "value", "message"),
     [
-        ("env_wrapper", "os.system", r"env_wrapper 'os.system' is not one of \['envs.GoalReachWrapper'\]"),
+        (
+            "env_wrapper",
+            "os.system",
+            r"env_wrapper 'os.system' is not one of \['envs.GoalReachWrapper', 'envs.PlannerWaypointWrapper'\]",
+        ),
         ("replay_buffer_class", "Evil", r"replay_buffer_class 'Evil' is not one of \['HerReplayBuffer'\]"),
     ],
 )
