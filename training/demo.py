@@ -1,13 +1,16 @@
-"""The main job: evaluate the shipped pre-trained policy and both classical baselines, and write a report.
+"""The main job: evaluate the shipped pre-trained policies and the classical baselines, and write a report.
 
 Usage::
 
     python -m training.demo [--episodes 50] [--out reports/demo] [--run training/pretrained/<run>]
 
-On standard and hard targets of Planar3RPRReach-v0 (the same fixed seeds for every agent), it writes
+On standard and hard targets of Planar3RPRReach-v0 (the same fixed seeds for every agent: the shipped
+policies, resolved-rate, singularity-aware and the planner, each also behind the shield), it writes
 ``report.md`` (the comparison table), ``metrics.json``, ``trajectories_hard.png`` and
 ``trajectories_standard.png`` (paths over the conditioning map, one row per agent),
-``condition_number_hard.png`` (k over time) and ``policy_hard.gif`` (the policy on hard targets).
+``condition_number_hard.png`` (k over time) and ``policy_hard.gif`` (the policy for both kinds of target on
+hard targets). On Planar3RPRTrack-v0 it compares the shipped Track policy with resolved-rate (with the
+reference's feed-forward velocity) in ``track.md``, and the hexapod's policies in ``hexapod.md``.
 """
 
 from __future__ import annotations
@@ -32,14 +35,29 @@ from training.evaluate import (
     load_controller,
     load_run,
     print_table,
+    wrap_for_run,
 )
 
-__all__ = ["PRETRAINED_HEXAPOD_RUN", "PRETRAINED_RUN", "main", "record_regression", "run_demo", "run_hexapod_demo"]
+__all__ = [
+    "PRETRAINED_HEXAPOD_RUN",
+    "PRETRAINED_RUN",
+    "main",
+    "record_regression",
+    "run_demo",
+    "run_hexapod_demo",
+    "run_track_demo",
+    "tracking_table",
+]
 
 #: The run folder of the policy that ships with the project (trained by ``training.train``).
 PRETRAINED_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReach-v0")))
 #: A second shipped policy, trained on hard targets (Planar3RPRReachHard-v0), shown when present.
 PRETRAINED_HARD_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReachHard-v0")))
+#: The shipped policy for both kinds of target (Planar3RPRReachMixed-v0, with the planner's waypoint in its
+#: observation), shown in place of the hard-trained one when present.
+PRETRAINED_MIXED_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReachMixed-v0")))
+#: The shipped Track policy (Planar3RPRTrack-v0), compared with resolved-rate in ``track.md`` when present.
+PRETRAINED_TRACK_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRTrack-v0")))
 
 
 #: The shipped Stewart–Gough hexapod policy (StewartGoughReach-v0), shown in its own section when present.
@@ -63,11 +81,13 @@ def run_demo(
     hard_run: Path | None = None,
     shield: float | None = DEMO_SHIELD,
 ) -> dict:
-    """Evaluate the policy of ``run`` and the two baselines on standard and hard targets; write the report.
+    """Evaluate the policy of ``run``, a second one and the three baselines on standard and hard targets.
 
     Args:
         run: Run folder of the policy.
-        hard_run: Run folder of a policy trained on hard targets, evaluated too (None: skip it).
+        hard_run: Run folder of a second policy (trained on hard or on mixed targets), evaluated too and
+            filmed on hard targets (None: skip it). Each policy sees the observation it was trained with
+            (its ``env_wrapper``).
         out: Report folder (created).
         episodes: Episodes per agent and target set.
         seed: Seed of the first episode (episode i resets with seed + i for every agent).
@@ -82,29 +102,31 @@ def run_demo(
     policy, config = load_run(run)
     env_id = config["env_id"]
     env = gym.make(env_id, render_mode="rgb_array")
-    agents = {f"{config['algo'].upper()} policy": policy}
+    agents = {f"{config['algo'].upper()} policy": (policy, config)}
+    filmed = next(iter(agents))
     if hard_run is not None:
         hard_policy, hard_config = load_run(hard_run)
-        agents[f"{hard_config['algo'].upper()} policy (hard-trained)"] = hard_policy
-    agents["resolved-rate"] = load_controller("resolved-rate", env)
-    agents["singularity-aware"] = load_controller("singularity-aware", env)
+        kind = "mixed-trained, planner waypoint" if "Mixed" in hard_config["env_id"] else "hard-trained"
+        filmed = f"{hard_config['algo'].upper()} policy ({kind})"
+        agents[filmed] = (hard_policy, hard_config)
+    for name in ("resolved-rate", "singularity-aware", "planner"):
+        agents[name] = (load_controller(name, env), {})
     metrics, records = {}, {}
     frames = []
     for targets in ("standard", "hard"):
         records[targets] = {}
-        for name, agent in agents.items():
-            filmed = "PPO policy (hard-trained)" if hard_run is not None else next(iter(agents))
+        for name, (agent, agent_config) in agents.items():
             film = frames if (targets == "hard" and name == filmed) else None
-            recs = evaluate_agent(agent, env, episodes, seed, targets, film, video_episodes)
+            recs = evaluate_agent(agent, wrap_for_run(env, agent_config), episodes, seed, targets, film, video_episodes)
             records[targets][name] = recs
             metrics[f"{name} @ {targets}"] = aggregate(recs)
     if shield is not None:
-        shielded = envs.SingularityShield(gym.make(env_id), k_guard=shield)
         for targets in ("standard", "hard"):
-            for name, agent in agents.items():
+            for name, (agent, agent_config) in agents.items():
+                shielded = envs.SingularityShield(wrap_for_run(gym.make(env_id), agent_config), k_guard=shield)
                 recs = evaluate_agent(agent, shielded, episodes, seed, targets)
                 metrics[f"{name} + shield @ {targets}"] = aggregate(recs)
-        shielded.close()
+                shielded.close()
     params, workspace = env.unwrapped.params, env.unwrapped.workspace
     for targets in ("standard", "hard"):
         plots.trajectories_figure(records[targets], params, workspace, out / f"trajectories_{targets}.png")
@@ -115,7 +137,7 @@ def run_demo(
     (out / "report.md").write_text(
         f"# Evaluation report\n\nEnvironment `{env_id}`, {episodes} episodes per row (reset seeds {seed}…"
         f"{seed + episodes - 1}, identical for every agent). Policy: `{run}`"
-        + (f"; hard-trained policy: `{hard_run}`" if hard_run is not None else "")
+        + (f"; second policy: `{hard_run}`" if hard_run is not None else "")
         + f".\n\n{table}\n"
         "Pictures: `trajectories_standard.png`, `trajectories_hard.png`, `condition_number_hard.png`, "
         "`policy_hard.gif`.\n"
@@ -174,6 +196,53 @@ def run_hexapod_demo(run: Path, out: Path, episodes: int, seed: int = 1000, shie
     return metrics
 
 
+def run_track_demo(run: Path, out: Path, episodes: int, seed: int = 1000) -> dict:
+    """Compare the Track policy with resolved-rate (feed-forward) on Planar3RPRTrack-v0; write ``track.md``.
+
+    Args:
+        run: Run folder of the Track policy.
+        out: Report folder (created).
+        episodes: Episodes per agent.
+        seed: Seed of the first episode.
+
+    Returns:
+        Label → aggregated metrics (with their ``tracking`` block).
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    policy, config = load_run(run)
+    env = gym.make(config["env_id"])
+    agents = {f"{config['algo'].upper()} policy": policy, "resolved-rate": load_controller("resolved-rate", env)}
+    metrics = {f"{name} @ track": aggregate(evaluate_agent(a, env, episodes, seed)) for name, a in agents.items()}
+    env.close()
+    (out / "track_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    (out / "track.md").write_text(
+        f"# Tracking on `{config['env_id']}`\n\n{episodes} episodes per row "
+        f"(reset seeds {seed}…{seed + episodes - 1}). Policy: `{run}`; resolved-rate steers with the "
+        "reference's feed-forward velocity.\n\n" + tracking_table(metrics)
+    )
+    return metrics
+
+
+def tracking_table(metrics: dict[str, dict]) -> str:
+    """A Markdown table of the tracking metrics (``training.evaluate.tracking_metrics``) of each row."""
+    lines = [
+        "| agent | success | RMS position error [mm] | max position error [mm] | RMS orientation error [°] "
+        "| cost fraction | lag [s] | singularity terminations |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for label, m in metrics.items():
+        t = m["tracking"]
+        lines.append(
+            f"| {label.split(' @ ')[0]} | {100 * m['success_rate']:.0f} % "
+            f"| {t['rms_position_mm']['mean']:.2f} ± {t['rms_position_mm']['std']:.2f} "
+            f"| {t['max_position_mm']['mean']:.2f} | {t['rms_orientation_deg']['mean']:.3f} "
+            f"| {t['cost_fraction']['mean']:.3f} | {t['lag_s']['mean']:.2f} "
+            f"| {m['singularity_terminations']} / {m['episodes']} |"
+        )
+    settling = next(iter(metrics.values()))["tracking"]["settling_s"]
+    return "\n".join(lines) + f"\n\nErrors after a settling time of {settling:g} s (mean ± std over episodes).\n"
+
+
 def record_regression(run: Path, episodes: int = 20, seed: int = 5000) -> dict:
     """Evaluate a run on fixed standard-target seeds and store the result as ``regression.json``.
 
@@ -208,10 +277,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=50, help="episodes per agent and target set")
     parser.add_argument("--out", default="reports/demo", help="report folder")
     parser.add_argument("--run", default=str(PRETRAINED_RUN), help="run folder of the policy")
+    second = next((r for r in (PRETRAINED_MIXED_RUN, PRETRAINED_HARD_RUN) if r.is_dir()), None)
     parser.add_argument(
         "--hard-run",
-        default=str(PRETRAINED_HARD_RUN) if PRETRAINED_HARD_RUN.is_dir() else None,
-        help="run folder of a policy trained on hard targets (default: the shipped one, if any)",
+        default=str(second) if second is not None else None,
+        help="run folder of a second policy, for hard targets (default: the shipped mixed-target one, if any)",
     )
     parser.add_argument("--seed", type=int, default=1000, help="seed of the first episode")
     parser.add_argument(
@@ -247,7 +317,9 @@ def main(argv: list[str] | None = None) -> int:
             PRETRAINED_HEXAPOD_RUN, Path(args.out), args.episodes, args.seed, args.shield or None
         )
         print_table(hexapod)
-    print(f"report written to {args.out}/report.md and hexapod.md ({time.perf_counter() - start:.0f} s)")
+    if PRETRAINED_TRACK_RUN.is_dir() and Path(args.run) == PRETRAINED_RUN:
+        print_table(run_track_demo(PRETRAINED_TRACK_RUN, Path(args.out), args.episodes, args.seed))
+    print(f"report written to {args.out}/report.md, track.md and hexapod.md ({time.perf_counter() - start:.0f} s)")
     return 0
 
 

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import gymnasium as gym
+import numpy as np
 import pytest
 import yaml
 from PIL import Image
@@ -93,8 +94,10 @@ def test_demo_writes_report(pretrained_run, tmp_path, capsys):
     for name in names:
         assert (out / name).is_file(), f"{name} missing from {sorted(p.name for p in out.iterdir())}"
     metrics = json.loads((out / "metrics.json").read_text())
-    agents = ["PPO policy", "resolved-rate", "singularity-aware"]
-    if demo.PRETRAINED_HARD_RUN.is_dir():
+    agents = ["PPO policy", "resolved-rate", "singularity-aware", "planner"]
+    if demo.PRETRAINED_MIXED_RUN.is_dir():
+        agents.append("PPO policy (mixed-trained, planner waypoint)")
+    elif demo.PRETRAINED_HARD_RUN.is_dir():
         agents.append("PPO policy (hard-trained)")
     expected = {f"{agent} @ {targets}" for agent in agents for targets in ("standard", "hard")}
     shielded = {f"{agent} + shield @ {targets}" for agent in agents for targets in ("standard", "hard")}
@@ -110,6 +113,23 @@ def test_demo_writes_report(pretrained_run, tmp_path, capsys):
     with Image.open(out / "policy_hard.gif") as gif:
         assert gif.format == "GIF" and gif.n_frames > 2
     assert "report written to" in capsys.readouterr().out
+    if demo.PRETRAINED_TRACK_RUN.is_dir():
+        track = json.loads((out / "track_metrics.json").read_text())
+        assert set(track) == {"PPO policy @ track", "resolved-rate @ track"}
+        assert "RMS position error [mm]" in (out / "track.md").read_text()
+
+
+@pytest.mark.slow
+def test_track_demo_reports_tracking_errors(tmp_path):
+    """The Track section: the shipped Track policy and resolved-rate, with finite tracking metrics."""
+    if not demo.PRETRAINED_TRACK_RUN.is_dir():
+        pytest.skip("no shipped Track policy")
+    metrics = demo.run_track_demo(demo.PRETRAINED_TRACK_RUN, tmp_path, episodes=2)
+    for m in metrics.values():
+        assert m["episodes"] == 2
+        assert np.isfinite(m["tracking"]["rms_position_mm"]["mean"])
+    table = (tmp_path / "track.md").read_text()
+    assert "| resolved-rate |" in table and "| PPO policy |" in table
 
 
 @pytest.mark.slow
