@@ -1,7 +1,9 @@
-"""Write the hexapod results table (Markdown) from the ``metrics.json`` files of ``training.evaluate`` runs.
+"""Write a results table (Markdown) from the ``metrics.json`` files of ``training.evaluate`` runs.
 
 Run as ``python -m training.family_report OUT.md EVAL_DIR [EVAL_DIR ...]``; every figure of the table comes
-from those files, so re-running the evaluations and this command is how the table is updated.
+from those files, so re-running the evaluations and this command is how the table is updated. Evaluations of
+the planner (``--controller planner``) also get a table of its plans: how often a certified path was found,
+its length against the straight line, its smallest k and the planning time per episode.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ import json
 import statistics
 from pathlib import Path
 
-__all__ = ["main", "table"]
+__all__ = ["main", "planner_table", "table"]
 
 
 def _row(label: str, metrics: list[dict]) -> str:
@@ -41,6 +43,31 @@ def table(groups: dict[str, list[dict]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def planner_table(groups: dict[str, list[dict]]) -> str:
+    """A Markdown table of the plans of the groups that have them (``aggregate``'s ``planner`` block); "" if none."""
+    rows = {label: ms for label, ms in groups.items() if all("planner" in m for m in ms)}
+    if not rows:
+        return ""
+    lines = [
+        "| agent @ targets | episodes | certified path found | planned / straight length (mean ± std) "
+        "| planned path's min k (mean) | planning time per episode [ms] (mean / median) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label, ms in rows.items():
+        episodes = sum(m["episodes"] for m in ms)
+        found = sum(m["planner"]["path_found_rate"] * m["episodes"] for m in ms) / episodes
+        ratio = statistics.mean(m["planner"]["planned_length_ratio"]["mean"] for m in ms)
+        ratio_std = statistics.mean(m["planner"]["planned_length_ratio"]["std"] for m in ms)
+        min_k = statistics.mean(m["planner"]["planned_min_k"]["mean"] for m in ms)
+        t_mean = 1000.0 * statistics.mean(m["planner"]["planning_s"]["mean"] for m in ms)
+        t_median = 1000.0 * statistics.mean(m["planner"]["planning_s"]["median"] for m in ms)
+        lines.append(
+            f"| {label} | {episodes} | {100 * found:.0f} % | {ratio:.2f} ± {ratio_std:.2f} | {min_k:.3f} "
+            f"| {t_mean:.1f} / {t_median:.1f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Group the evaluations by agent and target set (their label without the run name) and write the table."""
     parser = argparse.ArgumentParser(prog="python -m training.family_report", description=__doc__.split("\n")[0])
@@ -55,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
         agent = agent.replace(" + shield", "").split(" (")[0]  # "ppo (run-s0)" → "ppo": seeds are grouped
         label = f"{agent}{' + shield' if shielded else ''} @ {targets}"
         groups.setdefault(label, []).append(metrics)
-    Path(args.out).write_text(table(groups))
+    plans = planner_table(groups)
+    Path(args.out).write_text(table(groups) + (f"\nThe planner's plans:\n\n{plans}" if plans else ""))
     return 0
 
 

@@ -96,3 +96,9 @@ def test_planner_reaches_hard_targets_without_singularities(env):
     assert metrics["planner"]["planned_length_ratio"]["mean"] > 1.0
     assert all(r.row()["path_found"] == 1.0 for r in records)  # per-episode planner fields reach episodes.csv
     assert len(agent.log) == 5  # one plan per episode, not one per step
+    # the report's table of plans is made from these metrics
+    from training.family_report import planner_table
+
+    table = planner_table({"planner @ hard": [metrics]})
+    assert "| planner @ hard | 5 | 100 % |" in table
+    assert planner_table({"ppo @ hard": [{k: v for k, v in metrics.items() if k != "planner"}]}) == ""
