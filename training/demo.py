@@ -243,25 +243,33 @@ def tracking_table(metrics: dict[str, dict]) -> str:
     return "\n".join(lines) + f"\n\nErrors after a settling time of {settling:g} s (mean ± std over episodes).\n"
 
 
-def record_regression(run: Path, episodes: int = 20, seed: int = 5000) -> dict:
-    """Evaluate a run on fixed standard-target seeds and store the result as ``regression.json``.
+def record_regression(run: Path, episodes: int = 20, seed: int = 5000, targets: str | None = None) -> dict:
+    """Evaluate a run on fixed seeds and store the result as ``regression.json``.
 
     The test suite re-runs exactly these episodes and checks the policy still reaches this success rate.
 
     Args:
-        run: Run folder of the policy.
+        run: Run folder of the policy (its ``env_wrapper``, if any, is applied).
         episodes: Number of episodes.
         seed: Seed of the first episode.
+        targets: "standard" or "hard" for a Reach run (default: hard for a run trained on mixed or hard
+            targets, else standard); ignored for a Track run ("track").
 
     Returns:
         The recorded dict.
     """
     policy, config = load_run(run)
-    env = gym.make(config["env_id"])
-    metrics = aggregate(evaluate_agent(policy, env, episodes, seed, "standard"))
+    env = wrap_for_run(gym.make(config["env_id"]), config)
+    if "targets" not in type(env.unwrapped).reset_options:
+        targets, option = "track", None
+    else:
+        hard = "Mixed" in config["env_id"] or "Hard" in config["env_id"]
+        targets = targets or ("hard" if hard else "standard")
+        option = targets
+    metrics = aggregate(evaluate_agent(policy, env, episodes, seed, option))
     record = {
         "env_id": config["env_id"],
-        "targets": "standard",
+        "targets": targets,
         "seed": seed,
         "episodes": episodes,
         "success_rate": metrics["success_rate"],

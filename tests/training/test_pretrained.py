@@ -14,7 +14,7 @@ from PIL import Image
 from envs import PLANAR_3RPR_IDS
 from training import demo
 from training.demo import PRETRAINED_RUN
-from training.evaluate import aggregate, evaluate_agent, load_run
+from training.evaluate import aggregate, evaluate_agent, load_run, wrap_for_run
 
 #: Keys of regression.json and their types.
 REGRESSION_KEYS = {
@@ -168,3 +168,27 @@ def test_demo_reports_the_hexapod(pretrained_run, tmp_path):
     assert "StewartGoughReachHard-v0" in (out / "hexapod.md").read_text()
     with Image.open(out / "hexapod_policy.gif") as gif:
         assert gif.format == "GIF" and gif.n_frames > 2
+
+
+#: The shipped 3-RPR policies besides the standard one, each with its regression.json.
+OTHER_3RPR_RUNS = [demo.PRETRAINED_MIXED_RUN, demo.PRETRAINED_TRACK_RUN]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("run", OTHER_3RPR_RUNS, ids=lambda r: r.name)
+def test_other_shipped_3rpr_policies_keep_their_recorded_performance(run):
+    """The mixed-target policy (on hard targets, with its waypoint wrapper) and the Track policy keep their record."""
+    if not (run / "regression.json").is_file():
+        pytest.skip(f"{run.name} not shipped")
+    record = json.loads((run / "regression.json").read_text())
+    assert set(record) == set(REGRESSION_KEYS)
+    agent, config = load_run(run)
+    assert config["env_id"] == record["env_id"] in PLANAR_3RPR_IDS
+    env = wrap_for_run(gym.make(record["env_id"]), config)
+    targets = None if record["targets"] == "track" else record["targets"]
+    try:
+        metrics = aggregate(evaluate_agent(agent, env, record["episodes"], record["seed"], targets))
+    finally:
+        env.close()
+    assert metrics["success_rate"] >= record["success_rate"] - 0.1, metrics
+    assert metrics["singularity_terminations"] <= record["singularity_terminations"] + 1, metrics
