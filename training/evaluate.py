@@ -660,7 +660,8 @@ def main(argv: list[str] | None = None) -> int:
                 env = envs.SingularityShield(env, k_guard=args.shield)
             except ValueError as exc:
                 raise EvaluationError(f"--shield: {exc}") from None
-        targets = args.targets or getattr(env.unwrapped, "targets", "standard")
+        reach = "targets" in type(env.unwrapped).reset_options
+        targets = args.targets or (getattr(env.unwrapped, "targets", "standard") if reach else "track")
         if args.run is not None:
             agent, _ = load_run(args.run, args.model)
             env = wrap_for_run(env, config)

@@ -3,7 +3,8 @@
 Run as ``python -m training.family_report OUT.md EVAL_DIR [EVAL_DIR ...]``; every figure of the table comes
 from those files, so re-running the evaluations and this command is how the table is updated. Evaluations of
 the planner (``--controller planner``) also get a table of its plans: how often a certified path was found,
-its length against the straight line, its smallest k and the planning time per episode.
+its length against the straight line, its smallest k and the planning time per episode; Track evaluations a
+table of their tracking errors.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import json
 import statistics
 from pathlib import Path
 
-__all__ = ["main", "planner_table", "table"]
+__all__ = ["main", "planner_table", "table", "tracking_table"]
 
 
 def _row(label: str, metrics: list[dict]) -> str:
@@ -68,6 +69,35 @@ def planner_table(groups: dict[str, list[dict]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def tracking_table(groups: dict[str, list[dict]]) -> str:
+    """A Markdown table of the tracking metrics of the groups that have them (Track envs); "" if none.
+
+    Each figure is the mean over the group's runs of the per-run mean over episodes; ± is the standard
+    deviation of those per-run means (over seeds), when there are several runs.
+    """
+    rows = {label: ms for label, ms in groups.items() if all("tracking" in m for m in ms)}
+    if not rows:
+        return ""
+
+    def cell(ms: list[dict], key: str, digits: int) -> str:
+        values = [m["tracking"][key]["mean"] for m in ms]
+        spread = f" ± {statistics.stdev(values):.{digits}f}" if len(values) > 1 else ""
+        return f"{statistics.mean(values):.{digits}f}{spread}"
+
+    lines = [
+        "| agent @ task | runs | RMS position error [mm] | max position error [mm] | RMS orientation error [°] "
+        "| cost fraction | lag [s] |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for label, ms in rows.items():
+        lines.append(
+            f"| {label} | {len(ms)} | {cell(ms, 'rms_position_mm', 2)} | {cell(ms, 'max_position_mm', 2)} "
+            f"| {cell(ms, 'rms_orientation_deg', 3)} | {cell(ms, 'cost_fraction', 3)} | {cell(ms, 'lag_s', 2)} |"
+        )
+    settling = next(iter(rows.values()))[0]["tracking"]["settling_s"]
+    return "\n".join(lines) + f"\n\nAfter a settling time of {settling:g} s.\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Group the evaluations by agent and target set (their label without the run name) and write the table."""
     parser = argparse.ArgumentParser(prog="python -m training.family_report", description=__doc__.split("\n")[0])
@@ -82,8 +112,12 @@ def main(argv: list[str] | None = None) -> int:
         agent = agent.replace(" + shield", "").split(" (")[0]  # "ppo (run-s0)" → "ppo": seeds are grouped
         label = f"{agent}{' + shield' if shielded else ''} @ {targets}"
         groups.setdefault(label, []).append(metrics)
-    plans = planner_table(groups)
-    Path(args.out).write_text(table(groups) + (f"\nThe planner's plans:\n\n{plans}" if plans else ""))
+    plans, tracking = planner_table(groups), tracking_table(groups)
+    Path(args.out).write_text(
+        table(groups)
+        + (f"\nThe planner's plans:\n\n{plans}" if plans else "")
+        + (f"\nTracking:\n\n{tracking}" if tracking else "")
+    )
     return 0
 
 

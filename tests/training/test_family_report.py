@@ -1,0 +1,46 @@
+"""training.family_report: tables made from evaluation metrics, grouped over seeds."""
+
+from __future__ import annotations
+
+import json
+
+from training import family_report
+
+
+def _metrics(label: str, success: float, rms: float | None = None) -> dict:
+    stat = {"mean": 1.0, "std": 0.0, "median": 1.0}
+    m = {
+        "label": label,
+        "episodes": 10,
+        "success_rate": success,
+        "final_position_error_mm": stat,
+        "final_orientation_error_deg": stat,
+        "min_inverse_condition": {**stat, "min": 0.5},
+        "singularity_terminations": 1,
+        "cost_fraction": stat,
+    }
+    if rms is not None:
+        keys = ("rms_position_mm", "max_position_mm", "rms_orientation_deg", "cost_fraction", "lag_s")
+        m["tracking"] = {"settling_s": 1.0, **{k: {"mean": rms, "std": 0.0, "median": rms} for k in keys}}
+    return m
+
+
+def test_seeds_are_grouped_and_tracking_is_tabulated(tmp_path):
+    """Two seeds of one agent make one row (mean ± std); Track metrics get their own table; others do not."""
+    folders = []
+    for i, (label, success, rms) in enumerate(
+        [("ppo (run-s0) @ track", 1.0, 0.5), ("ppo (run-s1) @ track", 0.8, 0.7), ("resolved-rate @ hard", 0.1, None)]
+    ):
+        folder = tmp_path / f"e{i}"
+        folder.mkdir()
+        (folder / "metrics.json").write_text(json.dumps(_metrics(label, success, rms)))
+        folders.append(str(folder))
+    out = tmp_path / "table.md"
+    assert family_report.main([str(out), *folders]) == 0
+    text = out.read_text()
+    assert "| ppo @ track | 2 | 90.0 ± 14.1 % |" in text
+    assert "| resolved-rate @ hard | 1 | 10.0 % |" in text
+    tracking = text.split("Tracking:")[1]
+    assert "| ppo @ track | 2 | 0.60 ± 0.14 |" in tracking
+    assert "resolved-rate" not in tracking
+    assert "The planner's plans" not in text
