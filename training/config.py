@@ -320,25 +320,35 @@ def resolve_action_noise(noise_type: Any, noise_std: Any, n_actions: int) -> Any
     return cls(mean=np.zeros(n_actions), sigma=float(noise_std) * np.ones(n_actions))
 
 
-def resolve_env_wrapper(name: Any) -> type | None:
-    """The wrapper class an ``env_wrapper`` entry names (None for none).
+def resolve_env_wrapper(name: Any) -> Any:
+    """The wrapper an ``env_wrapper`` entry names (None for none), as the RL Zoo reads it.
 
     Args:
-        name: A string of ``ENV_WRAPPERS``, or None.
+        name: A string of ``ENV_WRAPPERS``, a one-entry mapping {name: keyword arguments} (the RL Zoo's form for
+            a wrapper with arguments, e.g. ``{envs.PlannerWaypointWrapper: {lookahead: 0.05}}``), or None.
 
     Returns:
-        The class, or None.
+        The class (or the class with its keyword arguments bound, ``functools.partial``), or None.
 
     Raises:
         ConfigError: For any other value, listing the valid ones.
     """
     if name is None:
         return None
-    if name not in ENV_WRAPPERS:
+    kwargs: dict[str, Any] = {}
+    if isinstance(name, dict):
+        if len(name) != 1 or not isinstance(next(iter(name.values())) or {}, dict):
+            raise ConfigError(f"env_wrapper must be a name or {{name: {{keyword: value}}}}, got {name!r}")
+        name, kwargs = next(iter(name.items()))
+        kwargs = kwargs or {}
+    if not isinstance(name, str) or name not in ENV_WRAPPERS:
         raise ConfigError(f"env_wrapper {name!r} is not one of {list(ENV_WRAPPERS)}")
+    import functools
+
     import envs
 
-    return getattr(envs, name.removeprefix("envs."))
+    cls = getattr(envs, name.removeprefix("envs."))
+    return functools.partial(cls, **kwargs) if kwargs else cls
 
 
 def resolve_replay_buffer(hyperparams: dict[str, Any]) -> dict[str, Any]:

@@ -89,7 +89,8 @@ def make_training_env(
         if gym.spec(env_id).vector_entry_point is None:
             raise ConfigError(f"{env_id} has no native vector env; use --vec dummy or subproc")
         if wrapper_class is not None:
-            raise ConfigError(f"env_wrapper {wrapper_class.__name__} wraps single envs; use --vec dummy or subproc")
+            name = getattr(wrapper_class, "__name__", None) or wrapper_class.func.__name__
+            raise ConfigError(f"env_wrapper {name} wraps single envs; use --vec dummy or subproc")
         adapter = NativeVecEnvAdapter.from_id(env_id, n_envs, **(env_kwargs or {}))
         adapter.seed(seed)
         filename = None if monitor_dir is None else str(Path(monitor_dir) / "native.monitor.csv")

@@ -366,3 +366,19 @@ def test_noise_types_are_sb3_classes():
 
     for class_name in NOISE_TYPES.values():
         assert isinstance(getattr(noise, class_name), type)
+
+
+def test_env_wrapper_with_arguments_in_the_rl_zoo_form():
+    """{name: {keyword: value}} binds the wrapper's arguments; malformed or unknown entries are refused clearly."""
+    import gymnasium as gym
+
+    from training.config import resolve_env_wrapper
+
+    wrapper = resolve_env_wrapper({"envs.PlannerWaypointWrapper": {"lookahead": 0.05}})
+    env = wrapper(gym.make("Planar3RPRReach-v0"))
+    assert env.follower.lookahead == 0.05
+    assert resolve_env_wrapper({"envs.GoalReachWrapper": None}) is resolve_env_wrapper("envs.GoalReachWrapper")
+    with pytest.raises(ConfigError, match=r"env_wrapper must be a name or \{name: \{keyword: value\}\}"):
+        resolve_env_wrapper({"envs.GoalReachWrapper": {}, "envs.PlannerWaypointWrapper": {}})
+    with pytest.raises(ConfigError, match=r"env_wrapper 'os.system' is not one of"):
+        resolve_env_wrapper({"os.system": {"command": "true"}})
