@@ -106,7 +106,7 @@ def run_demo(
     filmed = next(iter(agents))
     if hard_run is not None:
         hard_policy, hard_config = load_run(hard_run)
-        kind = "mixed-trained, planner waypoint" if "Mixed" in hard_config["env_id"] else "hard-trained"
+        kind = "mixed, waypoint" if "Mixed" in hard_config["env_id"] else "hard-trained"
         filmed = f"{hard_config['algo'].upper()} policy ({kind})"
         agents[filmed] = (hard_policy, hard_config)
     for name in ("resolved-rate", "singularity-aware", "planner"):
