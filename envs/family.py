@@ -808,6 +808,7 @@ class FamilyReachEnv(FamilyEnvBase):
     """
 
     reset_options = ("targets",)
+    target_modes = _TARGET_MODES
 
     def __init__(
         self, render_mode: str | None = None, targets: str = "standard", robot: Any = None, **kwargs: Any

@@ -436,7 +436,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         fixed = ("params", "workspace", "observation_space", "action_space", "render_mode", "metadata", "spec")
         if name.startswith("_") or name in fixed or not hasattr(self._sampler, name):
             raise ValueError(f"{name!r} cannot be set on the sub-environments of {type(self).__name__}")
-        modes = getattr(type(self._sampler), "target_modes", ("standard", "hard"))
+        modes = type(self._sampler).target_modes if name == "targets" else ()
         if name == "targets" and values not in modes:
             raise ValueError(f"targets must be one of {modes}, got {values!r}")
         setattr(self._sampler, name, values)

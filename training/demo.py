@@ -26,7 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # registers the ids
-from training import plots
+from training import family_report, plots
 from training.evaluate import (
     EvaluationError,
     aggregate,
@@ -46,7 +46,6 @@ __all__ = [
     "run_demo",
     "run_hexapod_demo",
     "run_track_demo",
-    "tracking_table",
 ]
 
 #: The run folder of the policy that ships with the project (trained by ``training.train``).
@@ -106,7 +105,8 @@ def run_demo(
     filmed = next(iter(agents))
     if hard_run is not None:
         hard_policy, hard_config = load_run(hard_run)
-        kind = "mixed, waypoint" if "Mixed" in hard_config["env_id"] else "hard-trained"
+        trained_on = gym.spec(hard_config["env_id"]).kwargs.get("targets", "standard")
+        kind = "mixed, waypoint" if trained_on == "mixed" else f"{trained_on}-trained"
         filmed = f"{hard_config['algo'].upper()} policy ({kind})"
         agents[filmed] = (hard_policy, hard_config)
     for name in ("resolved-rate", "singularity-aware", "planner"):
@@ -214,33 +214,16 @@ def run_track_demo(run: Path, out: Path, episodes: int, seed: int = 1000) -> dic
     agents = {f"{config['algo'].upper()} policy": policy, "resolved-rate": load_controller("resolved-rate", env)}
     metrics = {f"{name} @ track": aggregate(evaluate_agent(a, env, episodes, seed)) for name, a in agents.items()}
     env.close()
+    groups = {label.split(" @ ")[0]: [m] for label, m in metrics.items()}  # one run per agent
     (out / "track_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     (out / "track.md").write_text(
         f"# Tracking on `{config['env_id']}`\n\n{episodes} episodes per row "
         f"(reset seeds {seed}…{seed + episodes - 1}). Policy: `{run}`; resolved-rate steers with the "
-        "reference's feed-forward velocity.\n\n" + tracking_table(metrics)
+        "reference's feed-forward velocity.\n\n"
+        + family_report.table(groups)
+        + f"\n{family_report.tracking_table(groups)}"
     )
     return metrics
-
-
-def tracking_table(metrics: dict[str, dict]) -> str:
-    """A Markdown table of the tracking metrics (``training.evaluate.tracking_metrics``) of each row."""
-    lines = [
-        "| agent | success | RMS position error [mm] | max position error [mm] | RMS orientation error [°] "
-        "| cost fraction | lag [s] | singularity terminations |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for label, m in metrics.items():
-        t = m["tracking"]
-        lines.append(
-            f"| {label.split(' @ ')[0]} | {100 * m['success_rate']:.0f} % "
-            f"| {t['rms_position_mm']['mean']:.2f} ± {t['rms_position_mm']['std']:.2f} "
-            f"| {t['max_position_mm']['mean']:.2f} | {t['rms_orientation_deg']['mean']:.3f} "
-            f"| {t['cost_fraction']['mean']:.3f} | {t['lag_s']['mean']:.2f} "
-            f"| {m['singularity_terminations']} / {m['episodes']} |"
-        )
-    settling = next(iter(metrics.values()))["tracking"]["settling_s"]
-    return "\n".join(lines) + f"\n\nErrors after a settling time of {settling:g} s (mean ± std over episodes).\n"
 
 
 def record_regression(run: Path, episodes: int = 20, seed: int = 5000, targets: str | None = None) -> dict:
@@ -263,8 +246,7 @@ def record_regression(run: Path, episodes: int = 20, seed: int = 5000, targets: 
     if "targets" not in type(env.unwrapped).reset_options:
         targets, option = "track", None
     else:
-        hard = "Mixed" in config["env_id"] or "Hard" in config["env_id"]
-        targets = targets or ("hard" if hard else "standard")
+        targets = targets or ("standard" if env.unwrapped.targets == "standard" else "hard")
         option = targets
     metrics = aggregate(evaluate_agent(policy, env, episodes, seed, option))
     record = {
