@@ -11,7 +11,7 @@ from envs.family import (
 )
 from envs.goal import GoalReachWrapper
 from envs.planar_3rpr import Planar3RPRReachEnv, Planar3RPRTrackEnv
-from envs.planner import PlannerWaypointWrapper
+from envs.planner import PlannerResidualWrapper, PlannerWaypointWrapper
 from envs.shield import SingularityShield
 from envs.vector import Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv, Planar3RPRVectorEnv
 
@@ -29,6 +29,7 @@ __all__ = [
     "Planar3RPRTrackEnv",
     "Planar3RPRTrackVectorEnv",
     "Planar3RPRVectorEnv",
+    "PlannerResidualWrapper",
     "PlannerWaypointWrapper",
     "SingularityShield",
 ]

@@ -22,8 +22,9 @@ none, and the controller then falls back to the straight line.
 **Following.** ``PathFollower`` keeps one plan per row of a batch and gives a *carrot*: the point
 ``lookahead`` ahead of the platform's closest point along the planned polyline (progress never goes back),
 or the target once the carrot reaches it. It plans when a row shows a new target (a new episode).
-``training.controllers.PlannerController`` steers toward the carrot with resolved-rate control;
-``PlannerWaypointWrapper`` shows the carrot to a policy as part of its observation.
+``envs.controllers.PlannerController`` steers toward the carrot with resolved-rate control;
+``PlannerWaypointWrapper`` shows the carrot to a policy as part of its observation, and
+``PlannerResidualWrapper`` adds a policy's correction to the planner controller's action.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from envs.core import EnvParams, wrap_angle
 from envs.planar_3rpr import workspace_for
 from envs.workspace import WorkspaceMap, WorkspaceSpec, certify_workspace
 
-__all__ = ["PathFollower", "Plan", "PlannerWaypointWrapper", "SafeGraph", "safe_graph"]
+__all__ = ["PathFollower", "Plan", "PlannerResidualWrapper", "PlannerWaypointWrapper", "SafeGraph", "safe_graph"]
 
 #: Half of the 26-neighbourhood (the other half are the reversed edges).
 _OFFSETS = tuple((i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) > (0, 0, 0))
@@ -356,4 +357,80 @@ class PlannerWaypointWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def step(self, action: Any):
         """Step the wrapped env; the observation gains the carrot's offset."""
         obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._augment(obs, info), reward, terminated, truncated, info
+
+
+class PlannerResidualWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Residual learning over the planner: the policy's action corrects the planner controller's.
+
+    The environment receives a = clip(a_p + ``scale`` · a_π, −1, 1), where a_p is the action of
+    ``envs.controllers.PlannerController`` (resolved-rate toward the carrot of a certified safe path, from the
+    true pose ``info["pose"]``) and a_π ∈ [−1, 1]³ the policy's. A policy that outputs zero is the planner
+    controller; training learns what to change. The observation of a planar 3-RPR Reach environment gains six
+    entries, float32: the carrot's offset from the pose (Δx [m], Δy [m], Δφ [rad], as in
+    ``PlannerWaypointWrapper``) and a_p (normalised stroke rates, in [−1, 1]). Rewards, terminations and infos
+    are the wrapped environment's, and ``info["planner_action"]`` holds a_p of the step's action. A
+    ``SingularityShield`` inside this wrapper filters the summed action.
+
+    Args:
+        env: A planar 3-RPR Reach environment (``gym.make("Planar3RPRReach-v0")`` and its variants).
+        scale: Weight of the policy's action, in (0, 2]: 0.5 lets it move any leg by half its rate range.
+        lookahead: Distance of the carrot ahead of the path's closest point, in z = (x, y, ℓ_c φ) [m].
+    """
+
+    def __init__(self, env: gym.Env, scale: float = 0.5, lookahead: float = 0.1) -> None:
+        """Wrap ``env``; see the class docstring."""
+        if not (isinstance(scale, (int, float)) and np.isfinite(scale) and 0.0 < scale <= 2.0):
+            raise ValueError(f"scale must be a number in (0, 2], got {scale!r}")
+        gym.utils.RecordConstructorArgs.__init__(self, scale=scale, lookahead=lookahead)
+        gym.Wrapper.__init__(self, env)
+        base = env.unwrapped
+        if "targets" not in getattr(type(base), "reset_options", ()) or not isinstance(
+            getattr(base, "params", None), EnvParams
+        ):
+            raise TypeError(
+                f"PlannerResidualWrapper wraps the planar 3-RPR Reach environments, got {type(base).__name__}"
+            )
+        from envs.controllers import PlannerController
+        from envs.family_kernels import observation_layout
+
+        self.scale = float(scale)
+        self.controller = PlannerController(base.params, lookahead=lookahead)
+        self.follower = self.controller.follower
+        box = env.observation_space
+        error = observation_layout(False, 3, False)["error"]
+        self._low, self._high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
+        ones = np.ones(3, dtype=np.float32)
+        self.observation_space = spaces.Box(
+            np.concatenate([box.low, box.low[error], -ones]).astype(np.float32),
+            np.concatenate([box.high, box.high[error], ones]).astype(np.float32),
+            dtype=np.float32,
+        )
+        self._planner_action = np.zeros(3, dtype=np.float32)
+
+    def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        pose = np.asarray(info["pose"], dtype=float)
+        carrot = self.follower.carrot(0, pose, np.asarray(info["target"], dtype=float))
+        self._planner_action = self.controller.act(pose[None], carrot[None], np.zeros((1, 3)))[0]
+        offset = np.clip(carrot - pose, self._low, self._high)
+        return np.concatenate([obs, offset, self._planner_action]).astype(np.float32)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Reset the wrapped env and plan from its start to its target."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.follower.reset_row(0, np.asarray(info["pose"], dtype=float), np.asarray(info["target"], dtype=float))
+        return self._augment(obs, info), info
+
+    def action(self, action: Any) -> np.ndarray:
+        """The summed action the wrapped env receives for the policy's ``action`` (shape (3,)), float32."""
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (3,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be 3 finite numbers, got shape {a.shape} with values {a!r}")
+        return np.clip(self._planner_action + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+
+    def step(self, action: Any):
+        """Step the wrapped env with the summed action; the observation gains the carrot and a_p."""
+        planner_action = self._planner_action
+        obs, reward, terminated, truncated, info = self.env.step(self.action(action))
+        info["planner_action"] = planner_action
         return self._augment(obs, info), reward, terminated, truncated, info

@@ -106,7 +106,12 @@ def run_demo(
     if hard_run is not None:
         hard_policy, hard_config = load_run(hard_run)
         trained_on = gym.spec(hard_config["env_id"]).kwargs.get("targets", "standard")
-        kind = "mixed, waypoint" if trained_on == "mixed" else f"{trained_on}-trained"
+        kind = f"{trained_on}-trained"
+        wrapper = str(hard_config.get("hyperparams", {}).get("env_wrapper") or "")
+        if "PlannerResidualWrapper" in wrapper:
+            kind = f"{trained_on}, residual over the planner"
+        elif "PlannerWaypointWrapper" in wrapper:
+            kind = f"{trained_on}, waypoint"
         filmed = f"{hard_config['algo'].upper()} policy ({kind})"
         agents[filmed] = (hard_policy, hard_config)
     for name in ("resolved-rate", "singularity-aware", "planner"):
@@ -123,7 +128,8 @@ def run_demo(
     if shield is not None:
         for targets in ("standard", "hard"):
             for name, (agent, agent_config) in agents.items():
-                shielded = envs.SingularityShield(wrap_for_run(gym.make(env_id), agent_config), k_guard=shield)
+                # the shield filters the action the env receives (a residual wrapper's sum), so it sits inside
+                shielded = wrap_for_run(envs.SingularityShield(gym.make(env_id), k_guard=shield), agent_config)
                 recs = evaluate_agent(agent, shielded, episodes, seed, targets)
                 metrics[f"{name} + shield @ {targets}"] = aggregate(recs)
                 shielded.close()

@@ -17,7 +17,7 @@ from pathlib import Path
 __all__ = ["main", "planner_table", "table", "tracking_table"]
 
 
-def _row(label: str, metrics: list[dict]) -> str:
+def _row(label: str, metrics: list[dict], with_return: bool = False) -> str:
     success = [100.0 * m["success_rate"] for m in metrics]
     spread = f" ± {statistics.stdev(success):.1f}" if len(success) > 1 else ""
     position = statistics.mean(m["final_position_error_mm"]["median"] for m in metrics)
@@ -27,20 +27,28 @@ def _row(label: str, metrics: list[dict]) -> str:
     singular = sum(m["singularity_terminations"] for m in metrics)
     episodes = sum(m["episodes"] for m in metrics)
     cost = statistics.mean(m["cost_fraction"]["mean"] for m in metrics)
-    return (
+    row = (
         f"| {label} | {len(metrics)} | {statistics.mean(success):.1f}{spread} % | {position:.2f} | {orientation:.2f} "
         f"| {k_mean:.3f} / {k_min:.3f} | {singular} / {episodes} | {cost:.3f} |"
     )
+    if with_return:
+        returns = [m["return"]["mean"] for m in metrics]
+        row += f" {statistics.mean(returns):.1f}" + (f" ± {statistics.stdev(returns):.1f}" if len(returns) > 1 else "") + " |"
+    return row
 
 
-def table(groups: dict[str, list[dict]]) -> str:
-    """A Markdown table with one row per group of evaluations (seeds of one agent on one target set)."""
+def table(groups: dict[str, list[dict]], with_return: bool = False) -> str:
+    """A Markdown table with one row per group of evaluations (seeds of one agent on one target set).
+
+    With ``with_return``, a last column holds the episode return (mean over episodes; mean ± std over runs).
+    """
     lines = [
         "| agent @ targets | runs | success (mean ± std over runs) | final pos. error [mm] (median) "
-        "| final orient. error [°] (median) | min k (mean / worst) | singularity terminations | cost fraction |",
-        "|---|---|---|---|---|---|---|---|",
+        "| final orient. error [°] (median) | min k (mean / worst) | singularity terminations | cost fraction |"
+        + (" return (mean) |" if with_return else ""),
+        "|---|---|---|---|---|---|---|---|" + ("---|" if with_return else ""),
     ]
-    lines += [_row(label, metrics) for label, metrics in groups.items()]
+    lines += [_row(label, metrics, with_return) for label, metrics in groups.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -103,6 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m training.family_report", description=__doc__.split("\n")[0])
     parser.add_argument("out")
     parser.add_argument("evals", nargs="+", help="folders holding a metrics.json")
+    parser.add_argument("--with-return", action="store_true", help="add a column of the episode return")
     args = parser.parse_args(argv)
     groups: dict[str, list[dict]] = {}
     for folder in args.evals:
@@ -114,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
         groups.setdefault(label, []).append(metrics)
     plans, tracking = planner_table(groups), tracking_table(groups)
     Path(args.out).write_text(
-        table(groups)
+        table(groups, args.with_return)
         + (f"\nThe planner's plans:\n\n{plans}" if plans else "")
         + (f"\nTracking:\n\n{tracking}" if tracking else "")
     )

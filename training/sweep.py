@@ -128,9 +128,10 @@ def run_trial(trial: dict[str, Any], folder: str | Path, timesteps: int | None, 
     scores = {}
     for env_id, targets, label in _target_sets(trial["env_id"]):
         for shielded in (False, True):
-            env = wrap_for_run(gym.make(env_id), config)
-            if shielded:
+            env = gym.make(env_id)
+            if shielded:  # inside the run's wrapper: it filters the action the env receives
                 env = envs.SingularityShield(env, k_guard=SHIELD)
+            env = wrap_for_run(env, config)
             try:
                 records = evaluate_agent(agent, env, episodes, seed, targets)
             finally:

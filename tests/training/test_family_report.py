@@ -44,3 +44,22 @@ def test_seeds_are_grouped_and_tracking_is_tabulated(tmp_path):
     assert "| ppo @ track | 2 | 0.60 ± 0.14 |" in tracking
     assert "resolved-rate" not in tracking
     assert "The planner's plans" not in text
+
+
+def test_the_return_column_is_optional(tmp_path):
+    """--with-return adds the episode return (mean ± std over runs); without it the table is unchanged."""
+    folders = []
+    for i, ret in enumerate((-10.0, -20.0)):
+        folder = tmp_path / f"e{i}"
+        folder.mkdir()
+        m = _metrics(f"ppo (run-s{i}) @ hard", 1.0)
+        m["return"] = {"mean": ret, "std": 1.0, "median": ret}
+        (folder / "metrics.json").write_text(json.dumps(m))
+        folders.append(str(folder))
+    plain, with_return = tmp_path / "plain.md", tmp_path / "return.md"
+    family_report.main([str(plain), *folders])
+    family_report.main([str(with_return), *folders, "--with-return"])
+    assert "return" not in plain.read_text()
+    text = with_return.read_text()
+    assert "| return (mean) |" in text
+    assert text.splitlines()[2].endswith("| 1.000 | -15.0 ± 7.1 |")

@@ -96,7 +96,7 @@ def test_demo_writes_report(pretrained_run, tmp_path, capsys):
     metrics = json.loads((out / "metrics.json").read_text())
     agents = ["PPO policy", "resolved-rate", "singularity-aware", "planner"]
     if demo.PRETRAINED_MIXED_RUN.is_dir():
-        agents.append("PPO policy (mixed, waypoint)")
+        agents.append("PPO policy (mixed, residual over the planner)")
     elif demo.PRETRAINED_HARD_RUN.is_dir():
         agents.append("PPO policy (hard-trained)")
     expected = {f"{agent} @ {targets}" for agent in agents for targets in ("standard", "hard")}

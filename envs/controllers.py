@@ -1,0 +1,279 @@
+"""Classical controllers: resolved-rate, singularity-aware resolved-rate and the planner (NumPy only).
+
+Both read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, 3).
+They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.core import EnvParams, wrap_angle
+
+__all__ = [
+    "CONTROLLERS",
+    "FAMILY_CONTROLLERS",
+    "FamilyResolvedRateController",
+    "PlannerController",
+    "ResolvedRateController",
+    "SingularityAwareController",
+    "decode_observation",
+]
+
+
+def decode_observation(params: EnvParams, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pose, target pose and target velocity from observations (layout of ``envs.core.observation``).
+
+    Args:
+        params: Environment constants.
+        obs: Observations, shape (N, 18) or (N, 21).
+
+    Returns:
+        (pose (N, 3), target (N, 3), target velocity (N, 3), zeros for Reach) [m, m, rad] and per second.
+    """
+    obs = np.asarray(obs, dtype=np.float64)
+    pose = np.stack([obs[:, 0], obs[:, 1], np.arctan2(obs[:, 3], obs[:, 2])], axis=-1)
+    target = np.stack([obs[:, 4], obs[:, 5], np.arctan2(obs[:, 7], obs[:, 6])], axis=-1)
+    # The error block is exact (not recomputed from clipped poses), so prefer it for the target.
+    target = pose + np.concatenate([obs[:, 8:10], obs[:, 10:11]], axis=-1)
+    velocity = obs[:, 18:21] if obs.shape[1] >= 21 else np.zeros_like(pose)
+    return pose, target, velocity
+
+
+class ResolvedRateController:
+    """q̇ = J_i(x) v, v = ẋ* + K (x* − x): straight toward the target in pose space, within the bounds.
+
+    The platform speed ‖(v_x, v_y, ℓ_c v_φ)‖ is capped at ``max_speed``, and when a stroke rate would
+    exceed ``max_rate`` the whole q̇ is scaled down (not clipped per leg), so the commanded platform
+    velocity keeps its direction.
+
+    Args:
+        params: Environment constants (robot, max_rate).
+        gain: K [1/s].
+        max_speed: Cap on the scaled platform speed [m/s].
+    """
+
+    name = "resolved-rate"
+
+    def __init__(self, params: EnvParams, gain: float = 2.0, max_speed: float = 0.25) -> None:
+        self.params = params
+        self.gain = float(gain)
+        self.max_speed = float(max_speed)
+
+    def desired_velocity(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Pose velocity the controller asks for, shape (N, 3) [m/s, m/s, rad/s]."""
+        error = target - pose
+        error[:, 2] = wrap_angle(error[:, 2])
+        return velocity + self.gain * error
+
+    def _cap(self, v: np.ndarray) -> np.ndarray:
+        speed = np.linalg.norm(v * self.params.pose_metric, axis=-1, keepdims=True)
+        return v / np.maximum(speed / self.max_speed, 1.0)
+
+    def _respect_stroke_limits(self, q: np.ndarray, J_i: np.ndarray, x_dot: np.ndarray) -> np.ndarray:
+        """q̇ = J_i ẋ, with ẋ projected (in z = (x, y, ℓ_c φ)) so no leg at a hard stop is driven into it."""
+        lo, hi = self.params.stroke_limits
+        scale = self.params.pose_metric
+        vz = x_dot * scale
+        rows = J_i / scale  # q̇_i = rows_i · v_z
+        for i in range(3):
+            rate = np.sum(rows[:, i] * vz, axis=-1)
+            blocked = ((q[:, i] <= lo + 1e-3) & (rate < 0)) | ((q[:, i] >= hi - 1e-3) & (rate > 0))
+            r = rows[:, i]
+            vz = np.where(blocked[:, None], vz - (rate / np.sum(r * r, axis=-1))[:, None] * r, vz)
+        return np.einsum("nij,nj->ni", J_i, vz / scale)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Actions for a batch of observations.
+
+        Args:
+            obs: Observations, shape (N, D).
+
+        Returns:
+            Normalised stroke rates in [−1, 1], shape (N, 3), float32.
+        """
+        return self.act(*decode_observation(self.params, obs))
+
+    def act(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Actions toward ``target`` from ``pose`` with feed-forward ``velocity`` (each (N, 3)): (N, 3) float32."""
+        robot = self.params.robot
+        q = robot.inverse_kinematics(pose, validate=False)
+        x_dot = self._cap(self.desired_velocity(pose, target, velocity))
+        J_i = robot.inverse_jacobian(q, pose, validate=False)
+        q_dot = self._respect_stroke_limits(q, J_i, x_dot)
+        a = q_dot / self.params.max_rate
+        a /= np.maximum(np.max(np.abs(a), axis=-1, keepdims=True), 1.0)
+        return a.astype(np.float32)
+
+
+class SingularityAwareController(ResolvedRateController):
+    """Resolved-rate with a damped detour around the ill-conditioned zone.
+
+    In the scaled pose space z = (x, y, ℓ_c φ), where the inverse condition number k falls below
+    ``margin`` · k_safe the component of the desired velocity that would lower k is removed (the robot
+    slides along the level set of k) and a push up the gradient of k is added, growing as k falls:
+
+        v ← max(k/k_m, f_min) (v − min(0, v·n) n + β ((k_m − k)/k_m)₊ n),
+        n = ∇_z k / ‖∇_z k‖,  k_m = margin · k_safe.
+
+    The gradient comes from central differences of the kinematics library's inverse condition number.
+
+    Args:
+        params: Environment constants.
+        gain: K [1/s].
+        max_speed: Cap on the scaled platform speed [m/s].
+        margin: Multiple of the safe threshold where the detour starts.
+        push: β [m/s], speed of the push at k = 0.
+        min_speed_fraction: Smallest fraction of the speed kept near the zone (the speed is scaled by
+            k / k_m, the damping of the detour).
+        step: Finite-difference step in z [m].
+    """
+
+    name = "singularity-aware"
+
+    def __init__(
+        self,
+        params: EnvParams,
+        gain: float = 2.0,
+        max_speed: float = 0.25,
+        margin: float = 2.0,
+        push: float = 0.3,
+        min_speed_fraction: float = 0.2,
+        step: float = 1e-4,
+    ) -> None:
+        super().__init__(params, gain, max_speed)
+        self.margin, self.push, self.step = float(margin), float(push), float(step)
+        self.min_speed_fraction = float(min_speed_fraction)
+
+    def _k(self, pose: np.ndarray) -> np.ndarray:
+        robot = self.params.robot
+        q = np.maximum(robot.inverse_kinematics(pose, validate=False), 1e-9)
+        return robot.inverse_condition_number(q, pose, validate=False)
+
+    def desired_velocity(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Resolved-rate velocity with the detour term, shape (N, 3)."""
+        v = self._cap(super().desired_velocity(pose, target, velocity))
+        scale = self.params.pose_metric
+        k = self._k(pose)
+        k_m = self.margin * self.params.safe_threshold
+        near = k < k_m
+        if not np.any(near):
+            return v
+        p = pose[near]
+        grad = np.empty_like(p)
+        for j in range(3):
+            dz = np.zeros(3)
+            dz[j] = self.step / scale[j]
+            grad[:, j] = (self._k(p + dz) - self._k(p - dz)) / (2.0 * self.step)
+        n = grad / np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-12)
+        vz = v[near] * scale
+        into = np.minimum(np.sum(vz * n, axis=-1, keepdims=True), 0.0)
+        strength = np.clip((k_m - k[near]) / k_m, 0.0, 1.0)[:, None]
+        vz = vz - into * n + self.push * strength * n
+        # Damping: slow down as k falls, so one step cannot carry the robot across the fold.
+        slow = np.clip(k[near] / k_m, self.min_speed_fraction, 1.0)[:, None]
+        v[near] = slow * vz / scale
+        return v
+
+
+class FamilyResolvedRateController:
+    """Resolved-rate control of any robot of the distance-constraint family (``envs.family``): q̇ = J_i v.
+
+    v = ẋ* + K e, with e = (p* − p, δθ) the exact twist error of the observation (δθ the rotation vector of
+    R* Rᵀ in {B}; planar: (x* − x, y* − y, wrap(φ* − φ))), capped at ``max_speed`` in (δp, ℓ_c δθ); q̇ is
+    scaled down as a whole when a leg would exceed ``max_rate``, so the platform keeps its direction: a
+    straight geodesic toward the target. The pose and strokes come from the observation, J_i from the
+    kinematics library.
+
+    Args:
+        params: Environment constants (``envs.family.FamilyParams``).
+        gain: K [1/s].
+        max_speed: Cap on the scaled platform speed [m/s].
+    """
+
+    name = "resolved-rate"
+
+    def __init__(self, params, gain: float = 2.0, max_speed: float = 0.25) -> None:
+        from envs.family_kernels import observation_layout
+
+        self.params = params
+        self.gain = float(gain)
+        self.max_speed = float(max_speed)
+        robot = params.robot
+        self._layout = observation_layout(params.spatial, robot.n_actuators, True)
+        self._metric = np.where(robot.pose_scale < 1.0, 1.0 / robot.pose_scale, 1.0)
+
+    def decode(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pose (N, m), twist error (N, m), target velocity (N, m), zeros for Reach) from observations."""
+        from scipy.spatial.transform import Rotation
+
+        obs = np.asarray(obs, dtype=np.float64)
+        code = obs[:, self._layout["pose"]]
+        if self.params.spatial:
+            quat = code[:, [4, 5, 6, 3]]  # SciPy's (x, y, z, w)
+            pose = np.concatenate([code[:, :3], Rotation.from_quat(quat).as_rotvec()], axis=-1)
+        else:
+            pose = np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
+        error = obs[:, self._layout["error"]]
+        velocity_slice = self._layout["target_velocity"]
+        velocity = obs[:, velocity_slice] if obs.shape[1] >= velocity_slice.stop else np.zeros_like(pose)
+        return pose, error, velocity
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Normalised stroke rates in [−1, 1] for a batch of observations, shape (N, n), float32."""
+        pose, error, velocity = self.decode(obs)
+        v = velocity + self.gain * error
+        speed = np.linalg.norm(v * self._metric, axis=-1, keepdims=True)
+        v = v / np.maximum(speed / self.max_speed, 1.0)
+        robot = self.params.robot
+        q = robot.inverse_kinematics(pose, validate=False)
+        q_dot = np.einsum("nij,nj->ni", robot.inverse_jacobian(q, pose, validate=False), v)
+        a = q_dot / self.params.max_rate
+        a /= np.maximum(np.max(np.abs(a), axis=-1, keepdims=True), 1.0)
+        return a.astype(np.float32)
+
+
+class PlannerController(ResolvedRateController):
+    """Follow a planned safe path (``envs.planner``) with resolved-rate control: the ceiling on hard targets.
+
+    At the first observation of an episode (a new target, or a pose jump no control period can make) it
+    plans a certified path from the pose to the target (``envs.planner.SafeGraph``). Then it steers, with
+    ``ResolvedRateController``'s law, speed cap and stroke-limit handling, toward the carrot of
+    ``envs.planner.PathFollower``: ``lookahead`` ahead of the platform's closest point on the path, and the
+    target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
+
+    Args:
+        params: Environment constants of a planar 3-RPR environment.
+        gain: K [1/s].
+        max_speed: Cap on the scaled platform speed [m/s].
+        lookahead: Distance of the carrot ahead of the closest point of the path, in z [m].
+    """
+
+    name = "planner"
+
+    def __init__(self, params: EnvParams, gain: float = 2.0, max_speed: float = 0.25, lookahead: float = 0.1) -> None:
+        from envs.planner import PathFollower
+
+        super().__init__(params, gain, max_speed)
+        self.follower = PathFollower(params, lookahead)
+
+    @property
+    def log(self) -> list:
+        """Every plan made, in order."""
+        return self.follower.log
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Actions for a batch of observations (row i is followed along its own plan), shape (N, 3), float32."""
+        pose, target, velocity = decode_observation(self.params, obs)
+        carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
+        return self.act(pose, carrot, velocity)
+
+    def episode_metrics(self) -> dict[str, float] | None:
+        """The last plan's figures (path found, planned / straight length, min k, planning time), or None."""
+        return self.follower.last_plan_metrics()
+
+
+#: Controllers by command-line name.
+CONTROLLERS = {cls.name: cls for cls in (ResolvedRateController, SingularityAwareController, PlannerController)}
+#: Controllers for the robots of ``envs.family`` (by command-line name).
+FAMILY_CONTROLLERS = {cls.name: cls for cls in (FamilyResolvedRateController,)}
