@@ -304,7 +304,46 @@ class PathFollower:
         }
 
 
-class PlannerWaypointWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
+class _PlannerWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """What the planner's wrappers share: the check of the env, the path follower and the waypoint's bounds."""
+
+    def _setup(self, env: gym.Env, lookahead: float, extra_low: np.ndarray, extra_high: np.ndarray) -> None:
+        gym.Wrapper.__init__(self, env)
+        base = env.unwrapped
+        if "targets" not in getattr(type(base), "reset_options", ()) or not isinstance(
+            getattr(base, "params", None), EnvParams
+        ):
+            raise TypeError(
+                f"{type(self).__name__} wraps the planar 3-RPR Reach environments, got {type(base).__name__}"
+            )
+        from envs.family_kernels import observation_layout
+
+        self.follower = PathFollower(base.params, lookahead)
+        box = env.observation_space
+        error = observation_layout(False, 3, False)["error"]
+        self._low, self._high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
+        self.observation_space = spaces.Box(
+            np.concatenate([box.low, box.low[error], extra_low]).astype(np.float32),
+            np.concatenate([box.high, box.high[error], extra_high]).astype(np.float32),
+            dtype=np.float32,
+        )
+
+    def _offset(self, info: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+        """(pose, carrot) of the step's ``info``, each (3,)."""
+        pose = np.asarray(info["pose"], dtype=float)
+        return pose, self.follower.carrot(0, pose, np.asarray(info["target"], dtype=float))
+
+    def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        raise NotImplementedError
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Reset the wrapped env and plan from its start to its target."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.follower.reset_row(0, np.asarray(info["pose"], dtype=float), np.asarray(info["target"], dtype=float))
+        return self._augment(obs, info), info
+
+
+class PlannerWaypointWrapper(_PlannerWrapper):
     """Show a policy the planner's next waypoint: the observation gains the carrot's offset from the pose.
 
     The flat observation of a planar 3-RPR Reach environment gets three more entries, the carrot of
@@ -323,36 +362,11 @@ class PlannerWaypointWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def __init__(self, env: gym.Env, lookahead: float = 0.1) -> None:
         """Wrap ``env``; see the class docstring."""
         gym.utils.RecordConstructorArgs.__init__(self, lookahead=lookahead)
-        gym.Wrapper.__init__(self, env)
-        base = env.unwrapped
-        if "targets" not in getattr(type(base), "reset_options", ()) or not isinstance(
-            getattr(base, "params", None), EnvParams
-        ):
-            raise TypeError(
-                f"PlannerWaypointWrapper wraps the planar 3-RPR Reach environments, got {type(base).__name__}"
-            )
-        from envs.family_kernels import observation_layout
-
-        self.follower = PathFollower(base.params, lookahead)
-        box = env.observation_space
-        error = observation_layout(False, 3, False)["error"]
-        self._low, self._high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
-        self.observation_space = spaces.Box(
-            np.concatenate([box.low, box.low[error]]).astype(np.float32),
-            np.concatenate([box.high, box.high[error]]).astype(np.float32),
-            dtype=np.float32,
-        )
+        self._setup(env, lookahead, np.empty(0), np.empty(0))
 
     def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-        pose = np.asarray(info["pose"], dtype=float)
-        offset = self.follower.carrot(0, pose, np.asarray(info["target"], dtype=float)) - pose
-        return np.concatenate([obs, np.clip(offset, self._low, self._high)]).astype(np.float32)
-
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Reset the wrapped env and plan from its start to its target."""
-        obs, info = self.env.reset(seed=seed, options=options)
-        self.follower.reset_row(0, np.asarray(info["pose"], dtype=float), np.asarray(info["target"], dtype=float))
-        return self._augment(obs, info), info
+        pose, carrot = self._offset(info)
+        return np.concatenate([obs, np.clip(carrot - pose, self._low, self._high)]).astype(np.float32)
 
     def step(self, action: Any):
         """Step the wrapped env; the observation gains the carrot's offset."""
@@ -360,7 +374,7 @@ class PlannerWaypointWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return self._augment(obs, info), reward, terminated, truncated, info
 
 
-class PlannerResidualWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
+class PlannerResidualWrapper(_PlannerWrapper):
     """Residual learning over the planner: the policy's action corrects the planner controller's.
 
     The environment receives a = clip(a_p + ``scale`` · a_π, −1, 1), where a_p is the action of
@@ -383,43 +397,19 @@ class PlannerResidualWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if not (isinstance(scale, (int, float)) and np.isfinite(scale) and 0.0 < scale <= 2.0):
             raise ValueError(f"scale must be a number in (0, 2], got {scale!r}")
         gym.utils.RecordConstructorArgs.__init__(self, scale=scale, lookahead=lookahead)
-        gym.Wrapper.__init__(self, env)
-        base = env.unwrapped
-        if "targets" not in getattr(type(base), "reset_options", ()) or not isinstance(
-            getattr(base, "params", None), EnvParams
-        ):
-            raise TypeError(
-                f"PlannerResidualWrapper wraps the planar 3-RPR Reach environments, got {type(base).__name__}"
-            )
+        self._setup(env, lookahead, -np.ones(3), np.ones(3))
         from envs.controllers import PlannerController
-        from envs.family_kernels import observation_layout
 
         self.scale = float(scale)
-        self.controller = PlannerController(base.params, lookahead=lookahead)
-        self.follower = self.controller.follower
-        box = env.observation_space
-        error = observation_layout(False, 3, False)["error"]
-        self._low, self._high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
-        ones = np.ones(3, dtype=np.float32)
-        self.observation_space = spaces.Box(
-            np.concatenate([box.low, box.low[error], -ones]).astype(np.float32),
-            np.concatenate([box.high, box.high[error], ones]).astype(np.float32),
-            dtype=np.float32,
-        )
+        self.controller = PlannerController(env.unwrapped.params, lookahead=lookahead)
+        self.controller.follower = self.follower  # one plan per episode, shared by the observation and the action
         self._planner_action = np.zeros(3, dtype=np.float32)
 
     def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-        pose = np.asarray(info["pose"], dtype=float)
-        carrot = self.follower.carrot(0, pose, np.asarray(info["target"], dtype=float))
+        pose, carrot = self._offset(info)
         self._planner_action = self.controller.act(pose[None], carrot[None], np.zeros((1, 3)))[0]
         offset = np.clip(carrot - pose, self._low, self._high)
         return np.concatenate([obs, offset, self._planner_action]).astype(np.float32)
-
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Reset the wrapped env and plan from its start to its target."""
-        obs, info = self.env.reset(seed=seed, options=options)
-        self.follower.reset_row(0, np.asarray(info["pose"], dtype=float), np.asarray(info["target"], dtype=float))
-        return self._augment(obs, info), info
 
     def action(self, action: Any) -> np.ndarray:
         """The summed action the wrapped env receives for the policy's ``action`` (shape (3,)), float32."""

@@ -6,22 +6,7 @@ builds on the planner controller); this module is where the training side finds 
 
 from __future__ import annotations
 
-from envs.controllers import (
-    CONTROLLERS,
-    FAMILY_CONTROLLERS,
-    FamilyResolvedRateController,
-    PlannerController,
-    ResolvedRateController,
-    SingularityAwareController,
-    decode_observation,
-)
+from envs import controllers as _controllers
+from envs.controllers import *  # noqa: F403  (the names of envs.controllers.__all__)
 
-__all__ = [
-    "CONTROLLERS",
-    "FAMILY_CONTROLLERS",
-    "FamilyResolvedRateController",
-    "PlannerController",
-    "ResolvedRateController",
-    "SingularityAwareController",
-    "decode_observation",
-]
+__all__ = list(_controllers.__all__)

@@ -71,6 +71,15 @@ PRETRAINED_HEXAPOD_HARD_RUN = Path(
 DEMO_SHIELD = 0.05
 
 
+def _shown(path: Path) -> str:
+    """``path`` as a report shows it: relative to the working directory when it lies below it."""
+    path = Path(path)
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
 def run_demo(
     run: Path,
     out: Path,
@@ -142,8 +151,8 @@ def run_demo(
     table = format_table(metrics)
     (out / "report.md").write_text(
         f"# Evaluation report\n\nEnvironment `{env_id}`, {episodes} episodes per row (reset seeds {seed}…"
-        f"{seed + episodes - 1}, identical for every agent). Policy: `{run}`"
-        + (f"; second policy: `{hard_run}`" if hard_run is not None else "")
+        f"{seed + episodes - 1}, identical for every agent). Policy: `{_shown(run)}`"
+        + (f"; second policy: `{_shown(hard_run)}`" if hard_run is not None else "")
         + f".\n\n{table}\n"
         "Pictures: `trajectories_standard.png`, `trajectories_hard.png`, `condition_number_hard.png`, "
         "`policy_hard.gif`.\n"
@@ -224,7 +233,7 @@ def run_track_demo(run: Path, out: Path, episodes: int, seed: int = 1000) -> dic
     (out / "track_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     (out / "track.md").write_text(
         f"# Tracking on `{config['env_id']}`\n\n{episodes} episodes per row "
-        f"(reset seeds {seed}…{seed + episodes - 1}). Policy: `{run}`; resolved-rate steers with the "
+        f"(reset seeds {seed}…{seed + episodes - 1}). Policy: `{_shown(run)}`; resolved-rate steers with the "
         "reference's feed-forward velocity.\n\n"
         + family_report.table(groups)
         + f"\n{family_report.tracking_table(groups)}"

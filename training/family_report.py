@@ -33,7 +33,8 @@ def _row(label: str, metrics: list[dict], with_return: bool = False) -> str:
     )
     if with_return:
         returns = [m["return"]["mean"] for m in metrics]
-        row += f" {statistics.mean(returns):.1f}" + (f" ± {statistics.stdev(returns):.1f}" if len(returns) > 1 else "") + " |"
+        spread = f" ± {statistics.stdev(returns):.1f}" if len(returns) > 1 else ""
+        row += f" {statistics.mean(returns):.1f}{spread} |"
     return row
 
 

@@ -41,14 +41,15 @@ def test_a_zero_policy_is_the_planner_controller(seed):
     wrapped = envs.PlannerResidualWrapper(gym.make("Planar3RPRReachHard-v0"))
     plain = gym.make("Planar3RPRReachHard-v0")
     controller = PlannerController(plain.unwrapped.params)
-    obs_w, info_w = wrapped.reset(seed=seed)
+    _, info_w = wrapped.reset(seed=seed)
     obs_p, info_p = plain.reset(seed=seed)
     for _ in range(200):
         a_p = controller(obs_p[None])[0]
-        obs_w, r_w, term_w, trunc_w, info_w = wrapped.step(np.zeros(3, dtype=np.float32))
+        _, r_w, term_w, trunc_w, info_w = wrapped.step(np.zeros(3, dtype=np.float32))
         np.testing.assert_allclose(info_w["planner_action"], a_p, atol=1e-5)
         obs_p, r_p, term_p, trunc_p, info_p = plain.step(a_p)
         np.testing.assert_allclose(info_w["pose"], info_p["pose"], atol=1e-6)
+        assert r_w == pytest.approx(r_p, abs=1e-6)
         assert (term_w, trunc_w) == (term_p, trunc_p)
         if term_w or trunc_w:
             break
@@ -56,7 +57,7 @@ def test_a_zero_policy_is_the_planner_controller(seed):
 
 
 def test_the_policy_action_is_scaled_added_and_clipped():
-    """a = clip(a_p + scale · clip(a_π, −1, 1), −1, 1)."""
+    """The env gets clip(a_p + scale · clip(a_π, −1, 1), −1, 1)."""
     env = envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), scale=0.25)
     obs, _ = env.reset(seed=0)
     a_p = obs[-3:].astype(np.float64)
