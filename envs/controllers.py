@@ -6,6 +6,8 @@ They use the kinematics library for J_i and the inverse condition number; nothin
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from envs.core import EnvParams, wrap_angle
@@ -258,8 +260,8 @@ class PlannerController(ResolvedRateController):
         self.follower = PathFollower(params, lookahead)
 
     @property
-    def log(self) -> list:
-        """Every plan made, in order."""
+    def log(self) -> Sequence:
+        """The plans made, in order (the last ``envs.planner.LOG_LENGTH``)."""
         return self.follower.log
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ or the target once the carrot reaches it. It plans when a row shows a new target
 
 from __future__ import annotations
 
+import collections
 import functools
 import time
 from dataclasses import dataclass
@@ -46,6 +47,8 @@ from envs.workspace import WorkspaceMap, WorkspaceSpec, certify_workspace
 
 __all__ = ["PathFollower", "Plan", "PlannerResidualWrapper", "PlannerWaypointWrapper", "SafeGraph", "safe_graph"]
 
+#: Plans a ``PathFollower`` keeps in its log.
+LOG_LENGTH = 10_000
 #: Half of the 26-neighbourhood (the other half are the reversed edges).
 _OFFSETS = tuple((i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) > (0, 0, 0))
 
@@ -242,8 +245,8 @@ class PathFollower:
         self._rows: dict[int, tuple] = {}  # row → (target, plan, arc lengths, progress, last pose)
         # a pose step longer than the fastest platform motion of one period (every leg at max rate)
         self._jump = 4.0 * params.max_rate * params.dt
-        #: Every plan made, in order.
-        self.log: list[Plan] = []
+        #: The plans made, in order (the last ``LOG_LENGTH``, so a long training run does not keep them all).
+        self.log: collections.deque[Plan] = collections.deque(maxlen=LOG_LENGTH)
 
     def reset_row(self, row: int, pose: np.ndarray, target: np.ndarray) -> Plan:
         """Plan row ``row`` afresh from ``pose`` to ``target`` (each (3,)) and return the plan."""
