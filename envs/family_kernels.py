@@ -27,6 +27,7 @@ import math
 import numba
 import numpy as np
 
+from envs import family_planar
 from envs.kernels import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
 from envs.linalg_kernels import inverse_condition6, singular_value_ratio3, solve3, solve6
 
@@ -48,44 +49,47 @@ __all__ = [
     "transition_batch",
 ]
 
-# -- offsets into the packed constants (fixed, sized for up to 6 legs) --------------------------------
-C_N = 0  # number of legs n (= pose coordinates m)
-C_SPATIAL = 1  # 1.0 for the spatial pose space, 0.0 for planar
-C_LC = 2  # characteristic length ℓ_c [m]
-C_LMIN = 3
-C_LMAX = 4
-C_DT = 5
-C_RATE = 6
-C_RK4 = 7
-C_SAFE = 8
-C_HARD = 9
-C_WP = 10
-C_WO = 11
-C_WS = 12
-C_WA = 13
-C_PENALTY = 14
-C_SUCC_P = 15
-C_SUCC_O = 16
-C_NEWTON_TOL = 17
-C_NEWTON_IT = 18
-C_JUMP = 19
-C_MAX_SUBSTEP = 20
-C_MAX_SUBSTEPS = 21
-C_OMEGA = 22  # angular frequency of the Track references [rad/s]
-C_MARGIN = 23  # stroke margin of the safe set [m]
-C_SPACING = 24  # largest distance between checked points of a certified segment [m]
-C_LOW = 25  # pose bounds, 6 entries
-C_HIGH = 31
-C_SCALE = 37  # pose_scale of the homogeneous Jacobian, 6 entries
-C_B = 43  # base anchors B_i (x, y, z) [m], 6 × 3 entries
-C_P = 61  # platform points P_i (x, y, z) in {P} [m], 6 × 3 entries
-C_SLOW = 79  # box tasks are drawn from, 6 entries
-C_SHIGH = 85
-C_HARD_KIND = 91  # 0: the straight path dips below k_safe and a detour is certified; 1: ill-conditioned targets
-C_SIZE = 92
-
-# Termination reason codes (the order of ``envs.core.TERMINATION_REASONS``).
-_NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
+from envs.family_layout import (
+    _ASSEMBLY_MODE_CHANGE,
+    _NEWTON_FAILED,
+    _OUT_OF_BOUNDS,
+    _SINGULAR,
+    _SINGULARITY_CROSSED,
+    C_B,
+    C_DT,
+    C_HARD,
+    C_HARD_KIND,
+    C_HIGH,
+    C_JUMP,
+    C_LC,
+    C_LMAX,
+    C_LMIN,
+    C_LOW,
+    C_MARGIN,
+    C_MAX_SUBSTEP,
+    C_MAX_SUBSTEPS,
+    C_N,
+    C_NEWTON_IT,
+    C_NEWTON_TOL,
+    C_OMEGA,
+    C_P,
+    C_PENALTY,
+    C_RATE,
+    C_RK4,
+    C_SAFE,
+    C_SCALE,
+    C_SHIGH,
+    C_SIZE,
+    C_SLOW,
+    C_SPACING,
+    C_SPATIAL,
+    C_SUCC_O,
+    C_SUCC_P,
+    C_WA,
+    C_WO,
+    C_WP,
+    C_WS,
+)
 
 # -- rows of the work array of one robot (each row holds up to 6 numbers) ------------------------------
 W_A = 0  # A = J_x / 2, n × m (rows 0..5)
@@ -132,6 +136,12 @@ _TWO_PI = 2.0 * math.pi
 
 def _jit(fn):
     return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+
+
+def _jit_inline(fn):
+    # Inlined into its callers at Numba's IR level, so a per-robot call does not pass its many array
+    # arguments field by field (as ``envs.kernels``).
+    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
 
 
 def _jit_parallel(fn):
@@ -520,9 +530,18 @@ def _rate_at(c, q, x, rate, w, out):
     _twist_rate(c, q, rate, w, W_A, out)
 
 
-@_jit
+@_jit_inline
 def _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
-    """Advance robot i by one control period (see ``envs.family.transition``); writes row i of the outputs."""
+    """Advance robot i by one control period (see ``envs.family.transition``); writes row i of the outputs.
+
+    A planar robot takes the scalar path of ``envs.family_planar`` (its 3 × 3 algebra in registers); a spatial
+    one the path below, over the work array ``w``.
+    """
+    if c[C_SPATIAL] == 0.0:
+        family_planar.transition_row(
+            c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+        )
+        return
     m = int(c[C_N])
     dt = c[C_DT]
     lo, hi = c[C_LMIN], c[C_LMAX]

@@ -1,25 +1,21 @@
-"""Compiled (Numba) kernels: the one implementation of the 3-RPR environments' step, reward, observation and tasks.
+"""Compiled (Numba) kernels of the 3-RPR environments: their step, reward, observation and tasks.
 
 Every function here works on one robot at a time, on scalars, so a batch is a loop that Numba compiles
 to machine code (and, for large batches, spreads over the cores). ``envs.core`` wraps them in the pure,
 batched functions that the single environment (N = 1), the native vector environment, the shield, the
 controllers' harness and the tests call; nothing else computes the dynamics.
 
-The constraint math is the lesson's, written out for the planar 3-RPR (see ``kinematics``): with the leg
-vectors d_i = p + R(φ) P_i − B_i,
-
-    Φ_i = d_iᵀ d_i − L_i²,   J_x = 2 A,   A_i = (d_ix, d_iy, d_iyᵀ (R P_i)_x − d_ix (R P_i)_y),
-    J_q = −2 diag(L),        J_f = −J_x⁻¹ J_q = A⁻¹ diag(L),   J_i = −J_q⁻¹ J_x = diag(1/L) A.
-
-3 × 3 systems are solved with the adjugate (Cramer's rule). The inverse condition number of the
-homogeneous inverse Jacobian M = J_i diag(1, 1, 1/ℓ_c) is σ_min/σ_max = |det M| / (σ_max² σ_mid), with σ_max²
-and σ_mid² the two largest eigenvalues of MᵀM from the trigonometric solution of its cubic; where two
-eigenvalues (nearly) coincide, and the cubic's roots lose accuracy, a one-sided Jacobi SVD (Hestenes) is
-used instead. ``kinematics.Planar3RPR`` (NumPy, checked against
-SymPy and finite differences) is the reference these kernels are tested against.
+The dynamics are the family core's: the step (integration through J_f, the correction onto Φ = 0, the
+singularity measure and the termination reasons) and the constraint math the tasks use (leg vectors, rows of
+J_x, k) come from ``envs.family_planar``, the planar pose space of the distance-constraint family, which every
+planar robot of the family steps through (``envs.family_kernels``). What is the 3-RPR environments' own is
+here: the reward and the observation of their layout, the circle of Track, and the tasks drawn from the
+certified grid (``envs.workspace``). ``kinematics.Planar3RPR`` (NumPy, checked against SymPy and finite
+differences) is the reference these kernels are tested against.
 
 The constants of an environment travel as one float64 vector (``pack_params``), indexed by the ``C_*``
-offsets below.
+offsets below; from ``C_FAMILY`` on it holds the family's packed constants of the same robot and settings
+(``envs.family_layout``), which the family's functions read.
 """
 
 from __future__ import annotations
@@ -34,9 +30,8 @@ from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
-from envs.linalg_kernels import _jacobi_pair, _singular_value_ratio  # noqa: F401  (the 3 × 3 forms live there)
-from envs.linalg_kernels import singular_value_ratio3 as _singular_value_ratio_closed
-from envs.linalg_kernels import solve3 as _solve3
+from envs import family_layout as fl
+from envs import family_planar as fp
 
 
 def _load_tbb() -> bool:
@@ -120,7 +115,8 @@ C_MAX_SUBSTEP = 36
 C_MAX_SUBSTEPS = 37
 C_PERIOD = 38
 C_SCALE = 39  # pose_scale of the homogeneous Jacobian, 3 entries
-C_SIZE = 42
+C_FAMILY = 42  # the family's packed constants of the same robot and settings (envs.family_layout), fl.C_SIZE entries
+C_SIZE = C_FAMILY + fl.C_SIZE
 
 # Termination reason codes (same order as ``core.TERMINATION_REASONS``).
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
@@ -176,8 +172,44 @@ def pack_params(params) -> np.ndarray:
     c[C_JUMP], c[C_MAX_SUBSTEP], c[C_MAX_SUBSTEPS] = params.jump_tolerance, params.max_substep, params.max_substeps
     c[C_PERIOD] = params.track_period
     c[C_SCALE : C_SCALE + 3] = robot.pose_scale
+    _pack_family_copy(c, robot)
     c.setflags(write=False)
     return c
+
+
+def _pack_family_copy(c: np.ndarray, robot) -> None:
+    """Write the family's packed constants of the same robot and settings into c[C_FAMILY:] (the step reads them)."""
+    f = c[C_FAMILY:]
+    f[fl.C_N], f[fl.C_SPATIAL] = 3.0, 0.0
+    f[fl.C_B : fl.C_B + 9] = np.pad(np.asarray(robot.base, dtype=np.float64), ((0, 0), (0, 1))).ravel()
+    f[fl.C_P : fl.C_P + 9] = np.pad(np.asarray(robot.platform, dtype=np.float64), ((0, 0), (0, 1))).ravel()
+    f[fl.C_SCALE : fl.C_SCALE + 3] = c[C_SCALE : C_SCALE + 3]
+    f[fl.C_LOW : fl.C_LOW + 3] = c[C_LOW : C_LOW + 3]
+    f[fl.C_HIGH : fl.C_HIGH + 3] = c[C_HIGH : C_HIGH + 3]
+    for mine, family in (
+        (C_LC, fl.C_LC),
+        (C_LMIN, fl.C_LMIN),
+        (C_LMAX, fl.C_LMAX),
+        (C_DT, fl.C_DT),
+        (C_RATE, fl.C_RATE),
+        (C_RK4, fl.C_RK4),
+        (C_SAFE, fl.C_SAFE),
+        (C_HARD, fl.C_HARD),
+        (C_WP, fl.C_WP),
+        (C_WO, fl.C_WO),
+        (C_WS, fl.C_WS),
+        (C_WA, fl.C_WA),
+        (C_PENALTY, fl.C_PENALTY),
+        (C_SUCC_P, fl.C_SUCC_P),
+        (C_SUCC_O, fl.C_SUCC_O),
+        (C_NEWTON_TOL, fl.C_NEWTON_TOL),
+        (C_NEWTON_IT, fl.C_NEWTON_IT),
+        (C_JUMP, fl.C_JUMP),
+        (C_MAX_SUBSTEP, fl.C_MAX_SUBSTEP),
+        (C_MAX_SUBSTEPS, fl.C_MAX_SUBSTEPS),
+    ):
+        f[family] = c[mine]
+    f[fl.C_OMEGA] = 2.0 * math.pi / c[C_PERIOD]
 
 
 # -- random streams: the generators' own bit generators, called from compiled code ----------------------
@@ -260,224 +292,15 @@ def uniform_batch(streams, m):
     return out
 
 
-# -- scalar building blocks ---------------------------------------------------------------------------
-
-
-@_jit
-def _rows(c, px, py, phi):
-    """Rows of A = J_x / 2 and the squared leg lengths d_iᵀ d_i at the pose (px, py, phi)."""
-    cs = math.cos(phi)
-    sn = math.sin(phi)
-    rpx = cs * c[C_P + 0] - sn * c[C_P + 1]
-    rpy = sn * c[C_P + 0] + cs * c[C_P + 1]
-    dx0 = px + rpx - c[C_B + 0]
-    dy0 = py + rpy - c[C_B + 1]
-    m0 = dy0 * rpx - dx0 * rpy
-    rpx = cs * c[C_P + 2] - sn * c[C_P + 3]
-    rpy = sn * c[C_P + 2] + cs * c[C_P + 3]
-    dx1 = px + rpx - c[C_B + 2]
-    dy1 = py + rpy - c[C_B + 3]
-    m1 = dy1 * rpx - dx1 * rpy
-    rpx = cs * c[C_P + 4] - sn * c[C_P + 5]
-    rpy = sn * c[C_P + 4] + cs * c[C_P + 5]
-    dx2 = px + rpx - c[C_B + 4]
-    dy2 = py + rpy - c[C_B + 5]
-    m2 = dy2 * rpx - dx2 * rpy
-    return (
-        dx0,
-        dy0,
-        m0,
-        dx1,
-        dy1,
-        m1,
-        dx2,
-        dy2,
-        m2,
-        dx0 * dx0 + dy0 * dy0,
-        dx1 * dx1 + dy1 * dy1,
-        dx2 * dx2 + dy2 * dy2,
-    )
-
-
-@_jit
-def _max_abs3(a, b, c):
-    """max(|a|, |b|, |c|), NaN if any is NaN (as ``np.max``)."""
-    a, b, c = abs(a), abs(b), abs(c)
-    if a != a or b != b or c != c:
-        return np.nan
-    return max(a, max(b, c))
-
-
-@_jit
-def _pose_rate_rows(a, q0, q1, q2, r0, r1, r2):
-    """ẋ = J_f q̇ = A⁻¹ (L ∘ q̇) from the rows ``a`` of A at x (as ``_rows``); NaN where J_x is singular."""
-    u0, u1, u2, _ = _solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], q0 * r0, q1 * r1, q2 * r2)
-    return u0, u1, u2
-
-
-@_jit
-def _pose_rate(c, q0, q1, q2, x0, x1, x2, r0, r1, r2):
-    """ẋ = J_f(q, x) q̇ = A⁻¹ (L ∘ q̇) [m/s, m/s, rad/s]; NaN where J_x is exactly singular."""
-    return _pose_rate_rows(_rows(c, x0, x1, x2), q0, q1, q2, r0, r1, r2)
-
-
-@_jit
-def _singularity_rows(c, q0, q1, q2, a):
-    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``a`` of A at x."""
-    s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
-    k = _singular_value_ratio_closed(
-        a[0] / q0 * s0,
-        a[1] / q0 * s1,
-        a[2] / q0 * s2,
-        a[3] / q1 * s0,
-        a[4] / q1 * s1,
-        a[5] / q1 * s2,
-        a[6] / q2 * s0,
-        a[7] / q2 * s1,
-        a[8] / q2 * s2,
-    )
-    det = a[0] * (a[4] * a[8] - a[5] * a[7]) + a[1] * (a[5] * a[6] - a[3] * a[8]) + a[2] * (a[3] * a[7] - a[4] * a[6])
-    sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
-    return k, sign
-
-
-@_jit
-def _singularity(c, q0, q1, q2, x0, x1, x2):
-    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) at (q, x)."""
-    return _singularity_rows(c, q0, q1, q2, _rows(c, x0, x1, x2))
-
-
-@_jit
-def _newton(c, q0, q1, q2, x0, x1, x2, tolerance, max_iterations):
-    """Newton's method on Φ(q, x) = 0 from x (as ``Planar3RPR.forward_kinematics``).
-
-    Each step solves J_x δ = Φ and sets x ← x − δ; it stops once max_i |Φ_i| ≤ tolerance, at a
-    non-finite residual or iterate, or after ``max_iterations`` steps.
-
-    Returns:
-        (x0, x1, x2, residual, rows of A at the returned x (as ``_rows``)).
-    """
-    a = _rows(c, x0, x1, x2)
-    residual = _max_abs3(a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2)
-    for _ in range(max_iterations):
-        if not residual > tolerance:  # NaN stops too
-            break
-        # J_x δ = Φ with J_x = 2A.
-        f0, f1, f2 = a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2
-        d0, d1, d2, _ = _solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], f0, f1, f2)
-        n0, n1, n2 = x0 - 0.5 * d0, x1 - 0.5 * d1, x2 - 0.5 * d2
-        if not (math.isfinite(n0) and math.isfinite(n1) and math.isfinite(n2)):
-            break
-        x0, x1, x2 = n0, n1, n2
-        a = _rows(c, x0, x1, x2)
-        residual = _max_abs3(a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2)
-    return x0, x1, x2, residual, a
-
-
-@_jit
-def _substeps(c, r0, r1, r2):
-    """Substeps so that each predicts at most ``max_substep`` of motion ‖(Δx, Δy, ℓ_c Δφ)‖ [m]."""
-    dt = c[C_DT]
-    m0 = r0 * dt
-    m1 = r1 * dt
-    m2 = r2 * dt * c[C_LC]
-    count = np.ceil(math.sqrt(m0 * m0 + m1 * m1 + m2 * m2) / c[C_MAX_SUBSTEP])
-    cap = c[C_MAX_SUBSTEPS]
-    if not math.isfinite(count):
-        return int(cap)
-    return int(min(max(count, 1.0), cap))
-
-
-@_jit_inline
-def _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
-    """Advance robot i by one control period (see ``core.transition``); writes row i of the outputs."""
-    dt = c[C_DT]
-    lo, hi = c[C_LMIN], c[C_LMAX]
-    lc = c[C_LC]
-    q0, q1, q2 = q[i, 0], q[i, 1], q[i, 2]
-    x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
-    a0 = min(max(action[i, 0], -1.0), 1.0)
-    a1 = min(max(action[i, 1], -1.0), 1.0)
-    a2 = min(max(action[i, 2], -1.0), 1.0)
-    stroke = c[C_RATE] * dt
-    n0 = min(max(q0 + a0 * stroke, lo), hi)
-    n1 = min(max(q1 + a1 * stroke, lo), hi)
-    n2 = min(max(q2 + a2 * stroke, lo), hi)
-    r0, r1, r2 = (n0 - q0) / dt, (n1 - q1) / dt, (n2 - q2) / dt
-    start_rows = _rows(c, x0, x1, x2)
-    rows = start_rows
-    v0, v1, v2 = _pose_rate_rows(start_rows, q0, q1, q2, r0, r1, r2)
-    count = _substeps(c, v0, v1, v2)
-    h = dt / count
-    rk4 = c[C_RK4] != 0.0
-    tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])
-    kq0, kq1, kq2, kx0, kx1, kx2 = q0, q1, q2, x0, x1, x2
-    res = residual[i]
-    jump = 0.0
-    failed = False
-    for k in range(count):
-        frac = (k + 1) / count
-        t0, t1, t2 = q0 + frac * (n0 - q0), q1 + frac * (n1 - q1), q2 + frac * (n2 - q2)
-        if k > 0:  # at the pose Newton's method just returned, whose rows it computed
-            v0, v1, v2 = _pose_rate_rows(rows, kq0, kq1, kq2, r0, r1, r2)
-        if rk4:
-            hh = 0.5 * h
-            m0, m1, m2 = kq0 + hh * r0, kq1 + hh * r1, kq2 + hh * r2
-            b0, b1, b2 = _pose_rate(c, m0, m1, m2, kx0 + hh * v0, kx1 + hh * v1, kx2 + hh * v2, r0, r1, r2)
-            e0, e1, e2 = _pose_rate(c, m0, m1, m2, kx0 + hh * b0, kx1 + hh * b1, kx2 + hh * b2, r0, r1, r2)
-            f0, f1, f2 = _pose_rate(
-                c, kq0 + h * r0, kq1 + h * r1, kq2 + h * r2, kx0 + h * e0, kx1 + h * e1, kx2 + h * e2, r0, r1, r2
-            )
-            s = h / 6.0
-            p0 = kx0 + s * (v0 + 2.0 * b0 + 2.0 * e0 + f0)
-            p1 = kx1 + s * (v1 + 2.0 * b1 + 2.0 * e1 + f1)
-            p2 = kx2 + s * (v2 + 2.0 * b2 + 2.0 * e2 + f2)
-        else:
-            p0, p1, p2 = kx0 + h * v0, kx1 + h * v1, kx2 + h * v2
-        if not (math.isfinite(p0) and math.isfinite(p1) and math.isfinite(p2)):
-            failed = True
-            break
-        y0, y1, y2, fres, rows = _newton(c, t0, t1, t2, p0, p1, p2, tolerance, iterations)
-        if not fres <= tolerance:
-            failed = True
-            break
-        g0, g1, g2 = y0 - p0, y1 - p1, lc * (y2 - p2)
-        jump = max(jump, math.sqrt(g0 * g0 + g1 * g1 + g2 * g2))
-        kq0, kq1, kq2, kx0, kx1, kx2, res = t0, t1, t2, y0, y1, y2, fres
-    if failed:
-        kq0, kq1, kq2, kx0, kx1, kx2, res = q0, q1, q2, x0, x1, x2, residual[i]
-        rows = start_rows
-    k_new, sign = _singularity_rows(c, kq0, kq1, kq2, rows)
-    out = False
-    for j, value in enumerate((kx0, kx1, kx2)):
-        if value < c[C_LOW + j] or value > c[C_HIGH + j]:
-            out = True
-    if failed:
-        reason = _NEWTON_FAILED
-    elif jump > c[C_JUMP]:
-        reason = _ASSEMBLY_MODE_CHANGE
-    elif sign != det_sign[i]:
-        reason = _SINGULARITY_CROSSED
-    elif k_new < c[C_HARD]:
-        reason = _SINGULAR
-    elif out:
-        reason = _OUT_OF_BOUNDS
-    else:
-        reason = 0
-    o_q[i, 0], o_q[i, 1], o_q[i, 2] = kq0, kq1, kq2
-    o_x[i, 0], o_x[i, 1], o_x[i, 2] = kx0, kx1, kx2
-    o_k[i] = k_new
-    o_res[i] = res
-    o_a[i, 0], o_a[i, 1], o_a[i, 2] = a0, a1, a2
-    o_qr[i, 0], o_qr[i, 1], o_qr[i, 2] = r0, r1, r2
-    o_reason[i] = reason
-    o_jump[i] = jump
+# -- the step: the family core's planar path (envs.family_planar), on the family's copy of the constants --
 
 
 @_jit
 def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
     for i in range(q.shape[0]):
-        _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+        fp.transition_row(
+            c[C_FAMILY:], q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+        )
 
 
 def transition_batch(c, q, x, det_sign, residual, action):
@@ -505,7 +328,7 @@ def transition_batch(c, q, x, det_sign, residual, action):
 @_jit
 def _singularity_loop(c, q, x, o_k, o_sign):
     for i in range(q.shape[0]):
-        o_k[i], o_sign[i] = _singularity(c, q[i, 0], q[i, 1], q[i, 2], x[i, 0], x[i, 1], x[i, 2])
+        o_k[i], o_sign[i] = fp.singularity(c[C_FAMILY:], q[i, 0], q[i, 1], q[i, 2], x[i, 0], x[i, 1], x[i, 2])
 
 
 def singularity_batch(c, q, x):
@@ -527,16 +350,16 @@ def singularity_batch(c, q, x):
 @_jit
 def _substep_loop(c, q, x, q_rate, o_count):
     for i in range(q.shape[0]):
-        v0, v1, v2 = _pose_rate(
-            c, q[i, 0], q[i, 1], q[i, 2], x[i, 0], x[i, 1], x[i, 2], q_rate[i, 0], q_rate[i, 1], q_rate[i, 2]
+        v0, v1, v2 = fp.pose_rate(
+            c[C_FAMILY:], q[i, 0], q[i, 1], q[i, 2], x[i, 0], x[i, 1], x[i, 2], q_rate[i, 0], q_rate[i, 1], q_rate[i, 2]
         )
-        o_count[i] = _substeps(c, v0, v1, v2)
+        o_count[i] = fp.substeps(c[C_FAMILY:], v0, v1, v2)
 
 
 @_jit
 def _substep_loop_rate(c, rate, o_count):
     for i in range(rate.shape[0]):
-        o_count[i] = _substeps(c, rate[i, 0], rate[i, 1], rate[i, 2])
+        o_count[i] = fp.substeps(c[C_FAMILY:], rate[i, 0], rate[i, 1], rate[i, 2])
 
 
 def substep_batch(c, q, x, q_rate, rate=None):
@@ -745,7 +568,7 @@ def _observation_row(c, low, high, with_velocity, q, x, k, g0, g1, g2, v0, v1, v
     x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
     lo, hi = c[C_LMIN], c[C_LMAX]
     span = hi - lo
-    legs = _rows(c, g0, g1, g2)  # the target's inverse kinematics: L_j* = ‖d_j(x*)‖
+    legs = fp.rows(c[C_FAMILY:], g0, g1, g2)  # the target's inverse kinematics: L_j* = ‖d_j(x*)‖
     _clip32(o_obs, i, 0, x0, low, high)
     _clip32(o_obs, i, 1, x1, low, high)
     _clip32(o_obs, i, 2, math.cos(x2), low, high)
@@ -935,7 +758,9 @@ def _step_row(
     c, low, high, with_velocity, q, x, t, det_sign, residual, center, radius, phase, amplitude, action, i,
     o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs,
 ):  # fmt: skip
-    _transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+    fp.transition_row(
+        c[C_FAMILY:], q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+    )
     o_t[i] = t[i] + 1
     _evaluate_row(
         c,
@@ -1114,11 +939,11 @@ def _safe(c, ws, x0, x1, x2):
     for j, v in enumerate((x0, x1, x2)):
         if not (w[W_LOW + j] + w[W_MARGIN + j] <= v <= w[W_HIGH + j] - w[W_MARGIN + j]):
             return False
-    a = _rows(c, x0, x1, x2)
+    a = fp.rows(c[C_FAMILY:], x0, x1, x2)
     l0, l1, l2 = math.sqrt(a[9]), math.sqrt(a[10]), math.sqrt(a[11])
     if min(l0, min(l1, l2)) < w[W_LMIN] + w[W_STROKE_MARGIN] or max(l0, max(l1, l2)) > w[W_LMAX] - w[W_STROKE_MARGIN]:
         return False
-    k, _ = _singularity_rows(c, max(l0, 1e-9), max(l1, 1e-9), max(l2, 1e-9), a)
+    k, _ = fp.singularity_rows(c[C_FAMILY:], max(l0, 1e-9), max(l1, 1e-9), max(l2, 1e-9), a)
     if not k >= w[W_SAFE]:
         return False
     return ws[2][_label(ws, x0, x1, x2)]
@@ -1153,9 +978,9 @@ def _segment_min_k(c, s0, s1, s2, t0, t1, t2, n):
     for j in range(n):
         f = j / (n - 1)
         p0, p1, p2 = s0 + f * (t0 - s0), s1 + f * (t1 - s1), s2 + f * (t2 - s2)
-        a = _rows(c, p0, p1, p2)
+        a = fp.rows(c[C_FAMILY:], p0, p1, p2)
         l0, l1, l2 = max(math.sqrt(a[9]), 1e-9), max(math.sqrt(a[10]), 1e-9), max(math.sqrt(a[11]), 1e-9)
-        k, _ = _singularity_rows(c, l0, l1, l2, a)
+        k, _ = fp.singularity_rows(c[C_FAMILY:], l0, l1, l2, a)
         if k < k_min or k != k:
             k_min = k
     return k_min
@@ -1383,11 +1208,11 @@ def sample_track_batch(c, ws, streams, n, radius_range, amplitude_range, n_check
 @_jit
 def _initial_loop(c, x, o_q, o_k, o_sign, o_res):
     for i in range(x.shape[0]):
-        a = _rows(c, x[i, 0], x[i, 1], x[i, 2])
+        a = fp.rows(c[C_FAMILY:], x[i, 0], x[i, 1], x[i, 2])
         q0, q1, q2 = math.sqrt(a[9]), math.sqrt(a[10]), math.sqrt(a[11])
         o_q[i, 0], o_q[i, 1], o_q[i, 2] = q0, q1, q2
-        o_k[i], o_sign[i] = _singularity_rows(c, q0, q1, q2, a)
-        o_res[i] = _max_abs3(a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2)
+        o_k[i], o_sign[i] = fp.singularity_rows(c[C_FAMILY:], q0, q1, q2, a)
+        o_res[i] = fp.max_abs3(a[9] - q0 * q0, a[10] - q1 * q1, a[11] - q2 * q2)
 
 
 def initial_batch(c, x):

@@ -1,0 +1,47 @@
+"""Offsets into the packed constants of the distance-constraint family (``envs.family_kernels.pack_family``).
+
+Shared by the family's kernels (``envs.family_kernels``, any pose space over work arrays; ``envs.family_planar``,
+the planar pose space in scalars) and the 3-RPR environments' kernels (``envs.kernels``), which carry a copy of
+the vector for the step they take from the family core.
+"""
+
+from __future__ import annotations
+
+# -- offsets into the packed constants (fixed, sized for up to 6 legs) --------------------------------
+C_N = 0  # number of legs n (= pose coordinates m)
+C_SPATIAL = 1  # 1.0 for the spatial pose space, 0.0 for planar
+C_LC = 2  # characteristic length ℓ_c [m]
+C_LMIN = 3
+C_LMAX = 4
+C_DT = 5
+C_RATE = 6
+C_RK4 = 7
+C_SAFE = 8
+C_HARD = 9
+C_WP = 10
+C_WO = 11
+C_WS = 12
+C_WA = 13
+C_PENALTY = 14
+C_SUCC_P = 15
+C_SUCC_O = 16
+C_NEWTON_TOL = 17
+C_NEWTON_IT = 18
+C_JUMP = 19
+C_MAX_SUBSTEP = 20
+C_MAX_SUBSTEPS = 21
+C_OMEGA = 22  # angular frequency of the Track references [rad/s]
+C_MARGIN = 23  # stroke margin of the safe set [m]
+C_SPACING = 24  # largest distance between checked points of a certified segment [m]
+C_LOW = 25  # pose bounds, 6 entries
+C_HIGH = 31
+C_SCALE = 37  # pose_scale of the homogeneous Jacobian, 6 entries
+C_B = 43  # base anchors B_i (x, y, z) [m], 6 × 3 entries
+C_P = 61  # platform points P_i (x, y, z) in {P} [m], 6 × 3 entries
+C_SLOW = 79  # box tasks are drawn from, 6 entries
+C_SHIGH = 85
+C_HARD_KIND = 91  # 0: the straight path dips below k_safe and a detour is certified; 1: ill-conditioned targets
+C_SIZE = 92
+
+# Termination reason codes (the order of ``envs.core.TERMINATION_REASONS``).
+_NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
