@@ -27,9 +27,10 @@ import math
 import numba
 import numpy as np
 
-from envs import family_planar
+from envs import family_layout, family_planar, kernels, linalg_kernels
 from envs.kernels import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
 from envs.linalg_kernels import inverse_condition6, singular_value_ratio3, solve3, solve6
+from envs.numba_cache import drop_stale_caches
 
 __all__ = [
     "C_SIZE",
@@ -50,11 +51,6 @@ __all__ = [
 ]
 
 from envs.family_layout import (
-    _ASSEMBLY_MODE_CHANGE,
-    _NEWTON_FAILED,
-    _OUT_OF_BOUNDS,
-    _SINGULAR,
-    _SINGULARITY_CROSSED,
     C_B,
     C_DT,
     C_HARD,
@@ -90,6 +86,8 @@ from envs.family_layout import (
     C_WP,
     C_WS,
 )
+
+drop_stale_caches(__file__, [family_layout.__file__, family_planar.__file__, kernels.__file__, linalg_kernels.__file__])
 
 # -- rows of the work array of one robot (each row holds up to 6 numbers) ------------------------------
 W_A = 0  # A = J_x / 2, n × m (rows 0..5)
@@ -612,18 +610,7 @@ def _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_
     for j in range(m):
         if kx[j] < c[C_LOW + j] or kx[j] > c[C_HIGH + j]:
             out = True
-    if failed:
-        reason = _NEWTON_FAILED
-    elif jump > c[C_JUMP]:
-        reason = _ASSEMBLY_MODE_CHANGE
-    elif sign != det_sign[i]:
-        reason = _SINGULARITY_CROSSED
-    elif k_new < c[C_HARD]:
-        reason = _SINGULAR
-    elif out:
-        reason = _OUT_OF_BOUNDS
-    else:
-        reason = 0
+    reason = family_planar.termination_reason(c, failed, jump, sign, det_sign[i], k_new, out)
     for j in range(m):
         o_q[i, j] = kq[j]
         o_x[i, j] = kx[j]

@@ -22,6 +22,7 @@ import math
 import numba
 import numpy as np
 
+from envs import family_layout, linalg_kernels
 from envs.family_layout import (
     _ASSEMBLY_MODE_CHANGE,
     _NEWTON_FAILED,
@@ -47,6 +48,7 @@ from envs.family_layout import (
     C_SCALE,
 )
 from envs.linalg_kernels import singular_value_ratio3, solve3
+from envs.numba_cache import drop_stale_caches
 
 __all__ = [
     "max_abs3",
@@ -57,8 +59,11 @@ __all__ = [
     "singularity",
     "singularity_rows",
     "substeps",
+    "termination_reason",
     "transition_row",
 ]
+
+drop_stale_caches(__file__, [family_layout.__file__, linalg_kernels.__file__])
 
 
 def _jit(fn):
@@ -196,6 +201,32 @@ def substeps(c, r0, r1, r2):
 
 
 @_jit_inline
+def termination_reason(c, failed, jump, sign, mode, k, out):
+    """The step's termination reason code (0: none), first match in the order of ``TERMINATION_REASONS``.
+
+    Args:
+        c: Packed constants of the family.
+        failed: Whether the correction onto Φ = 0 failed.
+        jump: Largest correction of the step [m].
+        sign: sign(det J_x) at the new pose.
+        mode: The episode's sign(det J_x) (its working mode).
+        k: Inverse condition number at the new pose.
+        out: Whether the pose left its bounds.
+    """
+    if failed:
+        return _NEWTON_FAILED
+    if jump > c[C_JUMP]:
+        return _ASSEMBLY_MODE_CHANGE
+    if sign != mode:
+        return _SINGULARITY_CROSSED
+    if k < c[C_HARD]:
+        return _SINGULAR
+    if out:
+        return _OUT_OF_BOUNDS
+    return 0
+
+
+@_jit_inline
 def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
     """Advance robot i by one control period (``envs.family_kernels.transition_batch``); writes row i of the outputs."""
     dt = c[C_DT]
@@ -259,18 +290,7 @@ def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res,
     for j, value in enumerate((kx0, kx1, kx2)):
         if value < c[C_LOW + j] or value > c[C_HIGH + j]:
             out = True
-    if failed:
-        reason = _NEWTON_FAILED
-    elif jump > c[C_JUMP]:
-        reason = _ASSEMBLY_MODE_CHANGE
-    elif sign != det_sign[i]:
-        reason = _SINGULARITY_CROSSED
-    elif k_new < c[C_HARD]:
-        reason = _SINGULAR
-    elif out:
-        reason = _OUT_OF_BOUNDS
-    else:
-        reason = 0
+    reason = termination_reason(c, failed, jump, sign, det_sign[i], k_new, out)
     o_q[i, 0], o_q[i, 1], o_q[i, 2] = kq0, kq1, kq2
     o_x[i, 0], o_x[i, 1], o_x[i, 2] = kx0, kx1, kx2
     o_k[i] = k_new

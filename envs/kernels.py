@@ -32,6 +32,10 @@ from numba.extending import intrinsic
 
 from envs import family_layout as fl
 from envs import family_planar as fp
+from envs import linalg_kernels
+from envs.numba_cache import drop_stale_caches
+
+drop_stale_caches(__file__, [fl.__file__, fp.__file__, linalg_kernels.__file__])
 
 
 def _load_tbb() -> bool:
