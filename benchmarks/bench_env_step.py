@@ -9,7 +9,6 @@ affects them alike; the median over the rounds is reported in microseconds per s
 
 from __future__ import annotations
 
-import argparse
 import cProfile
 import os
 import platform
@@ -22,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
+from benchmarks._cli import parse_positive, step_parser
 
 OURS = "Planar3RPRReach-v0"
 REFERENCE = "Pendulum-v1"
@@ -65,14 +65,7 @@ def profile(stepper: SteppedEnv, top: int = 15) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Time both environments in alternating rounds and print the medians and their ratio."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=20_000, help="steps per round and env (default 20000)")
-    parser.add_argument("--rounds", type=int, default=5, help="alternating rounds (default 5)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the actions and of the first reset")
-    parser.add_argument("--profile", action="store_true", help="also print cProfile's top 15 for our env")
-    args = parser.parse_args(argv)
-    if args.steps < 1 or args.rounds < 1:
-        parser.error(f"--steps and --rounds must be ≥ 1, got {args.steps} and {args.rounds}")
+    args = parse_positive(step_parser(__doc__, "our env"), argv, "steps", "rounds")
 
     ours, reference = SteppedEnv(OURS, args.steps, args.seed), SteppedEnv(REFERENCE, args.steps, args.seed)
     warm_up = min(args.steps, 500)

@@ -16,7 +16,6 @@ Target: batched ≥ 100× faster than the lesson's loop.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import sys
@@ -25,6 +24,7 @@ import time
 import numpy as np
 import sympy as sp
 
+from benchmarks._cli import kinematics_parser, parse_positive
 from benchmarks.bench_kinematics import median_seconds, random_configurations
 from kinematics import StewartGough
 from kinematics.stewart_gough import DEFAULT_HEXAPOD_BASE, DEFAULT_HEXAPOD_PLATFORM
@@ -104,20 +104,8 @@ def jacobians_6ups(L_vals, pose):
 
 def main(argv: list[str] | None = None) -> None:
     """Check agreement, time the ways of computing J_f and print a table, the speed-up and the target."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=10_000, help="number of configurations (default 10000)")
-    parser.add_argument("--repeats", type=int, default=7, help="repetitions per measurement (default 7)")
-    parser.add_argument(
-        "--lesson-n",
-        type=int,
-        default=None,
-        help="time the lesson's per-configuration loop on the first LESSON_N configurations only "
-        "(default: all of them)",
-    )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the random configurations")
-    args = parser.parse_args(argv)
-    if args.n < 1 or args.repeats < 1:
-        parser.error(f"--n and --repeats must be ≥ 1, got {args.n} and {args.repeats}")
+    parser = kinematics_parser(__doc__)
+    args = parse_positive(parser, argv, "n", "repeats")
     lesson_n = args.n if args.lesson_n is None else min(max(args.lesson_n, 1), args.n)
 
     robot = StewartGough()

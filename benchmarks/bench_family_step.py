@@ -14,7 +14,6 @@ Targets: hexapod / Pendulum ≤ 1.5, hexapod / Reacher ≤ 1.0, Planar 3-RPR / P
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import statistics
@@ -24,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
+from benchmarks._cli import parse_positive, step_parser
 from benchmarks.bench_env_step import SteppedEnv, profile
 
 HEXAPOD = "StewartGoughReach-v0"
@@ -49,14 +49,7 @@ def make_reacher(steps: int, seed: int) -> tuple[SteppedEnv | None, str]:
 
 def main(argv: list[str] | None = None) -> None:
     """Time the environments in alternating rounds and print the medians, the ratios and the targets."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=20_000, help="steps per round and env (default 20000)")
-    parser.add_argument("--rounds", type=int, default=5, help="alternating rounds (default 5)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the actions and of the first reset")
-    parser.add_argument("--profile", action="store_true", help="also print cProfile's top 15 for the hexapod")
-    args = parser.parse_args(argv)
-    if args.steps < 1 or args.rounds < 1:
-        parser.error(f"--steps and --rounds must be ≥ 1, got {args.steps} and {args.rounds}")
+    args = parse_positive(step_parser(__doc__, "the hexapod"), argv, "steps", "rounds")
 
     steppers = [SteppedEnv(env_id, args.steps, args.seed) for env_id in (HEXAPOD, PLANAR, PENDULUM)]
     reacher, reacher_note = make_reacher(args.steps, args.seed)

@@ -7,7 +7,6 @@ repeated and the median is reported, per configuration, in microseconds.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import statistics
@@ -18,6 +17,7 @@ from collections.abc import Callable
 import numpy as np
 import sympy as sp
 
+from benchmarks._cli import kinematics_parser, parse_positive
 from kinematics import ParallelMechanism, Planar3RPR
 
 # -- The lesson's section 7 code (Chapter 16, Lesson 2), as printed ----------------------------------
@@ -127,21 +127,9 @@ def median_seconds(runs: list[Callable[[], object]], repeats: int) -> list[float
 
 def main(argv: list[str] | None = None) -> None:
     """Time the three ways of computing J_f and print a table, the speed-up ratios and a check."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=10_000, help="number of configurations (default 10000)")
-    parser.add_argument("--repeats", type=int, default=7, help="repetitions per measurement (default 7)")
-    parser.add_argument(
-        "--lesson-n",
-        type=int,
-        default=None,
-        help="time the lesson's per-configuration loop on the first LESSON_N configurations only "
-        "(default: all of them)",
-    )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the random configurations")
+    parser = kinematics_parser(__doc__)
     parser.add_argument("--show-symbolic", action="store_true", help="pretty-print J_q and J_x as the lesson")
-    args = parser.parse_args(argv)
-    if args.n < 1 or args.repeats < 1:
-        parser.error(f"--n and --repeats must be ≥ 1, got {args.n} and {args.repeats}")
+    args = parse_positive(parser, argv, "n", "repeats")
     lesson_n = args.n if args.lesson_n is None else min(max(args.lesson_n, 1), args.n)
 
     if args.show_symbolic:
