@@ -1,7 +1,9 @@
 """Classical controllers: resolved-rate, singularity-aware resolved-rate and the planner (NumPy only).
 
-Both read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, 3).
-They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here.
+They read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, n).
+They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here. They
+live in ``envs`` (NumPy only, no SB3) because ``envs.PlannerResidualWrapper`` builds on the planner
+controller; the evaluation finds them by name through ``training.controllers``.
 """
 
 from __future__ import annotations
