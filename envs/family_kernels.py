@@ -742,11 +742,35 @@ def _encode_pose(c, x, o_obs, i, start, low, high):
 def _evaluate_row(
     c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason, i, w, o_eval, o_obs
 ):
-    """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.family.evaluate``)."""
+    """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.family.evaluate``).
+
+    A planar robot's terms and observation are ``envs.family_planar``'s (those of the 3-RPR environments).
+    """
     m = int(c[C_N])
     g, vel, diff = w[W_TGT], w[W_VEL], w[W_DIFF]
     _reference(c, t[i], center, amplitude, phase, i, g, vel)
     xi = x[i]
+    if c[C_SPATIAL] == 0.0:
+        a0, a1, a2 = action[i, 0], action[i, 1], action[i, 2]
+        tr, si, ac, te, ep, eo = family_planar.reward_terms(
+            c, xi[0], xi[1], xi[2], g[0], g[1], g[2], k[i], a0, a1, a2, reason[i]
+        )
+        o_eval[E_TRACKING, i], o_eval[E_SINGULARITY, i], o_eval[E_ACTION, i], o_eval[E_TERMINATION, i] = tr, si, ac, te
+        o_eval[E_REWARD, i] = tr + si + ac + te
+        o_eval[E_POSITION_ERROR, i], o_eval[E_ORIENTATION_ERROR, i] = ep, eo
+        success = reason[i] == 0 and family_planar.is_success(c, ep, eo)
+        o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
+        o_eval[E_COST, i] = 1.0 if k[i] < c[C_SAFE] else 0.0
+        o_eval[E_K, i] = k[i]
+        o_eval[E_RESIDUAL, i] = residual[i]
+        for j in range(3):
+            o_eval[E_FIXED + j, i] = g[j]
+            o_eval[E_FIXED + 3 + j, i] = vel[j]
+            o_eval[E_FIXED + 6 + j, i] = xi[j]
+        family_planar.observation_row(
+            c, low, high, with_velocity, q, x, k, g[0], g[1], g[2], vel[0], vel[1], vel[2], i, o_obs
+        )
+        return
     position_error, orientation_error = _errors(c, xi, g, diff)
     ki = k[i]
     tracking = -(c[C_WP] * position_error + c[C_WO] * c[C_LC] * orientation_error)

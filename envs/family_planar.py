@@ -43,25 +43,41 @@ from envs.family_layout import (
     C_NEWTON_IT,
     C_NEWTON_TOL,
     C_P,
+    C_PENALTY,
     C_RATE,
     C_RK4,
+    C_SAFE,
     C_SCALE,
+    C_SUCC_O,
+    C_SUCC_P,
+    C_WA,
+    C_WO,
+    C_WP,
+    C_WS,
 )
 from envs.linalg_kernels import singular_value_ratio3, solve3
 from envs.numba_cache import drop_stale_caches
 
 __all__ = [
+    "clip32",
+    "errors",
+    "is_success",
     "max_abs3",
     "newton",
+    "observation_row",
     "pose_rate",
     "pose_rate_rows",
+    "reward_terms",
     "rows",
     "singularity",
     "singularity_rows",
     "substeps",
     "termination_reason",
     "transition_row",
+    "wrap",
 ]
+
+_TWO_PI = 2.0 * math.pi
 
 drop_stale_caches(__file__, [family_layout.__file__, linalg_kernels.__file__])
 
@@ -299,3 +315,75 @@ def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res,
     o_qr[i, 0], o_qr[i, 1], o_qr[i, 2] = r0, r1, r2
     o_reason[i] = reason
     o_jump[i] = jump
+
+
+# -- reward terms and the observation of a planar robot -----------------------------------------------
+
+
+@_jit
+def wrap(angle):
+    """Wrap to [−π, π) (Python's floating modulo, as ``np.mod``)."""
+    return (angle + math.pi) % _TWO_PI - math.pi
+
+
+@_jit
+def errors(x0, x1, x2, g0, g1, g2):
+    """(‖p* − p‖ [m], |wrap(φ* − φ)| [rad])."""
+    return math.hypot(g0 - x0, g1 - x1), abs(wrap(g2 - x2))
+
+
+@_jit
+def is_success(c, position_error, orientation_error):
+    """Whether the errors are within the success tolerances."""
+    return position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
+
+
+@_jit_inline
+def reward_terms(c, x0, x1, x2, g0, g1, g2, k, a0, a1, a2, reason):
+    """(tracking, singularity, action, termination) reward terms and the two errors."""
+    ep, eo = errors(x0, x1, x2, g0, g1, g2)
+    tracking = -(c[C_WP] * ep + c[C_WO] * c[C_LC] * eo)
+    gap = max(c[C_SAFE] - k, 0.0) / c[C_SAFE]
+    singular = -c[C_WS] * (gap * gap)
+    act = -c[C_WA] * (a0 * a0 + a1 * a1 + a2 * a2)
+    term = -c[C_PENALTY] * (1.0 if reason != 0 else 0.0)
+    return tracking, singular, act, term, ep, eo
+
+
+@_jit_inline
+def clip32(o_obs, i, j, value, low, high):
+    """o_obs[i, j] = float32(clip(value, low[j], high[j])) (the clip in float64, as ``np.clip``)."""
+    o_obs[i, j] = np.float32(min(max(value, np.float64(low[j])), np.float64(high[j])))
+
+
+@_jit_inline
+def observation_row(c, low, high, with_velocity, q, x, k, g0, g1, g2, v0, v1, v2, i, o_obs):
+    """Row i of the observation, clipped to [low, high], float32.
+
+    The planar layout of ``envs.core.observation`` and ``envs.family_kernels.observation_layout``.
+    """
+    x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
+    lo, hi = c[C_LMIN], c[C_LMAX]
+    span = hi - lo
+    legs = rows(c, g0, g1, g2)  # the target's inverse kinematics: L_j* = ‖d_j(x*)‖
+    clip32(o_obs, i, 0, x0, low, high)
+    clip32(o_obs, i, 1, x1, low, high)
+    clip32(o_obs, i, 2, math.cos(x2), low, high)
+    clip32(o_obs, i, 3, math.sin(x2), low, high)
+    clip32(o_obs, i, 4, g0, low, high)
+    clip32(o_obs, i, 5, g1, low, high)
+    clip32(o_obs, i, 6, math.cos(g2), low, high)
+    clip32(o_obs, i, 7, math.sin(g2), low, high)
+    clip32(o_obs, i, 8, g0 - x0, low, high)
+    clip32(o_obs, i, 9, g1 - x1, low, high)
+    clip32(o_obs, i, 10, wrap(g2 - x2), low, high)
+    for j in range(3):
+        clip32(o_obs, i, 11 + j, 2.0 * (q[i, j] - lo) / span - 1.0, low, high)
+    clip32(o_obs, i, 14, (math.sqrt(legs[9]) - q[i, 0]) / span, low, high)
+    clip32(o_obs, i, 15, (math.sqrt(legs[10]) - q[i, 1]) / span, low, high)
+    clip32(o_obs, i, 16, (math.sqrt(legs[11]) - q[i, 2]) / span, low, high)
+    clip32(o_obs, i, 17, k[i], low, high)
+    if with_velocity:
+        clip32(o_obs, i, 18, v0, low, high)
+        clip32(o_obs, i, 19, v1, low, high)
+        clip32(o_obs, i, 20, v2, low, high)

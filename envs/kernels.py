@@ -390,12 +390,6 @@ def substep_batch(c, q, x, q_rate, rate=None):
 # -- targets, reward, observation ---------------------------------------------------------------------
 
 
-@_jit
-def _wrap(angle):
-    """Wrap to [−π, π) (Python's floating modulo, as ``np.mod``)."""
-    return (angle + math.pi) % _TWO_PI - math.pi
-
-
 @_jit_inline
 def _reference_row(c, t, center, radius, phase, amplitude, i):
     """Target pose and velocity of robot i at step t[i]: 6 scalars."""
@@ -455,15 +449,9 @@ E_SIZE = 20
 
 
 @_jit
-def _errors(x0, x1, x2, g0, g1, g2):
-    """(‖p* − p‖ [m], |wrap(φ* − φ)| [rad])."""
-    return math.hypot(g0 - x0, g1 - x1), abs(_wrap(g2 - x2))
-
-
-@_jit
 def _errors_loop(x, target, o_position, o_orientation):
     for i in range(x.shape[0]):
-        o_position[i], o_orientation[i] = _errors(x[i, 0], x[i, 1], x[i, 2], target[i, 0], target[i, 1], target[i, 2])
+        o_position[i], o_orientation[i] = fp.errors(x[i, 0], x[i, 1], x[i, 2], target[i, 0], target[i, 1], target[i, 2])
 
 
 def errors_batch(x, target):
@@ -482,15 +470,9 @@ def errors_batch(x, target):
 
 
 @_jit
-def _is_success(c, position_error, orientation_error):
-    """Whether the errors are within the success tolerances."""
-    return position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
-
-
-@_jit
 def _success_loop(c, position_error, orientation_error, o_success):
     for i in range(position_error.shape[0]):
-        o_success[i] = _is_success(c, position_error[i], orientation_error[i])
+        o_success[i] = fp.is_success(c[C_FAMILY:], position_error[i], orientation_error[i])
 
 
 def success_batch(c, position_error, orientation_error):
@@ -509,23 +491,11 @@ def success_batch(c, position_error, orientation_error):
     return o_success
 
 
-@_jit_inline
-def _terms(c, x0, x1, x2, g0, g1, g2, k, a0, a1, a2, reason):
-    """(tracking, singularity, action, termination) reward terms and the two errors."""
-    ep, eo = _errors(x0, x1, x2, g0, g1, g2)
-    tracking = -(c[C_WP] * ep + c[C_WO] * c[C_LC] * eo)
-    gap = max(c[C_SAFE] - k, 0.0) / c[C_SAFE]
-    singular = -c[C_WS] * (gap * gap)
-    act = -c[C_WA] * (a0 * a0 + a1 * a1 + a2 * a2)
-    term = -c[C_PENALTY] * (1.0 if reason != 0 else 0.0)
-    return tracking, singular, act, term, ep, eo
-
-
 @_jit
 def _terms_loop(c, x, target, k, action, reason, o_terms):
     for i in range(x.shape[0]):
-        tr, si, ac, te, _, _ = _terms(
-            c,
+        tr, si, ac, te, _, _ = fp.reward_terms(
+            c[C_FAMILY:],
             x[i, 0],
             x[i, 1],
             x[i, 2],
@@ -560,47 +530,11 @@ def terms_batch(c, x, target, k, action, reason):
     return o_terms
 
 
-@_jit_inline
-def _clip32(o_obs, i, j, value, low, high):
-    """o_obs[i, j] = float32(clip(value, low[j], high[j])) (the clip in float64, as ``np.clip``)."""
-    o_obs[i, j] = np.float32(min(max(value, np.float64(low[j])), np.float64(high[j])))
-
-
-@_jit_inline
-def _observation_row(c, low, high, with_velocity, q, x, k, g0, g1, g2, v0, v1, v2, i, o_obs):
-    """Row i of the observation (layout in ``core.observation``), clipped to [low, high], float32."""
-    x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
-    lo, hi = c[C_LMIN], c[C_LMAX]
-    span = hi - lo
-    legs = fp.rows(c[C_FAMILY:], g0, g1, g2)  # the target's inverse kinematics: L_j* = ‖d_j(x*)‖
-    _clip32(o_obs, i, 0, x0, low, high)
-    _clip32(o_obs, i, 1, x1, low, high)
-    _clip32(o_obs, i, 2, math.cos(x2), low, high)
-    _clip32(o_obs, i, 3, math.sin(x2), low, high)
-    _clip32(o_obs, i, 4, g0, low, high)
-    _clip32(o_obs, i, 5, g1, low, high)
-    _clip32(o_obs, i, 6, math.cos(g2), low, high)
-    _clip32(o_obs, i, 7, math.sin(g2), low, high)
-    _clip32(o_obs, i, 8, g0 - x0, low, high)
-    _clip32(o_obs, i, 9, g1 - x1, low, high)
-    _clip32(o_obs, i, 10, _wrap(g2 - x2), low, high)
-    for j in range(3):
-        _clip32(o_obs, i, 11 + j, 2.0 * (q[i, j] - lo) / span - 1.0, low, high)
-    _clip32(o_obs, i, 14, (math.sqrt(legs[9]) - q[i, 0]) / span, low, high)
-    _clip32(o_obs, i, 15, (math.sqrt(legs[10]) - q[i, 1]) / span, low, high)
-    _clip32(o_obs, i, 16, (math.sqrt(legs[11]) - q[i, 2]) / span, low, high)
-    _clip32(o_obs, i, 17, k[i], low, high)
-    if with_velocity:
-        _clip32(o_obs, i, 18, v0, low, high)
-        _clip32(o_obs, i, 19, v1, low, high)
-        _clip32(o_obs, i, 20, v2, low, high)
-
-
 @_jit
 def _observation_loop(c, low, high, with_velocity, q, x, k, target, velocity, o_obs):
     for i in range(x.shape[0]):
-        _observation_row(
-            c,
+        fp.observation_row(
+            c[C_FAMILY:],
             low,
             high,
             with_velocity,
@@ -662,21 +596,21 @@ def _evaluate_row(
     o_obs,
 ):
     p0, p1, p2, w0, w1, w2 = _reference_row(c, t, center, radius, phase, amplitude, i)
-    tr, si, ac, te, ep, eo = _terms(
-        c, x[i, 0], x[i, 1], x[i, 2], p0, p1, p2, k[i], action[i, 0], action[i, 1], action[i, 2], reason[i]
+    tr, si, ac, te, ep, eo = fp.reward_terms(
+        c[C_FAMILY:], x[i, 0], x[i, 1], x[i, 2], p0, p1, p2, k[i], action[i, 0], action[i, 1], action[i, 2], reason[i]
     )
     e = o_eval
     e[E_TRACKING, i], e[E_SINGULARITY, i], e[E_ACTION, i], e[E_TERMINATION, i] = tr, si, ac, te
     e[E_REWARD, i] = tr + si + ac + te
     e[E_POSITION_ERROR, i], e[E_ORIENTATION_ERROR, i] = ep, eo
-    ok = reason[i] == 0 and _is_success(c, ep, eo)
+    ok = reason[i] == 0 and fp.is_success(c[C_FAMILY:], ep, eo)
     e[E_SUCCESS, i] = 1.0 if ok else 0.0
     e[E_COST, i] = 1.0 if k[i] < c[C_SAFE] else 0.0
     e[E_TARGET, i], e[E_TARGET + 1, i], e[E_TARGET + 2, i] = p0, p1, p2
     e[E_VELOCITY, i], e[E_VELOCITY + 1, i], e[E_VELOCITY + 2, i] = w0, w1, w2
     e[E_K, i], e[E_RESIDUAL, i] = k[i], residual[i]
     e[E_POSE, i], e[E_POSE + 1, i], e[E_POSE + 2, i] = x[i, 0], x[i, 1], x[i, 2]
-    _observation_row(c, low, high, with_velocity, q, x, k, p0, p1, p2, w0, w1, w2, i, o_obs)
+    fp.observation_row(c[C_FAMILY:], low, high, with_velocity, q, x, k, p0, p1, p2, w0, w1, w2, i, o_obs)
 
 
 @_jit
