@@ -302,6 +302,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--cpus-per-trial", type=float, default=1.0)
     parser.add_argument("--address", default=None, help="an existing Ray cluster (default: start a local Ray)")
     parser.add_argument("--resume", action="store_true", help="continue the sweep of that name: skip finished trials")
+    parser.add_argument(
+        "--report-only",
+        action="store_true",
+        help="run nothing: aggregate the finished trials of the sweep of that name (while it runs, or after Ctrl-C)",
+    )
     return parser
 
 
@@ -312,9 +317,10 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.root) / args.name
     plan_file = out / "plan.json"
     try:
-        if args.resume:
+        if args.resume or args.report_only:
             if not plan_file.is_file():
-                raise ConfigError(f"--resume: no sweep named {args.name!r} in {args.root!r}")
+                flag = "--report-only" if args.report_only else "--resume"
+                raise ConfigError(f"{flag}: no sweep named {args.name!r} in {args.root!r}")
             plan = json.loads(plan_file.read_text())
         else:
             if plan_file.is_file():
@@ -334,6 +340,15 @@ def main(argv: list[str] | None = None) -> int:
             plan_file.write_text(json.dumps(plan, indent=2) + "\n")
     except ConfigError as exc:
         parser.error(str(exc))
+    if args.report_only:
+        results, failures = finished_trials(plan, out)
+        if not results:
+            parser.error(f"--report-only: none of the {len(plan['trials'])} trials of {args.name!r} has finished")
+        aggregate_results(results, out)
+        unfinished = ", ".join(name for name, _ in failures) or "none"
+        total = len(plan["trials"])
+        print(f"{len(results)} of {total} trials finished (unfinished: {unfinished}); report: {out / 'report.md'}")
+        return 0
     results, failures = run_on_ray(plan, out, args.max_concurrent, args.cpus_per_trial, args.address)
     for name, error in failures:
         print(f"trial {name} failed: {error}  (fix it, then: python -m training.sweep --name {args.name} --resume)")
@@ -375,6 +390,11 @@ def run_on_ray(
             tuner.fit()
         finally:
             ray.shutdown()
+    return finished_trials(plan, out)
+
+
+def finished_trials(plan: dict[str, Any], out: Path) -> tuple[list[dict], list[tuple[str, str]]]:
+    """The results of the plan's finished trials (those with a ``result.json``) and [(trial, why)] of the others."""
     results, failures = [], []
     for trial in plan["trials"]:
         path = out / "trials" / trial["name"] / "result.json"

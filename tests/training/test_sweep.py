@@ -55,6 +55,16 @@ def test_tiny_sweep_on_local_ray_resumes_without_rerunning(tmp_path, capsys):
     with pytest.raises(SystemExit):
         sweep.main(argv)
     assert "exists" in capsys.readouterr().err
+    # --report-only aggregates what has finished and runs nothing
+    unfinished = next(iter(stamps))
+    unfinished.unlink()
+    assert sweep.main(["--root", str(tmp_path), "--name", "tiny", "--report-only"]) == 0
+    assert not unfinished.exists()
+    assert json.loads((out / "sweep_results.json").read_text())["trials"] == 1
+    assert f"1 of 2 trials finished (unfinished: {unfinished.parent.name})" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        sweep.main(["--root", str(tmp_path), "--name", "none", "--report-only"])
+    assert "--report-only: no sweep named 'none'" in capsys.readouterr().err
 
 
 @pytest.mark.slow
