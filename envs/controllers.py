@@ -251,15 +251,18 @@ class PlannerController(ResolvedRateController):
         gain: K [1/s].
         max_speed: Cap on the scaled platform speed [m/s].
         lookahead: Distance of the carrot ahead of the closest point of the path, in z [m].
+        follower: An ``envs.planner.PathFollower`` to share (its own lookahead then applies); default a new one.
     """
 
     name = "planner"
 
-    def __init__(self, params: EnvParams, gain: float = 2.0, max_speed: float = 0.25, lookahead: float = 0.1) -> None:
+    def __init__(
+        self, params: EnvParams, gain: float = 2.0, max_speed: float = 0.25, lookahead: float = 0.1, follower=None
+    ) -> None:
         from envs.planner import PathFollower
 
         super().__init__(params, gain, max_speed)
-        self.follower = PathFollower(params, lookahead)
+        self.follower = PathFollower(params, lookahead) if follower is None else follower
 
     @property
     def log(self) -> Sequence:

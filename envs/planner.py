@@ -404,8 +404,8 @@ class PlannerResidualWrapper(_PlannerWrapper):
         from envs.controllers import PlannerController
 
         self.scale = float(scale)
-        self.controller = PlannerController(env.unwrapped.params, lookahead=lookahead)
-        self.controller.follower = self.follower  # one plan per episode, shared by the observation and the action
+        # one plan per episode, shared by the observation and the action
+        self.controller = PlannerController(env.unwrapped.params, follower=self.follower)
         self._planner_action = np.zeros(3, dtype=np.float32)
 
     def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
