@@ -17,7 +17,9 @@ Jacobi SVD for m = 6), accurate near singular matrices. A spatial
 pose stores the rotation vector r; every update of it goes through unit quaternions (R ← exp([δθ]×) R), so
 the integrator and Newton's method work on the rotation group, never on Euler angles.
 
-Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core.
+Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
+chunk, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD behind their k runs
+on the whole block at once (vectorised across robots, ``envs.linalg_kernels.inverse_condition6_lanes``).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 
 from envs import family_layout, family_planar, kernels, linalg_kernels
 from envs.kernels import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
-from envs.linalg_kernels import inverse_condition6, singular_value_ratio3, solve3, solve6
+from envs.linalg_kernels import LANES, inverse_condition6_lanes, singular_value_ratio3, solve3, solve6
 from envs.numba_cache import drop_stale_caches
 
 __all__ = [
@@ -120,7 +122,7 @@ E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION, E_REWARD = 0, 1, 2, 3, 4
 E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_K, E_RESIDUAL = 5, 6, 7, 8, 9, 10
 E_FIXED = 11
 
-#: Robots per chunk of a batch: each chunk allocates its work array once.
+#: Robots per chunk of a batch: each chunk allocates its work arrays once (a multiple of ``LANES``).
 CHUNK = 64
 #: Candidates a sampler may reject before it reports failure.
 SAMPLER_TRIES = 2000
@@ -430,11 +432,28 @@ def _twist_rate(c, q, rate, w, src, out):
 
 
 @_jit
+def _homogeneous_lane(c, q, w, src, H, lane):
+    """Lane ``lane`` of H (see ``inverse_condition6_lanes``) = J_i diag(pose_scale) from the rows ``src`` of A (m = 6).
+
+    J_i diag(pose_scale) = diag(1/q) A diag(pose_scale); column j of it goes to H[j, :, lane]. Returns
+    sign(det J_x) = sign(det A), by pivoted elimination of A.
+    """
+    for i in range(6):
+        inv = 1.0 / q[i]
+        row = w[src + i]
+        for j in range(6):
+            H[j, i, lane] = row[j] * inv * c[C_SCALE + j]
+    det = _solve(w, 6, src, w[W_RHS], w[W_SOL])
+    return 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
+
+
+@_jit
 def _singularity(c, q, w, src):
     """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``src`` of A.
 
     J_i diag(pose_scale) = diag(1/q) A diag(pose_scale); its σ_min/σ_max in closed form (m = 3) or by a
-    one-sided Jacobi SVD (m = 6). sign(det J_x) = sign(det A).
+    one-sided Jacobi SVD (m = 6, one lane of ``inverse_condition6_lanes``, which the batched step runs on
+    ``LANES`` robots at a time). sign(det J_x) = sign(det A).
     """
     m = int(c[C_N])
     if m == 3:
@@ -457,17 +476,12 @@ def _singularity(c, q, w, src):
         det = (
             a[0] * (b[1] * d[2] - b[2] * d[1]) + a[1] * (b[2] * d[0] - b[0] * d[2]) + a[2] * (b[0] * d[1] - b[1] * d[0])
         )
-    else:
-        Ht = w[W_H : W_H + 6]  # column j of J_i diag(pose_scale) as row j
-        for i in range(6):
-            inv = 1.0 / q[i]
-            row = w[src + i]
-            for j in range(6):
-                Ht[j, i] = row[j] * inv * c[C_SCALE + j]
-        k = inverse_condition6(Ht)
-        det = _solve(w, m, src, w[W_RHS], w[W_SOL])
-    sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
-    return k, sign
+        return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
+    H = np.empty((6, 6, 1))
+    work = np.empty((3, 1))
+    sign = _homogeneous_lane(c, q, w, src, H, 0)
+    inverse_condition6_lanes(H, 1, work[0], work[1], work[2])
+    return work[0, 0], sign
 
 
 @_jit
@@ -528,18 +542,23 @@ def _rate_at(c, q, x, rate, w, out):
     _twist_rate(c, q, rate, w, W_A, out)
 
 
-@_jit_inline
-def _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
-    """Advance robot i by one control period (see ``envs.family.transition``); writes row i of the outputs.
+#: Rows of a block's lane work array (``allocate_lanes``): k, two rows for the SVD, sign(det J_x), flags.
+L_K, L_WORST, L_ACTIVE, L_SIGN, L_FLAGS = 0, 1, 2, 3, 4
 
-    A planar robot takes the scalar path of ``envs.family_planar`` (its 3 × 3 algebra in registers); a spatial
-    one the path below, over the work array ``w``.
+
+@_jit
+def allocate_lanes():
+    """Work arrays of one block of up to ``LANES`` spatial robots: (H (6, 6, LANES), lane rows (5, LANES))."""
+    return np.empty((6, 6, LANES)), np.empty((5, LANES))
+
+
+@_jit_inline
+def _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump):
+    """Move spatial robot i through one control period: writes row i of o_q, o_x, o_res, o_a, o_qr, o_jump.
+
+    Returns (whether the correction failed, whether the pose left its bounds); the rows of A at the new pose
+    are left in w.
     """
-    if c[C_SPATIAL] == 0.0:
-        family_planar.transition_row(
-            c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
-        )
-        return
     m = int(c[C_N])
     dt = c[C_DT]
     lo, hi = c[C_LMIN], c[C_LMAX]
@@ -605,27 +624,80 @@ def _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_
             kx[j] = x0[j]
         res = residual[i]
         _rows(c, kx, w)  # back at the start pose (rare: only when the correction failed)
-    k_new, sign = _singularity(c, kq, w, W_A)
     out = False
     for j in range(m):
         if kx[j] < c[C_LOW + j] or kx[j] > c[C_HIGH + j]:
             out = True
-    reason = family_planar.termination_reason(c, failed, jump, sign, det_sign[i], k_new, out)
     for j in range(m):
         o_q[i, j] = kq[j]
         o_x[i, j] = kx[j]
         o_qr[i, j] = qr[j]
-    o_k[i] = k_new
     o_res[i] = res
-    o_reason[i] = reason
     o_jump[i] = jump
+    return failed, out
+
+
+@_jit_inline
+def _transition_block(
+    c, q, x, det_sign, residual, action, start, count, w, lanes, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+):
+    """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
+
+    The algorithm of ``envs.family.transition``. A planar robot takes the scalar path of
+    ``envs.family_planar`` (its 3 × 3 algebra in registers). Spatial robots are moved one by one, then the
+    k of all of them comes from one ``inverse_condition6_lanes`` call over the block (vectorised across
+    robots, each robot's k bit for bit what it would be alone), then their termination reasons.
+    """
+    if c[C_SPATIAL] == 0.0:
+        for i in range(start, start + count):
+            family_planar.transition_row(
+                c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+            )
+        return
+    H, lane = lanes
+    for r in range(count):
+        i = start + r
+        failed, out = _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
+        lane[L_SIGN, r] = _homogeneous_lane(c, o_q[i], w, W_A, H, r)
+        lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if out else 0.0)
+    inverse_condition6_lanes(H, count, lane[L_K], lane[L_WORST], lane[L_ACTIVE])
+    for r in range(count):
+        i = start + r
+        flags = lane[L_FLAGS, r]
+        failed = flags == 1.0 or flags == 3.0
+        out = flags >= 2.0
+        k = lane[L_K, r]
+        o_k[i] = k
+        o_reason[i] = family_planar.termination_reason(c, failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out)
 
 
 @_jit
 def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
     w = np.empty((W_SIZE, 6))
-    for i in range(q.shape[0]):
-        _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
+    lanes = allocate_lanes()
+    n = q.shape[0]
+    for start in range(0, n, LANES):
+        count = min(LANES, n - start)
+        _transition_block(
+            c,
+            q,
+            x,
+            det_sign,
+            residual,
+            action,
+            start,
+            count,
+            w,
+            lanes,
+            o_q,
+            o_x,
+            o_k,
+            o_res,
+            o_a,
+            o_qr,
+            o_reason,
+            o_jump,
+        )
 
 
 def transition_batch(c, q, x, det_sign, residual, action):
@@ -884,31 +956,54 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, am
 # -- the fused step: transition then evaluation, on every core for large batches ------------------------
 
 
-@_jit
-def _step_row(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, i, w, out):
+@_jit_inline
+def _step_block(
+    c,
+    low,
+    high,
+    with_velocity,
+    q,
+    x,
+    t,
+    det_sign,
+    residual,
+    center,
+    amplitude,
+    phase,
+    action,
+    start,
+    count,
+    w,
+    lanes,
+    out,
+):
+    """Transition then evaluation of robots start .. start + count − 1 (count ≤ ``LANES``) into ``out``."""
     o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
-    _transition_row(c, q, x, det_sign, residual, action, i, w, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
-    o_t[i] = t[i] + 1
-    _evaluate_row(
-        c,
-        low,
-        high,
-        with_velocity,
-        o_q,
-        o_x,
-        o_t,
-        o_k,
-        o_res,
-        center,
-        amplitude,
-        phase,
-        o_a,
-        o_reason,
-        i,
-        w,
-        o_eval,
-        o_obs,
+    _transition_block(
+        c, q, x, det_sign, residual, action, start, count, w, lanes, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
     )
+    for i in range(start, start + count):
+        o_t[i] = t[i] + 1
+        _evaluate_row(
+            c,
+            low,
+            high,
+            with_velocity,
+            o_q,
+            o_x,
+            o_t,
+            o_k,
+            o_res,
+            center,
+            amplitude,
+            phase,
+            o_a,
+            o_reason,
+            i,
+            w,
+            o_eval,
+            o_obs,
+        )
 
 
 @_jit
@@ -925,8 +1020,30 @@ def _step_serial(c, low, high, with_velocity, q, x, t, det_sign, residual, cente
     if not _finite_actions(action):
         return True
     w = np.empty((W_SIZE, 6))
-    for i in range(q.shape[0]):
-        _step_row(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, i, w, out)
+    lanes = allocate_lanes()
+    n = q.shape[0]
+    for start in range(0, n, LANES):
+        count = min(LANES, n - start)
+        _step_block(
+            c,
+            low,
+            high,
+            with_velocity,
+            q,
+            x,
+            t,
+            det_sign,
+            residual,
+            center,
+            amplitude,
+            phase,
+            action,
+            start,
+            count,
+            w,
+            lanes,
+            out,
+        )
     return False
 
 
@@ -938,9 +1055,29 @@ def _step_parallel(c, low, high, with_velocity, q, x, t, det_sign, residual, cen
     chunks = (n + CHUNK - 1) // CHUNK
     for chunk in numba.prange(chunks):
         w = np.empty((W_SIZE, 6))
-        for i in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            _step_row(
-                c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, i, w, out
+        lanes = allocate_lanes()
+        stop = min(n, (chunk + 1) * CHUNK)
+        for start in range(chunk * CHUNK, stop, LANES):
+            count = min(LANES, stop - start)
+            _step_block(
+                c,
+                low,
+                high,
+                with_velocity,
+                q,
+                x,
+                t,
+                det_sign,
+                residual,
+                center,
+                amplitude,
+                phase,
+                action,
+                start,
+                count,
+                w,
+                lanes,
+                out,
             )
     return False
 

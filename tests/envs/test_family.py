@@ -363,3 +363,46 @@ def test_6x6_inverse_condition_against_lapack():
     assert rel.max() < 1e-7
     assert inverse_condition6(np.zeros((6, 6))) == 0.0
     assert np.isnan(inverse_condition6(np.full((6, 6), np.nan)))
+
+
+@pytest.mark.parametrize("count", [1, 7, 16])
+def test_6x6_inverse_condition_lanes_equal_one_at_a_time(count):
+    """Side by side, each matrix's k is bit for bit its k alone, whatever its neighbours (converged, zero, NaN)."""
+    from envs.linalg_kernels import LANES, inverse_condition6, inverse_condition6_lanes
+
+    rng = np.random.default_rng(count)
+    U, _ = np.linalg.qr(rng.normal(size=(count, 6, 6)))
+    V, _ = np.linalg.qr(rng.normal(size=(count, 6, 6)))
+    sigma = np.sort(rng.uniform(1e-5, 1.0, size=(count, 6)), axis=-1)
+    M = U @ (sigma[..., None] * np.swapaxes(V, -1, -2))  # sweeps needed differ from matrix to matrix
+    M[0] = np.diag(np.arange(1.0, 7.0))  # orthogonal columns: converged before the first rotation
+    if count > 2:
+        M[1] = 0.0
+        M[2, 3, 4] = np.nan
+    alone = np.array([inverse_condition6(np.ascontiguousarray(m.T)) for m in M])
+    H = np.full((6, 6, LANES), 7.0)  # unused lanes hold junk that must not matter
+    H[:, :, :count] = np.transpose(M, (2, 1, 0))  # column c of matrix l at H[c, :, l]
+    out, worst, active = np.full(LANES, -1.0), np.empty(LANES), np.empty(LANES)
+    inverse_condition6_lanes(H, count, out, worst, active)
+    np.testing.assert_array_equal(out[:count], alone)
+    assert (out[count:] == -1.0).all()
+    assert alone[0] == pytest.approx(1 / 6, rel=1e-15)
+    if count > 2:
+        assert alone[1] == 0.0 and np.isnan(alone[2])
+
+
+def test_hexapod_transition_in_blocks_equals_one_robot_at_a_time(hexapod):
+    """The batched transition conditions LANES robots at a time; each robot's outcome is bit for bit its N = 1 one."""
+    x = _random_poses(hexapod, 120, 5)[:37]  # two full blocks of 16 and a partial one
+    assert len(x) == 37
+    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = family.initial_state(hexapod, x, ref)
+    action = np.random.default_rng(6).uniform(-1, 1, size=(len(x), 6))
+    batch, outcome = family.transition(hexapod, state, action)
+    for i in (0, 15, 16, 31, 32, 36):
+        one_ref = family.FamilyReference(x[i : i + 1].copy(), np.zeros((1, 6)), np.zeros((1, 6)))
+        one = family.initial_state(hexapod, x[i : i + 1], one_ref)
+        single, single_outcome = family.transition(hexapod, one, action[i : i + 1])
+        for name in ("q", "x", "inverse_condition", "residual"):
+            np.testing.assert_array_equal(getattr(batch, name)[i], getattr(single, name)[0])
+        assert outcome.reason[i] == single_outcome.reason[0]
