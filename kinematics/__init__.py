@@ -5,10 +5,11 @@ Conventions (used by every module of the project):
 The family
     Every robot here is a *distance-constraint mechanism* (``DistanceConstraintMechanism``): leg i keeps a
     platform point P_i at a distance ℓ_i(q_i) from an anchor A_i(q_i), Φ_i = ‖p + R P_i − A_i‖² − ℓ_i²,
-    and a robot is data: a pose space (planar or spatial), an actuator kind and a geometry. The 3-RPR
-    (``Planar3RPR``) and the Stewart–Gough hexapod (``StewartGough``) are members; a user's own geometry
-    needs no new code. For spatial poses the velocity is the platform twist (v, ω) in {B} and J_x, J_f and
-    J_i refer to it (see ``kinematics.family``).
+    and a robot is data: a pose space (planar, spatial or translational), each leg's actuator kind (leg,
+    crank or slider) and a geometry. The 3-RPR (``Planar3RPR``), the Stewart–Gough hexapod
+    (``StewartGough``), the Delta (``Delta``), the 3-RRR (``Planar3RRR``) and the 3-PRR (``Planar3PRR``) are
+    members; a user's own geometry needs no new code. For spatial poses the velocity is the platform twist
+    (v, ω) in {B} and J_x, J_f and J_i refer to it (see ``kinematics.family``).
 
 Frames
     {B} is the fixed base frame, {P} the moving platform frame. A platform point given in {P} is
@@ -28,13 +29,15 @@ Units
 
 Singularities (Gosselin & Angeles 1990)
     Type I  (serial):   J_q singular, the platform can resist motion in some direction without
-                        actuator effort; for the 3-RPR, a leg of zero length.
+                        actuator effort; for the 3-RPR, a leg of zero length; for a crank, its link in
+                        line with its arm (``actuator_condition_number``, ``actuator_mobility``).
     Type II (parallel): J_x singular, the platform gains a motion with the actuators locked and small
                         actuator rates give huge platform motion.
 
 Every function accepts leading batch dimensions and broadcasts ``q`` against ``x``.
 """
 
+from kinematics.delta import Delta
 from kinematics.family import ACTUATOR_KINDS, POSE_SPACES, DistanceConstraintMechanism, PoseSpace
 from kinematics.mechanism import (
     ForwardKinematicsResult,
@@ -42,15 +45,19 @@ from kinematics.mechanism import (
     SingularConfigurationError,
 )
 from kinematics.planar_3rpr import Planar3RPR
+from kinematics.planar_rrr_prr import Planar3PRR, Planar3RRR
 from kinematics.stewart_gough import StewartGough
 
 __all__ = [
     "ACTUATOR_KINDS",
     "POSE_SPACES",
+    "Delta",
     "DistanceConstraintMechanism",
     "ForwardKinematicsResult",
     "ParallelMechanism",
+    "Planar3PRR",
     "Planar3RPR",
+    "Planar3RRR",
     "PoseSpace",
     "SingularConfigurationError",
     "StewartGough",

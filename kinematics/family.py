@@ -6,22 +6,34 @@ of its actuators and its geometry. This module holds the math once for all of th
 
 Pose spaces (``POSE_SPACES``)
     ``planar``   x = (x [m], y [m], φ [rad]); points are 2-D; R(φ) the rotation by φ; the velocity is ẋ.
+    ``translational``  x = p = (p_x, p_y, p_z) [m], R = I (the Delta's travelling plate); points are 3-D.
     ``spatial``  x = (p_x, p_y, p_z [m], r_x, r_y, r_z [rad]) with r the rotation vector, R = exp([r]×)
                  (SciPy's ``Rotation.from_rotvec`` convention); points are 3-D. The velocity is the platform
                  twist (v, ω) in {B}: v the velocity of the origin of {P}, ω the angular velocity with
                  Ṙ = [ω]× R. J_x, J_f and J_i refer to the twist, not to ṙ, and a pose is updated on the
                  rotation group, R ← exp([δθ]×) R (``retract``), never through Euler angles.
 
-Actuator kinds (``ACTUATOR_KINDS``)
-    ``leg``      A_i = B_i, ℓ_i = q_i: an extensible leg (3-RPR, 6-UPS Stewart–Gough). Crank and slider
-                 kinds follow the same formula with other A_i and ℓ_i.
+Actuator kinds (``ACTUATOR_KINDS``), leg by leg
+    ``leg``      A_i = B_i, ℓ_i = q_i [m]: an extensible leg (3-RPR, 6-UPS Stewart–Gough).
+    ``crank``    A_i = B_i + a_i (cos q_i u_i + sin q_i v_i), ℓ_i = l_i: a motor at B_i turns an arm of length
+                 a_i in the plane of the orthonormal u_i, v_i, and a link of length l_i joins its tip (the
+                 elbow) to P_i; q_i [rad] (3-RRR, Delta's 3-RUS, 6-RUS).
+    ``slider``   A_i = B_i + q_i e_i, ℓ_i = l_i: a carriage at q_i [m] along a rail of unit direction e_i,
+                 and a link of length l_i to P_i (3-PRR, linear Delta, Hexaglide).
 
-For the leg kind, with d_i = p + R P_i − B_i:
+With d_i = p + R P_i − A_i(q_i) (the link vector, from the anchor to the platform point):
 
-    Φ_i = d_iᵀ d_i − q_i²,   J_q = −2 diag(q),   row i of J_x = 2 (d_iᵀ, ((R P_i) × d_i)ᵀ)
+    Φ_i = d_iᵀ d_i − ℓ_i²,   J_q = −2 diag(d_iᵀ A_i′ + ℓ_i ℓ_i′),   row i of J_x = 2 (d_iᵀ, ((R P_i) × d_i)ᵀ)
 
 (planar: the cross product is its z component, so row i = 2 (d_ix, d_iy, (R P_i)_x d_iy − (R P_i)_y d_ix),
-the lesson's §5.2). The rows of J_i = −J_q⁻¹ J_x are the legs' unit Plücker lines (u_i, (R P_i) × u_i).
+the lesson's §5.2; translational: row i = 2 d_iᵀ). For a leg, A_i′ = 0 and ℓ_i′ = 1, so J_q = −2 diag(q).
+Two singularities (Gosselin & Angeles 1990), each with a homogeneous measure in [0, 1]:
+
+* Type II (J_x singular): ``inverse_condition_number``, σ_min/σ_max of the *link Jacobian*, whose rows are
+  the links' unit Plücker lines (u_i, (R P_i) × u_i / ℓ_c), u_i = d_i / ℓ_i; for legs it is J_i diag(pose_scale).
+* Type I (J_q singular: a crank's link in line with its arm, a slider's link square to its rail):
+  ``actuator_condition_number``, min_i |d_iᵀ A_i′ + ℓ_i ℓ_i′| / (ℓ_i ‖(A_i′, ℓ_i′)‖), the cosine of the angle
+  between the link and the direction the actuator moves its anchor; 1 for a leg.
 """
 
 from __future__ import annotations
@@ -30,20 +42,21 @@ from typing import Any
 
 import numpy as np
 
-from kinematics._validation import FloatArray, point_set, positive_scalar
-from kinematics.mechanism import ParallelMechanism
+from kinematics._validation import FloatArray, as_float_array, batch_vector, check_finite, point_set, positive_scalar
+from kinematics.linalg import batched_solve, singular_value_ratio
+from kinematics.mechanism import ParallelMechanism, SingularConfigurationError, _check_broadcast, _scalarize
 
 __all__ = ["ACTUATOR_KINDS", "POSE_SPACES", "DistanceConstraintMechanism", "PoseSpace"]
 
-#: Actuator kinds this version implements (crank and slider come with the rotary and linear robots).
-ACTUATOR_KINDS = ("leg",)
+#: Actuator kinds: extensible leg, rotary crank, linear slider (see the module docstring).
+ACTUATOR_KINDS = ("leg", "crank", "slider")
 
 
 class PoseSpace:
     """How a pose x parametrises the platform's position p and rotation R, and how it moves.
 
     Attributes:
-        name: "planar" or "spatial".
+        name: "planar", "spatial" or "translational".
         point_dim: Dimension d of the anchor and platform points (2 or 3).
         n_pose: Number m of pose coordinates (3 or 6).
         rotation_columns: Indices of the pose (and twist) coordinates that are rotations.
@@ -80,6 +93,8 @@ class PoseSpace:
         if self.name == "planar":
             c, s = np.cos(x[..., 2]), np.sin(x[..., 2])
             return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+        if self.name == "translational":
+            return np.broadcast_to(np.eye(3), x.shape[:-1] + (3, 3))
         r = x[..., 3:6]
         return _rotations(r).as_matrix().reshape(r.shape[:-1] + (3, 3))
 
@@ -94,7 +109,7 @@ class PoseSpace:
         Returns:
             Poses, shape (..., m); spatial rotation vectors in the ball |r| ≤ π.
         """
-        if self.name == "planar":
+        if self.name != "spatial":
             return x + step
         shape = np.broadcast_shapes(x.shape, step.shape)
         x, step = np.broadcast_to(x, shape), np.broadcast_to(step, shape)
@@ -114,7 +129,7 @@ class PoseSpace:
         Returns:
             Steps in twist coordinates, shape (..., m); ``retract(y, difference(x, y)) == x``.
         """
-        if self.name == "planar":
+        if self.name != "spatial":
             return x - y
         shape = np.broadcast_shapes(x.shape, y.shape)
         x, y = np.broadcast_to(x, shape), np.broadcast_to(y, shape)
@@ -129,6 +144,7 @@ class PoseSpace:
 POSE_SPACES = {
     "planar": PoseSpace("planar", 2, 3, (2,), "a pose (x [m], y [m], φ [rad])"),
     "spatial": PoseSpace("spatial", 3, 6, (3, 4, 5), "a pose (p_x, p_y, p_z [m], rotation vector r_x, r_y, r_z [rad])"),
+    "translational": PoseSpace("translational", 3, 3, (), "a position (p_x, p_y, p_z) [m]"),
 }
 
 
@@ -166,24 +182,66 @@ def check_distinct(name: str, points: FloatArray) -> None:
                 )
 
 
+def _per_leg(name: str, value: Any, n: int) -> FloatArray:
+    """A scalar or a length-n array of finite reals, as a float64 array of shape (n,)."""
+    arr = as_float_array(name, value)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must be a number or have shape ({n},), got shape {arr.shape}")
+    check_finite(name, arr)
+    return np.array(arr, dtype=np.float64)
+
+
+def _unit_vectors(name: str, value: Any, n: int, d: int) -> FloatArray:
+    """A (d,) vector for every leg or an (n, d) array of unit vectors (norm 1 within 1e-9)."""
+    arr = as_float_array(name, value)
+    if arr.shape == (d,):
+        arr = np.broadcast_to(arr, (n, d))
+    if arr.shape != (n, d):
+        raise ValueError(f"{name} must have shape ({d},) or ({n}, {d}), got shape {arr.shape}")
+    check_finite(name, arr)
+    norms = np.linalg.norm(arr, axis=-1)
+    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-9)
+    if bad.size:
+        raise ValueError(f"{name} must be unit vectors: row {bad[0] + 1} has norm {norms[bad[0]]!r}")
+    return np.array(arr, dtype=np.float64)
+
+
+def _readonly(*arrays: FloatArray) -> None:
+    for arr in arrays:
+        arr.setflags(write=False)
+
+
 class DistanceConstraintMechanism(ParallelMechanism):
     """A fully parallel robot of the distance-constraint family, given by its data alone.
 
     Φ_i(q, x) = ‖p + R(x) P_i − A_i(q_i)‖² − ℓ_i(q_i)², i = 1..n, with n = m actuators (see the module
     docstring for the pose spaces and actuator kinds). Every method of ``ParallelMechanism`` (J_f, J_i,
-    forward kinematics on the rotation group, DOF, mobility, statics, conditioning) works unchanged.
+    forward kinematics on the rotation group, DOF, mobility, statics, conditioning) works unchanged; the
+    family adds the Type I measures (``actuator_condition_number``, ``actuator_mobility``).
 
     Args:
-        base: Anchors B_i in {B} [m], shape (n, d) with d = 2 (planar) or 3 (spatial); pairwise distinct.
+        base: Anchors B_i in {B} [m], shape (n, d) with d = 2 (planar) or 3 (spatial, translational); pairwise
+            distinct. For a crank the motor's axis point, for a slider the rail's origin (q_i = 0).
         platform: Platform points P_i in {P} [m], shape (n, d); pairwise distinct.
-        pose_space: "planar" (n = 3) or "spatial" (n = 6).
-        actuators: Actuator kind of every leg; "leg" (A_i = B_i, ℓ_i = q_i).
+        pose_space: "planar" (n = 3), "spatial" (n = 6) or "translational" (n = 3).
+        actuators: Actuator kind of every leg, "leg", "crank" or "slider", or a sequence of n kinds.
+        link_lengths: l_i [m] of the crank and slider legs, a number or shape (n,) (ignored for legs).
+        crank_radii: a_i [m] of the crank legs, a number or shape (n,) (ignored for other kinds).
+        crank_axes: (u_i, v_i) of the crank legs, orthonormal, shape (2, d) or (n, 2, d); the arm points
+            along u_i at q_i = 0 and turns towards v_i. Default for planar robots: u = x̂, v = ŷ.
+        rails: e_i of the slider legs, unit, shape (d,) or (n, d).
+        branches: +1 or −1 for each crank or slider leg, the branch of the closed-form inverse kinematics
+            (a crank's elbow on one side of the line from its motor to P_i or the other; the larger or
+            smaller of a slider's two positions). Default +1.
+        home: The pose ``home_pose`` returns, shape (m,) (default: centred over the base, see there).
         characteristic_length: ℓ_c [m] that divides the rotation columns of J_i to make them dimensionless.
             Default: the largest distance from the platform origin to a P_i.
         singular_tolerance: Hadamard ratio of the homogenised J_x below which inverting it raises
-            ``SingularConfigurationError``. Default 1e-12.
+            ``SingularConfigurationError``; the same bound on the Type I measure for J_i. Default 1e-12.
         check_architecture: Refuse an architecture-singular design (J_x singular at every pose), detected
-            by the conditioning at random poses around the platform's home. Default True.
+            by the conditioning at random poses around the home pose. Default True.
     """
 
     def __init__(
@@ -192,7 +250,13 @@ class DistanceConstraintMechanism(ParallelMechanism):
         platform: Any,
         *,
         pose_space: str = "spatial",
-        actuators: str = "leg",
+        actuators: Any = "leg",
+        link_lengths: Any = None,
+        crank_radii: Any = None,
+        crank_axes: Any = None,
+        rails: Any = None,
+        branches: Any = None,
+        home: Any = None,
         characteristic_length: float | None = None,
         singular_tolerance: float = 1e-12,
         check_architecture: bool = True,
@@ -200,23 +264,28 @@ class DistanceConstraintMechanism(ParallelMechanism):
         """Validate and store the geometry (see the class docstring for the arguments)."""
         if pose_space not in POSE_SPACES:
             raise ValueError(f"pose_space must be one of {sorted(POSE_SPACES)}, got {pose_space!r}")
-        if actuators not in ACTUATOR_KINDS:
-            raise ValueError(f"actuators must be one of {list(ACTUATOR_KINDS)}, got {actuators!r}")
         space = POSE_SPACES[pose_space]
         n, d = space.n_pose, space.point_dim
+        kinds = (actuators,) * n if isinstance(actuators, str) else tuple(actuators)
+        if len(kinds) != n or any(kind not in ACTUATOR_KINDS for kind in kinds):
+            raise ValueError(
+                f"actuators must be one of {list(ACTUATOR_KINDS)} or a sequence of {n} of them, got {actuators!r}"
+            )
         B = point_set("base anchors", base, n, d)
         P = point_set("platform points", platform, n, d)
         check_distinct("base anchors", B)
         check_distinct("platform points", P)
         if characteristic_length is None:
-            characteristic_length = float(np.max(np.linalg.norm(P, axis=1)))
+            characteristic_length = float(np.max(np.linalg.norm(P, axis=1))) if space.rotation_columns else 1.0
             if characteristic_length <= 0:  # pragma: no cover - excluded by distinct points
                 raise ValueError("platform points are all at the origin; give characteristic_length")
         l_c = positive_scalar("characteristic_length", characteristic_length)
         tol = positive_scalar("singular_tolerance", singular_tolerance)
         super().__init__(pose_scale=space.pose_scale(l_c), singular_tolerance=tol)
         self._space = space
-        self._actuators = actuators
+        self._kinds = kinds
+        self._actuators = kinds[0] if len(set(kinds)) == 1 else kinds
+        self._all_legs = all(kind == "leg" for kind in kinds)
         self._B = B
         self._P = P
         self._l_c = l_c
@@ -224,21 +293,93 @@ class DistanceConstraintMechanism(ParallelMechanism):
         self.n_pose = n
         self.n_constraints = n
         self.x_description = space.x_description
-        self.q_description = f"leg lengths (q_1, …, q_{n}) [m]"
+        self._set_actuation(kinds, d, link_lengths, crank_radii, crank_axes, rails, branches)
+        self._home = None if home is None else self._x(np.array(home, dtype=np.float64), "home")
+        if self._home is not None:
+            self._home.setflags(write=False)
         if check_architecture:
             self._check_architecture()
+
+    def _set_actuation(
+        self, kinds: tuple[str, ...], d: int, link_lengths: Any, radii: Any, axes: Any, rails: Any, branches: Any
+    ) -> None:
+        """Store the per-leg actuation as A_i(q) = B_i + a_i (cos q u_i + sin q v_i) + q e_i, ℓ_i = λ_i q + l_i."""
+        n = len(kinds)
+        crank = np.array([kind == "crank" for kind in kinds])
+        slider = np.array([kind == "slider" for kind in kinds])
+        leg = ~(crank | slider)
+        self._a = np.zeros(n)
+        self._U = np.zeros((n, d))
+        self._V = np.zeros((n, d))
+        self._E = np.zeros((n, d))
+        self._lam = leg.astype(np.float64)  # ℓ_i = λ_i q_i + l_i: λ = 1, l = 0 for a leg
+        self._ell = np.zeros(n)
+        self._branch = np.ones(n)
+        if not leg.all():
+            if link_lengths is None:
+                raise ValueError("link_lengths are required for crank and slider legs")
+            lengths = _per_leg("link_lengths", link_lengths, n)
+            if not (lengths[~leg] > 0).all():
+                raise ValueError(f"link_lengths must be > 0 [m], got {lengths.tolist()}")
+            self._ell[~leg] = lengths[~leg]
+            if branches is not None:
+                signs = _per_leg("branches", branches, n)
+                if not np.isin(signs, (-1.0, 1.0)).all():
+                    raise ValueError(f"branches must be +1 or −1, got {signs.tolist()}")
+                self._branch = signs
+        if crank.any():
+            if radii is None:
+                raise ValueError("crank_radii are required for crank legs")
+            a = _per_leg("crank_radii", radii, n)
+            if not (a[crank] > 0).all():
+                raise ValueError(f"crank_radii must be > 0 [m], got {a.tolist()}")
+            self._a[crank] = a[crank]
+            if axes is None:
+                if d != 2:
+                    raise ValueError("crank_axes (u_i, v_i) are required for the cranks of a 3-D robot")
+                axes = np.eye(2)
+            axes_arr = as_float_array("crank_axes", axes)
+            if axes_arr.shape == (2, d):
+                axes_arr = np.broadcast_to(axes_arr, (n, 2, d))
+            if axes_arr.shape != (n, 2, d):
+                raise ValueError(f"crank_axes must have shape (2, {d}) or ({n}, 2, {d}), got {axes_arr.shape}")
+            U = _unit_vectors("crank_axes u", axes_arr[:, 0], n, d)
+            V = _unit_vectors("crank_axes v", axes_arr[:, 1], n, d)
+            dots = np.abs(np.einsum("ij,ij->i", U, V))
+            if (dots[crank] > 1e-9).any():
+                i = int(np.flatnonzero(crank & (dots > 1e-9))[0])
+                raise ValueError(f"crank_axes u and v must be orthogonal: leg {i + 1} has u·v = {dots[i]!r}")
+            self._U[crank], self._V[crank] = U[crank], V[crank]
+        if slider.any():
+            if rails is None:
+                raise ValueError("rails (unit directions e_i) are required for slider legs")
+            self._E[slider] = _unit_vectors("rails", rails, n, d)[slider]
+        _readonly(self._a, self._U, self._V, self._E, self._lam, self._ell, self._branch)
+        names = {"leg": "leg lengths", "crank": "crank angles", "slider": "slider positions"}
+        units = {"leg": "[m]", "crank": "[rad]", "slider": "[m]"}
+        if len(set(kinds)) == 1:
+            self.q_description = f"{names[kinds[0]]} (q_1, …, q_{n}) {units[kinds[0]]}"
+        else:
+            self.q_description = (
+                "actuator coordinates (" + ", ".join(f"q_{i + 1} {units[kind]}" for i, kind in enumerate(kinds)) + ")"
+            )
 
     # -- geometry ---------------------------------------------------------------------------------
 
     @property
     def pose_space(self) -> PoseSpace:
-        """The pose space (planar or spatial)."""
+        """The pose space (planar, spatial or translational)."""
         return self._space
 
     @property
-    def actuators(self) -> str:
-        """The actuator kind of every leg ("leg")."""
+    def actuators(self) -> Any:
+        """The actuator kind of every leg ("leg", "crank" or "slider"), or the tuple of kinds if they differ."""
         return self._actuators
+
+    @property
+    def actuator_kinds(self) -> tuple[str, ...]:
+        """The actuator kind of each leg, length n."""
+        return self._kinds
 
     @property
     def base(self) -> FloatArray:
@@ -251,20 +392,50 @@ class DistanceConstraintMechanism(ParallelMechanism):
         return self._P
 
     @property
+    def link_lengths(self) -> FloatArray:
+        """l_i [m] of the crank and slider legs (0 for legs), shape (n,), read-only."""
+        return self._ell
+
+    @property
+    def crank_radii(self) -> FloatArray:
+        """a_i [m] of the crank legs (0 for other kinds), shape (n,), read-only."""
+        return self._a
+
+    @property
+    def crank_axes(self) -> FloatArray:
+        """(u_i, v_i) of the crank legs (zero for other kinds), shape (n, 2, d)."""
+        return np.stack([self._U, self._V], axis=1)
+
+    @property
+    def rails(self) -> FloatArray:
+        """e_i of the slider legs (zero for other kinds), shape (n, d), read-only."""
+        return self._E
+
+    @property
+    def branches(self) -> FloatArray:
+        """The inverse-kinematics branch (+1 or −1) of each leg, shape (n,), read-only."""
+        return self._branch
+
+    @property
     def characteristic_length(self) -> float:
         """ℓ_c [m], the length that makes rotations commensurate with translations."""
         return self._l_c
 
     def home_pose(self) -> FloatArray:
-        """A pose where the platform is centred over the base anchors, unrotated, shape (m,).
+        """A pose at the centre of the workspace, shape (m,).
 
-        Planar: the centroid of the base anchors, φ = 0. Spatial: above the anchors' centroid at a height
-        equal to the base's mean radius, r = 0.
+        The ``home`` given to the constructor if any; else, planar: the centroid of the base anchors, φ = 0;
+        spatial: above the anchors' centroid at a height equal to the base's mean radius, r = 0;
+        translational: below the anchors' centroid by the base's mean radius.
         """
+        if self._home is not None:
+            return self._home.copy()
         centre = self._B.mean(axis=0)
         if self._space.name == "planar":
             return np.array([centre[0], centre[1], 0.0])
         radius = float(np.mean(np.linalg.norm(self._B - centre, axis=1)))
+        if self._space.name == "translational":
+            return np.array([centre[0], centre[1], centre[2] - radius])
         return np.array([centre[0], centre[1], centre[2] + radius, 0.0, 0.0, 0.0])
 
     def _check_architecture(self) -> None:
@@ -275,41 +446,50 @@ class DistanceConstraintMechanism(ParallelMechanism):
         spread[list(self._space.rotation_columns)] = 0.3  # [rad] for rotations
         x = home + rng.uniform(-1.0, 1.0, size=(32, self.n_pose)) * spread
         q = self._inverse_kinematics(x)
-        if not np.all(q > 0):  # pragma: no cover - a leg of zero length at the home pose
+        reachable = np.isfinite(q).all(axis=-1) & (q[..., self._lam == 1.0] > 0).all(axis=-1)
+        if not reachable.any():  # pragma: no cover - no pose near home is reachable
             return
-        k = self.inverse_condition_number(q, x, validate=False)
+        k = self.inverse_condition_number(q[reachable], x[reachable], validate=False)
         if float(np.max(k)) < 1e-9:
             raise ValueError(
-                "architecture-singular design: J_x is singular at every one of 32 random poses around the home "
-                f"pose {home.tolist()} (largest inverse condition number {float(np.max(k)):.3g}); "
-                "for example, similar base and platform hexagons with legs joining corresponding vertices"
+                f"architecture-singular design: J_x is singular at every one of {int(reachable.sum())} random "
+                f"poses around the home pose {home.tolist()} (largest inverse condition number "
+                f"{float(np.max(k)):.3g}); for example, similar base and platform hexagons with legs joining "
+                "corresponding vertices"
             )
 
     def __repr__(self) -> str:
         """Geometry in a form that can be pasted back."""
+        extra = ""
+        if not self._all_legs:
+            extra = f", actuators={self._actuators!r}, link_lengths={self._ell.tolist()}"
+            if "crank" in self._kinds:
+                extra += f", crank_radii={self._a.tolist()}, crank_axes={self.crank_axes.tolist()}"
+            if "slider" in self._kinds:
+                extra += f", rails={self._E.tolist()}"
+            extra += f", branches={self._branch.tolist()}"
+        if self._home is not None:
+            extra += f", home={self._home.tolist()}"
         return (
             f"{type(self).__name__}(base={self._B.tolist()}, platform={self._P.tolist()}, "
-            f"pose_space={self._space.name!r}, characteristic_length={self._l_c!r}, "
+            f"pose_space={self._space.name!r}{extra}, characteristic_length={self._l_c!r}, "
             f"singular_tolerance={self.singular_tolerance!r})"
         )
 
+    def _key(self) -> tuple[Any, ...]:
+        arrays = (self._B, self._P, self._a, self._U, self._V, self._E, self._ell, self._branch)
+        home = None if self._home is None else self._home.tobytes()
+        return (self._space.name, self._kinds, *(a.tobytes() for a in arrays), home, self._l_c, self.singular_tolerance)
+
     def __eq__(self, other: object) -> bool:
-        """Mechanisms are equal when their kind, geometry and tolerances are."""
+        """Mechanisms are equal when their kind, geometry, actuation and tolerances are."""
         if not isinstance(other, DistanceConstraintMechanism):
             return NotImplemented
-        return (
-            type(self) is type(other)
-            and self._space.name == other._space.name
-            and self._actuators == other._actuators
-            and np.array_equal(self._B, other._B)
-            and np.array_equal(self._P, other._P)
-            and self._l_c == other._l_c
-            and self.singular_tolerance == other.singular_tolerance
-        )
+        return type(self) is type(other) and self._key() == other._key()
 
     def __hash__(self) -> int:
         """Hash of the geometry, consistent with ``__eq__``."""
-        return hash((self._space.name, self._B.tobytes(), self._P.tobytes(), self._l_c, self.singular_tolerance))
+        return hash(self._key())
 
     def rotation_matrix(self, x: Any, *, validate: bool = True) -> FloatArray:
         """Rotation R of {P} in {B}.
@@ -385,39 +565,303 @@ class DistanceConstraintMechanism(ParallelMechanism):
             x, y = self._x(x), self._x(y, "y")
         return self._space.difference(x, y)
 
+    def anchors(self, q: Any, *, validate: bool = True) -> FloatArray:
+        """Anchors A_i(q_i) in {B} [m]: B_i for a leg, the elbow for a crank, the carriage for a slider.
+
+        Args:
+            q: Actuator coordinates, shape (..., n).
+            validate: Check shape and values.
+
+        Returns:
+            A [m], shape (..., n, d); row i is leg i's anchor.
+        """
+        if validate:
+            q = self._q(q)
+        return self._anchor_terms(q)[0]
+
+    def link_vectors(self, q: Any, x: Any, *, validate: bool = True) -> FloatArray:
+        """Link vectors d_i = p + R P_i − A_i(q_i) in {B} (for legs, ``leg_vectors``).
+
+        Args:
+            q: Actuator coordinates, shape (..., n).
+            x: Platform pose of {P} in {B}, shape (..., m).
+            validate: Check inputs.
+
+        Returns:
+            d [m], shape (..., n, d); row i is link i.
+        """
+        q, x = self._qx(q, x, validate)
+        return self._link_terms(q, x)[0]
+
     # -- the constraint-level math ----------------------------------------------------------------
 
     def _check_actuators(self, q: FloatArray) -> None:
-        if q.size and not q.min() > 0:
-            raise ValueError(f"leg lengths q must be > 0 [m], got minimum {float(np.min(q))!r}")
+        legs = q[..., self._lam == 1.0]
+        if legs.size and not legs.min() > 0:
+            raise ValueError(f"leg lengths q must be > 0 [m], got minimum {float(np.min(legs))!r}")
 
     def _retract(self, x: FloatArray, step: FloatArray) -> FloatArray:
         return self._space.retract(x, step)
 
-    def _constraints(self, q: FloatArray, x: FloatArray) -> FloatArray:
-        d = self.leg_vectors(x, validate=False)
-        return np.einsum("...ij,...ij->...i", d, d) - q * q
+    def _anchor_terms(self, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(A, A′, ℓ) at q: anchors and their derivatives dA_i/dq_i, shape (..., n, d); lengths ℓ_i, shape (..., n)."""
+        c, s = np.cos(q)[..., None], np.sin(q)[..., None]
+        a = self._a[:, None]
+        A = self._B + a * (c * self._U + s * self._V) + q[..., None] * self._E
+        dA = a * (c * self._V - s * self._U) + self._E
+        return A, dA, self._lam * q + self._ell
 
-    def _jacobian_x(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """(J_x, d): J_x of shape (..., n, m) with row i = 2 (d_iᵀ, ((R P_i) × d_i)ᵀ); d of shape (..., n, d)."""
-        RP = self._rotated_platform(x)
-        d = self._space.position(x)[..., None, :] + RP - self._B
-        moment = _cross(RP, d)
+    def _link_terms(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(d, A′, ℓ): link vectors d_i = p + R P_i − A_i(q_i), anchor derivatives and lengths."""
+        A, dA, ell = self._anchor_terms(q)
+        return self.platform_points_in_base(x, validate=False) - A, dA, ell
+
+    def _constraints(self, q: FloatArray, x: FloatArray) -> FloatArray:
+        if self._all_legs:
+            d = self.leg_vectors(x, validate=False)
+            return np.einsum("...ij,...ij->...i", d, d) - q * q
+        d, _, ell = self._link_terms(q, x)
+        return np.einsum("...ij,...ij->...i", d, d) - ell * ell
+
+    def _rows_x(self, x: FloatArray, d: FloatArray) -> FloatArray:
+        """J_x, shape (..., n, m), from the link vectors d: row i = 2 (d_iᵀ, ((R P_i) × d_i)ᵀ), translational 2 d_iᵀ."""
+        if self._space.name == "translational":
+            return 2.0 * d
+        moment = _cross(self._rotated_platform(x), d)
         if moment.ndim == d.ndim - 1:
             moment = moment[..., None]
-        return 2.0 * np.concatenate([d, moment], axis=-1), d
+        return 2.0 * np.concatenate([d, moment], axis=-1)
+
+    def _jacobian_x(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(J_x, d) of a leg-actuated robot (d = p + R P_i − B_i does not depend on q)."""
+        RP = self._rotated_platform(x)
+        d = self._space.position(x)[..., None, :] + RP - self._B
+        return self._rows_x(x, d), d
 
     def _newton_terms(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        J_x, d = self._jacobian_x(x)
-        return np.einsum("...ij,...ij->...i", d, d) - q * q, J_x
+        if self._all_legs:
+            J_x, d = self._jacobian_x(x)
+            return np.einsum("...ij,...ij->...i", d, d) - q * q, J_x
+        d, _, ell = self._link_terms(q, x)
+        return np.einsum("...ij,...ij->...i", d, d) - ell * ell, self._rows_x(x, d)
 
     def _jacobians(self, q: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        J_x, _ = self._jacobian_x(x)
         n = self.n_actuators
+        if self._all_legs:
+            J_x, _ = self._jacobian_x(x)
+            diagonal = -2.0 * q  # J_q = −2 diag(q)
+        else:
+            d, dA, ell = self._link_terms(q, x)
+            J_x = self._rows_x(x, d)
+            diagonal = -2.0 * (np.einsum("...ij,...ij->...i", d, dA) + ell * self._lam)
         shape = np.broadcast_shapes(q.shape[:-1], x.shape[:-1]) + (n, n)
         J_q = np.zeros(shape)
-        np.einsum("...ii->...i", J_q)[...] = -2.0 * q  # J_q = −2 diag(q)
-        return J_q, np.broadcast_to(J_x, shape)
+        np.einsum("...ii->...i", J_q)[...] = diagonal
+        return J_q, np.broadcast_to(J_x, shape[:-1] + (self.n_pose,))
 
     def _inverse_kinematics(self, x: FloatArray) -> FloatArray:
-        return np.linalg.norm(self.leg_vectors(x, validate=False), axis=-1)
+        """Closed-form q(x) leg by leg on the chosen branches; NaN for a leg that cannot reach its point."""
+        w = self.leg_vectors(x, validate=False)  # P_w − B_i
+        if self._all_legs:
+            return np.linalg.norm(w, axis=-1)
+        ww = np.einsum("...ij,...ij->...i", w, w)
+        q = np.sqrt(ww)  # legs
+        with np.errstate(invalid="ignore", divide="ignore"):
+            # slider: ‖w − q e‖² = l²  ⇒  q = (w·e) ± √((w·e)² − ‖w‖² + l²)
+            we = np.einsum("...ij,ij->...i", w, self._E)
+            disc = we * we - ww + self._ell**2  # ≥ 0 where the link reaches the rail's line; 0 at a Type I pose
+            disc = np.where(disc < 0.0, np.where(disc >= -1e-12 * (ww + self._ell**2), 0.0, np.nan), disc)
+            slider_q = we + self._branch * np.sqrt(disc)
+            # crank: (w·u) cos q + (w·v) sin q = (‖w‖² + a² − l²) / 2a  ⇒  q = atan2(w·v, w·u) ± acos(K / ρ)
+            wu = np.einsum("...ij,ij->...i", w, self._U)
+            wv = np.einsum("...ij,ij->...i", w, self._V)
+            a = np.where(self._a > 0, self._a, 1.0)
+            ratio = (ww + self._a**2 - self._ell**2) / (2.0 * a * np.hypot(wu, wv))
+            # |ratio| = 1: crank and link in line (a Type I pose at the reach's edge), let rounding not lose it
+            ratio = np.where(np.abs(ratio) <= 1.0 + 1e-12, np.clip(ratio, -1.0, 1.0), np.nan)
+            crank_q = np.arctan2(wv, wu) + self._branch * np.arccos(ratio)
+            crank_q = np.mod(crank_q + np.pi, 2.0 * np.pi) - np.pi  # in [−π, π)
+        kinds = np.array(self._kinds)
+        return np.where(kinds == "crank", crank_q, np.where(kinds == "slider", slider_q, q))
+
+    def inverse_kinematics(self, x: Any, *, validate: bool = True) -> FloatArray:
+        """Closed-form inverse kinematics q(x), leg by leg, on each crank's and slider's chosen ``branches``.
+
+        Args:
+            x: Platform pose of {P} in {B}, shape (..., m).
+            validate: Check the pose and raise where a leg cannot reach it (else that q_i is NaN).
+
+        Returns:
+            q, shape (..., n) (crank angles in [−π, π)).
+
+        Raises:
+            ValueError: If ``validate`` and a crank or slider leg cannot reach its platform point.
+        """
+        if validate:
+            x = self._x(x)
+        q = self._inverse_kinematics(x)
+        if validate and not np.isfinite(q).all():
+            index = tuple(int(i) for i in np.argwhere(~np.isfinite(q))[0])
+            leg = index[-1]
+            raise ValueError(
+                f"pose out of reach: leg {leg + 1} ({self._kinds[leg]}, link {float(self._ell[leg])!r} m) cannot "
+                f"reach its platform point at pose {np.asarray(x)[index[:-1]].tolist()}"
+            )
+        return q
+
+    # -- the two kinds of singularity -------------------------------------------------------------
+
+    def link_jacobian(self, q: Any, x: Any, *, validate: bool = True) -> FloatArray:
+        """The homogeneous Type II Jacobian diag(1/(2ℓ_i)) J_x diag(pose_scale).
+
+        Row i is link i's unit Plücker line (u_i, ((R P_i) × u_i)/ℓ_c), u_i = d_i/ℓ_i; for a leg-actuated
+        robot it equals ``homogeneous_jacobian`` (J_i diag(pose_scale)), and unlike J_i it stays finite at a
+        Type I singularity.
+
+        Args:
+            q: Actuator coordinates, shape (..., n).
+            x: Platform pose of {P} in {B}, shape (..., m).
+            validate: Check inputs.
+
+        Returns:
+            Shape (..., n, m), dimensionless.
+        """
+        q, x = self._qx(q, x, validate)
+        d, _, ell = self._link_terms(q, x)
+        return self._rows_x(x, d) / (2.0 * ell[..., None]) * self._pose_scale
+
+    def inverse_condition_number(self, q: Any, x: Any, *, validate: bool = True) -> Any:
+        """Closeness to a Type II singularity: σ_min/σ_max of ``link_jacobian``, in [0, 1].
+
+        For leg-actuated robots this is ``ParallelMechanism.inverse_condition_number`` (σ_min/σ_max of
+        J_i diag(pose_scale), the same matrix); with cranks or sliders the link Jacobian keeps the measure
+        free of the Type I one (``actuator_condition_number``).
+
+        Args:
+            q: Actuator coordinates, shape (..., n).
+            x: Platform pose of {P} in {B}, shape (..., m).
+            validate: Check inputs.
+
+        Returns:
+            σ_min/σ_max, shape (...) (a float for a single configuration).
+        """
+        if self._all_legs:
+            return super().inverse_condition_number(q, x, validate=validate)
+        return _scalarize(singular_value_ratio(self.link_jacobian(q, x, validate=validate)))
+
+    def singularity_measures(self, q: Any, x: Any, *, validate: bool = True) -> tuple[Any, Any]:
+        """(``inverse_condition_number``, det J_x), see ``ParallelMechanism.singularity_measures``."""
+        if self._all_legs:
+            return super().singularity_measures(q, x, validate=validate)
+        q, x = self._qx(q, x, validate)
+        _, J_x = self._jacobians(q, x)
+        return self.inverse_condition_number(q, x, validate=False), _scalarize(np.linalg.det(J_x))
+
+    def _actuator_measures(self, q: FloatArray, x: FloatArray) -> FloatArray:
+        """|d_iᵀ A_i′ + ℓ_i ℓ_i′| / (ℓ_i ‖(A_i′, ℓ_i′)‖) of each leg, shape (..., n)."""
+        d, dA, ell = self._link_terms(q, x)
+        along = np.einsum("...ij,...ij->...i", d, dA) + ell * self._lam
+        speed = np.sqrt(np.einsum("...ij,...ij->...i", dA, dA) + self._lam)
+        return np.abs(along) / (ell * speed)
+
+    def actuator_condition_number(self, q: Any, x: Any, *, validate: bool = True) -> Any:
+        """Closeness to a Type I singularity, in [0, 1]: min_i |d_iᵀ A_i′ + ℓ_i ℓ_i′| / (ℓ_i ‖(A_i′, ℓ_i′)‖).
+
+        The cosine of the angle between link i and the direction in which its actuator moves the anchor
+        (for a crank, the arm's tangent: 0 when the link is in line with the arm, stretched or folded; for
+        a slider, the rail: 0 when the link is square to it); 1 for an extensible leg. J_q is singular
+        exactly where it is 0.
+
+        Args:
+            q: Actuator coordinates, shape (..., n).
+            x: Platform pose of {P} in {B}, shape (..., m).
+            validate: Check inputs.
+
+        Returns:
+            The smallest over the legs, shape (...) (a float for a single configuration).
+        """
+        q, x = self._qx(q, x, validate)
+        return _scalarize(np.min(self._actuator_measures(q, x), axis=-1))
+
+    def actuator_mobility(self, q: Any, x: Any, *, rtol: float = 1e-9, validate: bool = True) -> Any:
+        """Actuator motions that do not move the platform to first order: n − rank(J_q) (> 0 at Type I).
+
+        J_q is diagonal, so this counts the legs whose normalised entry (``actuator_condition_number``'s
+        per-leg cosine) is at most ``rtol``.
+
+        Args:
+            q: Actuator coordinates, shape (..., n).
+            x: Platform pose of {P} in {B}, shape (..., m).
+            rtol: Cosines at most rtol count as zero.
+            validate: Check inputs.
+
+        Returns:
+            Mobility, shape (...) (int); 0 at a regular configuration.
+        """
+        q, x = self._qx(q, x, validate)
+        return _scalarize(np.sum(self._actuator_measures(q, x) <= rtol, axis=-1))
+
+    def _raise_if_type1(self, q: FloatArray, x: FloatArray, what: str) -> None:
+        measure = np.min(self._actuator_measures(q, x), axis=-1)
+        if np.size(measure) and not np.min(measure) >= self.singular_tolerance:
+            bad = np.atleast_1d(~(measure >= self.singular_tolerance))
+            idx = tuple(int(i) for i in np.argwhere(bad)[0])
+            raise SingularConfigurationError(
+                f"J_q is singular (Type I singularity) where {what} is asked for: actuator condition number "
+                f"{float(np.nanmin(measure)):.3g} < singular_tolerance {self.singular_tolerance:.3g}"
+                + (f" at batch index {idx}" if np.ndim(measure) else "")
+            )
+
+    def inverse_jacobian(self, q: Any, x: Any, *, validate: bool = True) -> FloatArray:
+        """Map platform velocity to actuator rates: q̇ = J_i ẋ, J_i = −J_q⁻¹ J_x (a solve).
+
+        Args:
+            q: Actuator coordinates, shape (..., n).
+            x: Platform pose of {P} in {B}, shape (..., m).
+            validate: Check inputs and raise at a Type I singularity.
+
+        Returns:
+            J_i, shape (..., n, m). Row i is ∂q̇_i/∂ẋ.
+
+        Raises:
+            SingularConfigurationError: If J_q is singular (a Type I singularity: a crank's link in line with
+                its arm, a slider's link square to its rail) and ``validate``.
+        """
+        q, x = self._qx(q, x, validate)
+        if validate and not self._all_legs:
+            self._raise_if_type1(q, x, "J_i = −J_q⁻¹ J_x")
+        J_q, J_x = self._jacobians(q, x)
+        return -batched_solve(J_q, J_x)
+
+    def platform_wrench(self, q: Any, x: Any, tau: Any, *, validate: bool = True) -> FloatArray:
+        """Wrench the actuator efforts exert on the platform: w = J_iᵀ τ (see ``ParallelMechanism``).
+
+        Raises:
+            SingularConfigurationError: At a Type I singularity (``validate``), where J_i is not defined.
+        """
+        if validate and not self._all_legs:
+            self._raise_if_type1(*self._qx(q, x, True), "the platform wrench")
+        return super().platform_wrench(q, x, tau, validate=validate)
+
+    def actuator_forces(self, q: Any, x: Any, wrench: Any, *, validate: bool = True) -> FloatArray:
+        """Actuator efforts that balance a platform wrench (see ``ParallelMechanism.actuator_forces``).
+
+        With cranks or sliders, τ = J_fᵀ w = −J_qᵀ J_x⁻ᵀ w, which needs only J_x regular and so stays
+        defined at a Type I singularity (where the locked actuator there carries no effort along its link).
+        """
+        if self._all_legs:
+            return super().actuator_forces(q, x, wrench, validate=validate)
+        q, x = self._qx(q, x, validate)
+        if validate:
+            wrench = batch_vector("wrench", wrench, self.n_pose, "a platform wrench")
+            _check_broadcast(q=q, x=x, wrench=wrench)
+        J_q, J_x = self._jacobians(q, x)
+        if validate:
+            self._raise_if_singular(J_x, "actuator forces")
+        J_xT = np.swapaxes(J_x, -1, -2)
+        batch = np.broadcast_shapes(J_xT.shape[:-2], wrench.shape[:-1])
+        y = batched_solve(
+            np.broadcast_to(J_xT, batch + J_xT.shape[-2:]),
+            np.broadcast_to(wrench, batch + wrench.shape[-1:])[..., None],
+        )
+        return -np.einsum("...ii,...i->...i", np.broadcast_to(J_q, batch + J_q.shape[-2:]), y[..., 0])

@@ -104,6 +104,8 @@ def test_planar_member_refuses_bad_input() -> None:
     with pytest.raises(ValueError, match="pose_space must be one of"):
         DistanceConstraintMechanism(base=base, platform=platform, pose_space="plane")
     with pytest.raises(ValueError, match="actuators must be one of"):
+        DistanceConstraintMechanism(base=base, platform=platform, pose_space="planar", actuators="winch")
+    with pytest.raises(ValueError, match="link_lengths are required"):
         DistanceConstraintMechanism(base=base, platform=platform, pose_space="planar", actuators="crank")
     with pytest.raises(ValueError, match="platform points must be pairwise distinct"):
         DistanceConstraintMechanism(base=base, platform=platform[[0, 1, 1]], pose_space="planar")
