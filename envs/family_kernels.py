@@ -31,7 +31,14 @@ import numpy as np
 
 from envs import family_layout, family_planar, kernels, linalg_kernels
 from envs.kernels import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
-from envs.linalg_kernels import LANES, inverse_condition6_lanes, singular_value_ratio3, solve3, solve6
+from envs.linalg_kernels import (
+    LANES,
+    inverse_condition6,
+    inverse_condition6_lanes,
+    singular_value_ratio3,
+    solve3,
+    solve6,
+)
 from envs.numba_cache import drop_stale_caches
 
 __all__ = [
@@ -452,8 +459,8 @@ def _singularity(c, q, w, src):
     """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``src`` of A.
 
     J_i diag(pose_scale) = diag(1/q) A diag(pose_scale); its σ_min/σ_max in closed form (m = 3) or by a
-    one-sided Jacobi SVD (m = 6, one lane of ``inverse_condition6_lanes``, which the batched step runs on
-    ``LANES`` robots at a time). sign(det J_x) = sign(det A).
+    one-sided Jacobi SVD (m = 6; ``inverse_condition6``, bit for bit what the batched step's
+    ``inverse_condition6_lanes`` gives). sign(det J_x) = sign(det A).
     """
     m = int(c[C_N])
     if m == 3:
@@ -477,11 +484,15 @@ def _singularity(c, q, w, src):
             a[0] * (b[1] * d[2] - b[2] * d[1]) + a[1] * (b[2] * d[0] - b[0] * d[2]) + a[2] * (b[0] * d[1] - b[1] * d[0])
         )
         return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
-    H = np.empty((6, 6, 1))
-    work = np.empty((3, 1))
-    sign = _homogeneous_lane(c, q, w, src, H, 0)
-    inverse_condition6_lanes(H, 1, work[0], work[1], work[2])
-    return work[0, 0], sign
+    Ht = w[W_H : W_H + 6]  # column j of J_i diag(pose_scale) as row j
+    for i in range(6):
+        inv = 1.0 / q[i]
+        row = w[src + i]
+        for j in range(6):
+            Ht[j, i] = row[j] * inv * c[C_SCALE + j]
+    k = inverse_condition6(Ht)
+    det = _solve(w, m, src, w[W_RHS], w[W_SOL])
+    return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
 
 
 @_jit
@@ -653,6 +664,12 @@ def _transition_block(
             family_planar.transition_row(
                 c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
             )
+        return
+    if count == 1:  # a single robot (the single env): the plain Jacobi, cheaper than one lane of the block's
+        failed, out = _advance_spatial(c, q, x, residual, action, start, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
+        k, sign = _singularity(c, o_q[start], w, W_A)
+        o_k[start] = k
+        o_reason[start] = family_planar.termination_reason(c, failed, o_jump[start], sign, det_sign[start], k, out)
         return
     H, lane = lanes
     for r in range(count):
