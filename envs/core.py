@@ -55,8 +55,9 @@ TERMINATION_REASONS = (
     "singularity_crossed",
     "singular",
     "out_of_bounds",
+    "actuator_singular",
 )
-NEWTON_FAILED, ASSEMBLY_MODE_CHANGE, SINGULARITY_CROSSED, SINGULAR, OUT_OF_BOUNDS = range(1, 6)
+NEWTON_FAILED, ASSEMBLY_MODE_CHANGE, SINGULARITY_CROSSED, SINGULAR, OUT_OF_BOUNDS, ACTUATOR_SINGULAR = range(1, 7)
 #: Names of the reward terms, in the order they are summed.
 REWARD_TERMS = ("reward_tracking", "reward_singularity", "reward_action", "reward_termination")
 

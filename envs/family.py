@@ -56,7 +56,7 @@ class FamilyParams:
 
     Attributes:
         robot: The mechanism (pose space, legs, geometry, ℓ_c).
-        stroke_limits: (q_min, q_max) hard stops of every leg [m].
+        stroke_limits: (q_min, q_max) hard stops of every actuator [m, or rad for cranks].
         dt: Control period [s].
         max_rate: Stroke rate of a unit action [m/s].
         integrator: "euler" or "rk4" prediction of the twist J_f q̇ (on the rotation group).
@@ -66,6 +66,8 @@ class FamilyParams:
         sample_high: Upper corner of that box, shape (m,).
         safe_threshold: k below which the penalty and the cost start.
         hard_threshold: k below which the episode terminates.
+        actuator_hard_threshold: Actuator condition number (the Type I measure of cranks and sliders; 1 for
+            legs) below which the episode terminates ("actuator_singular").
         position_weight: w_p [1/m].
         orientation_weight: w_o [1/m] (multiplies ℓ_c · orientation error).
         singularity_weight: w_s.
@@ -98,6 +100,7 @@ class FamilyParams:
     sample_high: tuple[float, ...] = (0.1, 0.1, 0.6, 0.2, 0.2, 0.5)
     safe_threshold: float = 0.1
     hard_threshold: float = 0.03
+    actuator_hard_threshold: float = 0.02
     position_weight: float = 1.0
     orientation_weight: float = 1.0
     singularity_weight: float = 1.0
@@ -493,8 +496,12 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         kwargs.setdefault("sample_low", tuple(home - 0.6 * half))
         kwargs.setdefault("sample_high", tuple(home + 0.6 * half))
         kwargs.setdefault("track_amplitude", (0.3 * reach, 0.3 * reach, 0.2))
-        legs = robot.inverse_kinematics(home)
-        kwargs.setdefault("stroke_limits", (0.5 * float(legs.min()), 1.6 * float(legs.max())))
+        at_home = robot.inverse_kinematics(home)
+        if all(kind == "leg" for kind in robot.actuator_kinds):
+            kwargs.setdefault("stroke_limits", (0.5 * float(at_home.min()), 1.6 * float(at_home.max())))
+        else:  # cranks [rad] or sliders [m]: a band around the home pose's values
+            band = 1.0 if "crank" in robot.actuator_kinds else 0.2
+            kwargs.setdefault("stroke_limits", (float(at_home.min()) - band, float(at_home.max()) + band))
     unknown = set(kwargs) - set(defaults)
     if unknown:
         raise TypeError(f"unknown argument(s) {sorted(unknown)}")
@@ -502,8 +509,10 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     for name in ("pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude"):
         values[name] = _vector(name, kwargs.get(name, defaults[name].default), m)
     lo, hi = _vector("stroke_limits", kwargs.get("stroke_limits", defaults["stroke_limits"].default), 2)
-    if not 0 < lo < hi:
-        raise ValueError(f"stroke_limits must satisfy 0 < q_min < q_max, got {(lo, hi)}")
+    has_legs = "leg" in robot.actuator_kinds
+    if not (0 < lo < hi if has_legs else lo < hi):
+        bound = "0 < q_min < q_max (leg lengths)" if has_legs else "q_min < q_max"
+        raise ValueError(f"stroke_limits must satisfy {bound}, got {(lo, hi)}")
     for a, b in (("pose_low", "pose_high"), ("sample_low", "sample_high")):
         if not all(u < v for u, v in zip(values[a], values[b])):
             raise ValueError(f"{a} must be < {b} componentwise, got {values[a]} and {values[b]}")
@@ -527,6 +536,13 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     hard = _number("hard_threshold", kwargs.get("hard_threshold", defaults["hard_threshold"].default))
     if not 0 < hard < safe < 1:
         raise ValueError(f"thresholds must satisfy 0 < hard_threshold < safe_threshold < 1, got {hard} and {safe}")
+    hard1 = _number(
+        "actuator_hard_threshold",
+        kwargs.get("actuator_hard_threshold", defaults["actuator_hard_threshold"].default),
+        allow_zero=True,
+    )
+    if not hard1 < 1:
+        raise ValueError(f"actuator_hard_threshold must be < 1, got {hard1}")
     iterations = kwargs.get("newton_max_iterations", defaults["newton_max_iterations"].default)
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
         raise ValueError(f"newton_max_iterations must be an int ≥ 1, got {iterations!r}")
@@ -563,6 +579,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         hard_kind=hard_kind,
         safe_threshold=safe,
         hard_threshold=hard,
+        actuator_hard_threshold=hard1,
         newton_max_iterations=int(iterations),
         max_substeps=int(substeps),
         **values,

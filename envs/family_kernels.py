@@ -60,13 +60,20 @@ __all__ = [
 ]
 
 from envs.family_layout import (
+    C_A,
     C_B,
+    C_BRANCH,
     C_DT,
+    C_E,
+    C_ELL,
     C_HARD,
+    C_HARD1,
     C_HARD_KIND,
     C_HIGH,
     C_JUMP,
+    C_LAM,
     C_LC,
+    C_LEGS,
     C_LMAX,
     C_LMIN,
     C_LOW,
@@ -90,6 +97,9 @@ from envs.family_layout import (
     C_SPATIAL,
     C_SUCC_O,
     C_SUCC_P,
+    C_TRANSLATIONAL,
+    C_U,
+    C_V,
     C_WA,
     C_WO,
     C_WP,
@@ -102,7 +112,9 @@ drop_stale_caches(__file__, [family_layout.__file__, family_planar.__file__, ker
 W_A = 0  # A = J_x / 2, n × m (rows 0..5)
 W_LU = 6  # elimination copy of A (rows 6..11)
 W_H = 12  # homogeneous J_i, for the SVD (rows 12..17)
-W_R = 18  # (unused rows 18..20)
+W_ELL = 18  # link lengths ℓ_i(q_i) [m] (for legs q_i; read only off the legs' fast path)
+W_DQ = 19  # d_iᵀ A_i′ + ℓ_i ℓ_i′ = −(J_q)_ii / 2
+W_SPEED = 20  # ‖(A_i′, ℓ_i′)‖
 W_SQ = 21  # squared leg lengths d_iᵀ d_i
 W_RHS = 22
 W_SOL = 23
@@ -191,6 +203,17 @@ def pack_family(params) -> np.ndarray:
     c[C_SLOW : C_SLOW + m] = params.sample_low
     c[C_SHIGH : C_SHIGH + m] = params.sample_high
     c[C_HARD_KIND] = 1.0 if params.hard_kind == "ill_conditioned" else 0.0
+    c[C_LEGS] = 1.0 if all(kind == "leg" for kind in robot.actuator_kinds) else 0.0
+    c[C_TRANSLATIONAL] = 1.0 if robot.pose_space.name == "translational" else 0.0
+    c[C_A : C_A + n] = robot.crank_radii
+    axes = robot.crank_axes
+    c[C_U : C_U + 3 * n] = np.pad(axes[:, 0], ((0, 0), (0, 3 - d))).ravel()
+    c[C_V : C_V + 3 * n] = np.pad(axes[:, 1], ((0, 0), (0, 3 - d))).ravel()
+    c[C_E : C_E + 3 * n] = np.pad(robot.rails, ((0, 0), (0, 3 - d))).ravel()
+    c[C_LAM : C_LAM + n] = [1.0 if kind == "leg" else 0.0 for kind in robot.actuator_kinds]
+    c[C_ELL : C_ELL + n] = robot.link_lengths
+    c[C_BRANCH : C_BRANCH + n] = robot.branches
+    c[C_HARD1] = params.actuator_hard_threshold
     c.setflags(write=False)
     return c
 
@@ -315,6 +338,8 @@ def _frame(c, x):
             2.0 * (b * d + a * w),
             1.0 - 2.0 * (a * a + b * b),
         )
+    if c[C_TRANSLATIONAL] != 0.0:
+        return x[0], x[1], x[2], 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     cs, sn = math.cos(x[2]), math.sin(x[2])
     return x[0], x[1], 0.0, cs, -sn, 0.0, sn, cs, 0.0, 0.0, 0.0, 1.0
 
@@ -351,6 +376,8 @@ def _metric(c, step):
         a = step[0] * step[0] + step[1] * step[1] + step[2] * step[2]
         b = step[3] * step[3] + step[4] * step[4] + step[5] * step[5]
         return math.sqrt(a + lc * lc * b)
+    if c[C_TRANSLATIONAL] != 0.0:
+        return math.sqrt(step[0] * step[0] + step[1] * step[1] + step[2] * step[2])
     return math.sqrt(step[0] * step[0] + step[1] * step[1] + lc * lc * step[2] * step[2])
 
 
@@ -366,8 +393,28 @@ def _all_finite(v, m):
 
 
 @_jit
-def _rows(c, x, w):
-    """Rows of A = J_x / 2 at x into w[W_A:], and d_iᵀ d_i into w[W_SQ]."""
+def _anchor(c, i, qi):
+    """Leg i's anchor A_i(q_i), its derivative A_i′ (each 3 numbers), ℓ_i(q_i) and ‖(A_i′, ℓ_i′)‖."""
+    a = c[C_A + i]
+    cs, sn = math.cos(qi), math.sin(qi)
+    lam = c[C_LAM + i]
+    b0, b1, b2 = c[C_B + 3 * i], c[C_B + 3 * i + 1], c[C_B + 3 * i + 2]
+    u0, u1, u2 = c[C_U + 3 * i], c[C_U + 3 * i + 1], c[C_U + 3 * i + 2]
+    v0, v1, v2 = c[C_V + 3 * i], c[C_V + 3 * i + 1], c[C_V + 3 * i + 2]
+    e0, e1, e2 = c[C_E + 3 * i], c[C_E + 3 * i + 1], c[C_E + 3 * i + 2]
+    A0 = b0 + a * (cs * u0 + sn * v0) + qi * e0
+    A1 = b1 + a * (cs * u1 + sn * v1) + qi * e1
+    A2 = b2 + a * (cs * u2 + sn * v2) + qi * e2
+    D0 = a * (cs * v0 - sn * u0) + e0
+    D1 = a * (cs * v1 - sn * u1) + e1
+    D2 = a * (cs * v2 - sn * u2) + e2
+    speed = math.sqrt(D0 * D0 + D1 * D1 + D2 * D2 + lam)
+    return A0, A1, A2, D0, D1, D2, lam * qi + c[C_ELL + i], speed
+
+
+@_jit_inline
+def _rows_legs(c, q, x, w):
+    """``_rows`` of a leg-actuated robot: the anchors are the B_i; ℓ_i = q_i and −(J_q)_ii / 2 = q_i."""
     n = int(c[C_N])
     p0, p1, p2, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _frame(c, x)
     spatial = c[C_SPATIAL] != 0.0
@@ -390,26 +437,117 @@ def _rows(c, x, w):
         else:
             row[0], row[1], row[2] = d0, d1, m2
         sq[i] = d0 * d0 + d1 * d1 + d2 * d2
+        w[W_ELL, i] = q[i]
+        w[W_DQ, i] = q[i]
+
+
+@_jit
+def _rows_actuated(c, q, x, w):
+    """``_rows`` of a robot with cranks or sliders: the anchors A_i(q_i) move with q (see ``_rows``)."""
+    n = int(c[C_N])
+    p0, p1, p2, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _frame(c, x)
+    spatial = c[C_SPATIAL] != 0.0
+    translational = c[C_TRANSLATIONAL] != 0.0
+    sq = w[W_SQ]
+    for i in range(n):
+        P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
+        rp0 = r00 * P0 + r01 * P1 + r02 * P2
+        rp1 = r10 * P0 + r11 * P1 + r12 * P2
+        rp2 = r20 * P0 + r21 * P1 + r22 * P2
+        A0, A1, A2, D0, D1, D2, ell, speed = _anchor(c, i, q[i])
+        d0 = p0 + rp0 - A0
+        d1 = p1 + rp1 - A1
+        d2 = p2 + rp2 - A2
+        w[W_ELL, i] = ell
+        w[W_DQ, i] = d0 * D0 + d1 * D1 + d2 * D2 + ell * c[C_LAM + i]
+        w[W_SPEED, i] = speed
+        row = w[W_A + i]
+        if spatial:
+            row[0], row[1], row[2] = d0, d1, d2
+            row[3] = rp1 * d2 - rp2 * d1
+            row[4] = rp2 * d0 - rp0 * d2
+            row[5] = rp0 * d1 - rp1 * d0
+        elif translational:
+            row[0], row[1], row[2] = d0, d1, d2
+        else:
+            row[0], row[1], row[2] = d0, d1, rp0 * d1 - rp1 * d0
+        sq[i] = d0 * d0 + d1 * d1 + d2 * d2
+
+
+@_jit_inline
+def _rows(c, q, x, w):
+    """Rows of A = J_x / 2 at (q, x) into w[W_A:], and d_iᵀ d_i into w[W_SQ].
+
+    w[W_ELL] and w[W_DQ] get ℓ_i(q_i) and d_iᵀ A_i′ + ℓ_i ℓ_i′ (= −(J_q)_ii / 2); for legs (``C_LEGS``) both are
+    q_i and the anchors are B_i, otherwise the anchors move with q and w[W_SPEED] gets ‖(A_i′, ℓ_i′)‖.
+    """
+    if c[C_LEGS] != 0.0:
+        _rows_legs(c, q, x, w)
+    else:
+        _rows_actuated(c, q, x, w)
+
+
+@_jit_inline
+def _link_length(c, q, w, i):
+    """ℓ_i(q_i) at the rows last computed (q_i for a leg)."""
+    return w[W_ELL, i]
+
+
+@_jit
+def _ik_leg(c, i, w0, w1, w2):
+    """Closed-form q_i of leg i whose platform point is at B_i + w (NaN where a crank or slider cannot reach)."""
+    ww = w0 * w0 + w1 * w1 + w2 * w2
+    if c[C_LAM + i] != 0.0:
+        return math.sqrt(ww)
+    ell = c[C_ELL + i]
+    branch = c[C_BRANCH + i]
+    a = c[C_A + i]
+    if a == 0.0:  # slider: ‖w − q e‖² = l²
+        we = w0 * c[C_E + 3 * i] + w1 * c[C_E + 3 * i + 1] + w2 * c[C_E + 3 * i + 2]
+        disc = we * we - ww + ell * ell
+        if disc < 0.0:
+            if disc < -1e-12 * (ww + ell * ell):
+                return np.nan
+            disc = 0.0
+        return we + branch * math.sqrt(disc)
+    wu = w0 * c[C_U + 3 * i] + w1 * c[C_U + 3 * i + 1] + w2 * c[C_U + 3 * i + 2]
+    wv = w0 * c[C_V + 3 * i] + w1 * c[C_V + 3 * i + 1] + w2 * c[C_V + 3 * i + 2]
+    ratio = (ww + a * a - ell * ell) / (2.0 * a * math.hypot(wu, wv))
+    if not abs(ratio) <= 1.0 + 1e-12:
+        return np.nan
+    ratio = min(max(ratio, -1.0), 1.0)
+    return _wrap(math.atan2(wv, wu) + branch * math.acos(ratio))
 
 
 @_jit
 def _leg_lengths(c, x, out):
-    """Leg lengths ‖p + R P_i − B_i‖ of the pose x into out (n,), without the rows of J_x."""
+    """Actuator coordinates of the pose x (the closed-form inverse kinematics) into out (n,), without rows.
+
+    Leg lengths ‖p + R P_i − B_i‖ for legs; a crank's angle or a slider's position on its chosen branch
+    (NaN where it cannot reach).
+    """
     p0, p1, p2, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _frame(c, x)
+    legs = c[C_LEGS] != 0.0
     for i in range(int(c[C_N])):
         P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
         d0 = p0 + r00 * P0 + r01 * P1 + r02 * P2 - c[C_B + 3 * i]
         d1 = p1 + r10 * P0 + r11 * P1 + r12 * P2 - c[C_B + 3 * i + 1]
         d2 = p2 + r20 * P0 + r21 * P1 + r22 * P2 - c[C_B + 3 * i + 2]
-        out[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        out[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) if legs else _ik_leg(c, i, d0, d1, d2)
 
 
 @_jit
 def _inverse_kinematics(c, x, w, out):
-    """Leg lengths ‖p + R P_i − B_i‖ of the pose x into out (n,)."""
-    _rows(c, x, w)
-    for i in range(int(c[C_N])):
-        out[i] = math.sqrt(w[W_SQ, i])
+    """Actuator coordinates of the pose x into out (n,), and the rows of A there into w."""
+    if c[C_LEGS] != 0.0:
+        _rows(c, out, x, w)
+        for i in range(int(c[C_N])):
+            out[i] = math.sqrt(w[W_SQ, i])
+            w[W_ELL, i] = out[i]
+            w[W_DQ, i] = out[i]
+        return
+    _leg_lengths(c, x, out)
+    _rows(c, out, x, w)
 
 
 @_jit
@@ -430,11 +568,11 @@ def _solve(w, m, src, rhs, sol):
 
 @_jit
 def _twist_rate(c, q, rate, w, src, out):
-    """Out = J_f(q, x) q̇ = A⁻¹ (q ∘ q̇) from the rows ``src`` of A at x; NaN where J_x is singular."""
+    """Out = J_f(q, x) q̇ = A⁻¹ (−J_q / 2) q̇ from the rows ``src`` of A at (q, x); NaN where J_x is singular."""
     m = int(c[C_N])
     rhs = w[W_RHS]
     for i in range(m):
-        rhs[i] = q[i] * rate[i]
+        rhs[i] = w[W_DQ, i] * rate[i]
     _solve(w, m, src, rhs, out)
 
 
@@ -446,7 +584,7 @@ def _homogeneous_lane(c, q, w, src, H, lane):
     sign(det J_x) = sign(det A), by pivoted elimination of A.
     """
     for i in range(6):
-        inv = 1.0 / q[i]
+        inv = 1.0 / _link_length(c, q, w, i)
         row = w[src + i]
         for j in range(6):
             H[j, i, lane] = row[j] * inv * c[C_SCALE + j]
@@ -458,7 +596,8 @@ def _homogeneous_lane(c, q, w, src, H, lane):
 def _singularity(c, q, w, src):
     """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``src`` of A.
 
-    J_i diag(pose_scale) = diag(1/q) A diag(pose_scale); its σ_min/σ_max in closed form (m = 3) or by a
+    The link Jacobian diag(1/ℓ) A diag(pose_scale) (legs: J_i diag(pose_scale), ℓ = q); its σ_min/σ_max in
+    closed form (m = 3) or by a
     one-sided Jacobi SVD (m = 6; ``inverse_condition6``, bit for bit what the batched step's
     ``inverse_condition6_lanes`` gives). sign(det J_x) = sign(det A).
     """
@@ -467,7 +606,7 @@ def _singularity(c, q, w, src):
         a = w[src]
         b = w[src + 1]
         d = w[src + 2]
-        i0, i1, i2 = 1.0 / q[0], 1.0 / q[1], 1.0 / q[2]
+        i0, i1, i2 = 1.0 / _link_length(c, q, w, 0), 1.0 / _link_length(c, q, w, 1), 1.0 / _link_length(c, q, w, 2)
         s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
         k = singular_value_ratio3(
             a[0] * i0 * s0,
@@ -486,7 +625,7 @@ def _singularity(c, q, w, src):
         return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
     Ht = w[W_H : W_H + 6]  # column j of J_i diag(pose_scale) as row j
     for i in range(6):
-        inv = 1.0 / q[i]
+        inv = 1.0 / _link_length(c, q, w, i)
         row = w[src + i]
         for j in range(6):
             Ht[j, i] = row[j] * inv * c[C_SCALE + j]
@@ -496,11 +635,26 @@ def _singularity(c, q, w, src):
 
 
 @_jit
+def _actuator_condition(c, w):
+    """Type I measure at the rows last computed: min_i |d_iᵀ A_i′ + ℓ_i ℓ_i′| / (ℓ_i ‖(A_i′, ℓ_i′)‖); 1 for legs."""
+    if c[C_LEGS] != 0.0:
+        return 1.0
+    k1 = np.inf
+    for i in range(int(c[C_N])):
+        v = abs(w[W_DQ, i]) / (w[W_ELL, i] * w[W_SPEED, i])
+        if v != v:
+            return np.nan
+        k1 = min(k1, v)
+    return k1
+
+
+@_jit
 def _residual(c, q, w):
-    """max_i |d_iᵀ d_i − q_i²| at the rows last computed (NaN if any is NaN)."""
+    """max_i |d_iᵀ d_i − ℓ_i²| at the rows last computed (NaN if any is NaN)."""
     res = 0.0
     for i in range(int(c[C_N])):
-        v = abs(w[W_SQ, i] - q[i] * q[i])
+        ell = _link_length(c, q, w, i)
+        v = abs(w[W_SQ, i] - ell * ell)
         if v != v:
             return np.nan
         res = max(res, v)
@@ -517,21 +671,22 @@ def _newton(c, q, guess, w, out, tolerance, max_iterations):
     m = int(c[C_N])
     for j in range(m):
         out[j] = guess[j]
-    _rows(c, out, w)
+    _rows(c, q, out, w)
     residual = _residual(c, q, w)
     rhs, sol, tmp = w[W_RHS], w[W_SOL], w[W_XM]
     for _ in range(max_iterations):
         if not residual > tolerance:
             break
         for i in range(m):
-            rhs[i] = 0.5 * (w[W_SQ, i] - q[i] * q[i])
+            ell = _link_length(c, q, w, i)
+            rhs[i] = 0.5 * (w[W_SQ, i] - ell * ell)
         _solve(w, m, W_A, rhs, sol)
         _retract(c, out, sol, -1.0, tmp)
         if not _all_finite(tmp, m):
             break
         for j in range(m):
             out[j] = tmp[j]
-        _rows(c, out, w)
+        _rows(c, q, out, w)
         residual = _residual(c, q, w)
     return residual
 
@@ -549,18 +704,18 @@ def _substeps(c, v):
 @_jit
 def _rate_at(c, q, x, rate, w, out):
     """Out = J_f(q, x) q̇ at an arbitrary (q, x) (computes the rows of A there)."""
-    _rows(c, x, w)
+    _rows(c, q, x, w)
     _twist_rate(c, q, rate, w, W_A, out)
 
 
-#: Rows of a block's lane work array (``allocate_lanes``): k, two rows for the SVD, sign(det J_x), flags.
-L_K, L_WORST, L_ACTIVE, L_SIGN, L_FLAGS = 0, 1, 2, 3, 4
+#: Rows of a block's lane work array (``allocate_lanes``): k, two rows for the SVD, sign(det J_x), flags, k_I.
+L_K, L_WORST, L_ACTIVE, L_SIGN, L_FLAGS, L_K1 = 0, 1, 2, 3, 4, 5
 
 
 @_jit
 def allocate_lanes():
-    """Work arrays of one block of up to ``LANES`` spatial robots: (H (6, 6, LANES), lane rows (5, LANES))."""
-    return np.empty((6, 6, LANES)), np.empty((5, LANES))
+    """Work arrays of one block of up to ``LANES`` spatial robots: (H (6, 6, LANES), lane rows (6, LANES))."""
+    return np.empty((6, 6, LANES)), np.empty((6, LANES))
 
 
 @_jit_inline
@@ -584,7 +739,7 @@ def _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr
         qr[j] = (nq[j] - q0[j]) / dt
         kq[j] = q0[j]
         kx[j] = x0[j]
-    _rows(c, kx, w)
+    _rows(c, kq, kx, w)
     _twist_rate(c, kq, qr, w, W_A, v)
     count = _substeps(c, v)
     h = dt / count
@@ -634,7 +789,7 @@ def _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr
             kq[j] = q0[j]
             kx[j] = x0[j]
         res = residual[i]
-        _rows(c, kx, w)  # back at the start pose (rare: only when the correction failed)
+        _rows(c, kq, kx, w)  # back at the start pose (rare: only when the correction failed)
     out = False
     for j in range(m):
         if kx[j] < c[C_LOW + j] or kx[j] > c[C_HIGH + j]:
@@ -659,17 +814,19 @@ def _transition_block(
     k of all of them comes from one ``inverse_condition6_lanes`` call over the block (vectorised across
     robots, each robot's k bit for bit what it would be alone), then their termination reasons.
     """
-    if c[C_SPATIAL] == 0.0:
+    if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
         for i in range(start, start + count):
             family_planar.transition_row(
                 c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
             )
         return
-    if count == 1:  # a single robot (the single env): the plain Jacobi, cheaper than one lane of the block's
-        failed, out = _advance_spatial(c, q, x, residual, action, start, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
-        k, sign = _singularity(c, o_q[start], w, W_A)
-        o_k[start] = k
-        o_reason[start] = family_planar.termination_reason(c, failed, o_jump[start], sign, det_sign[start], k, out)
+    if count == 1 or c[C_N] != 6.0:  # one robot (the single env; the plain Jacobi is cheaper) or m = 3
+        for i in range(start, start + count):
+            failed, out = _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
+            k, sign = _singularity(c, o_q[i], w, W_A)
+            k1 = _actuator_condition(c, w)
+            o_k[i] = k
+            o_reason[i] = family_planar.termination_reason(c, failed, o_jump[i], sign, det_sign[i], k, out, k1)
         return
     H, lane = lanes
     for r in range(count):
@@ -677,6 +834,7 @@ def _transition_block(
         failed, out = _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
         lane[L_SIGN, r] = _homogeneous_lane(c, o_q[i], w, W_A, H, r)
         lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if out else 0.0)
+        lane[L_K1, r] = _actuator_condition(c, w)
     inverse_condition6_lanes(H, count, lane[L_K], lane[L_WORST], lane[L_ACTIVE])
     for r in range(count):
         i = start + r
@@ -685,7 +843,9 @@ def _transition_block(
         out = flags >= 2.0
         k = lane[L_K, r]
         o_k[i] = k
-        o_reason[i] = family_planar.termination_reason(c, failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out)
+        o_reason[i] = family_planar.termination_reason(
+            c, failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out, lane[L_K1, r]
+        )
 
 
 @_jit
@@ -743,7 +903,7 @@ def transition_batch(c, q, x, det_sign, residual, action):
 def _singularity_loop(c, q, x, o_k, o_sign):
     w = np.empty((W_SIZE, 6))
     for i in range(q.shape[0]):
-        _rows(c, x[i], w)
+        _rows(c, q[i], x[i], w)
         o_k[i], o_sign[i] = _singularity(c, q[i], w, W_A)
 
 
@@ -799,6 +959,9 @@ def _errors(c, x, g, diff):
         position = math.sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2])
         orientation = math.sqrt(diff[3] * diff[3] + diff[4] * diff[4] + diff[5] * diff[5])
         return position, orientation
+    if c[C_TRANSLATIONAL] != 0.0:
+        diff[0], diff[1], diff[2] = g[0] - x[0], g[1] - x[1], g[2] - x[2]
+        return math.sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2]), 0.0
     diff[0], diff[1] = g[0] - x[0], g[1] - x[1]
     diff[2] = _wrap(g[2] - x[2])
     return math.sqrt(diff[0] * diff[0] + diff[1] * diff[1]), abs(diff[2])
@@ -811,7 +974,7 @@ def _clip32(o_obs, i, j, value, low, high):
 
 @_jit
 def _encode_pose(c, x, o_obs, i, start, low, high):
-    """Position and a continuous rotation code, (x, y, cos φ, sin φ) or (p, quaternion, w ≥ 0); next column."""
+    """Position and a continuous rotation code, (x, y, cos φ, sin φ), (p, quaternion, w ≥ 0) or p; next column."""
     if c[C_SPATIAL] != 0.0:
         qw, qx, qy, qz = _quat_from_rotvec(x[3], x[4], x[5])
         if qw < 0.0:
@@ -820,6 +983,10 @@ def _encode_pose(c, x, o_obs, i, start, low, high):
         for j in range(7):
             _clip32(o_obs, i, start + j, values[j], low, high)
         return start + 7
+    if c[C_TRANSLATIONAL] != 0.0:
+        for j in range(3):
+            _clip32(o_obs, i, start + j, x[j], low, high)
+        return start + 3
     _clip32(o_obs, i, start, x[0], low, high)
     _clip32(o_obs, i, start + 1, x[1], low, high)
     _clip32(o_obs, i, start + 2, math.cos(x[2]), low, high)
@@ -839,7 +1006,7 @@ def _evaluate_row(
     g, vel, diff = w[W_TGT], w[W_VEL], w[W_DIFF]
     _reference(c, t[i], center, amplitude, phase, i, g, vel)
     xi = x[i]
-    if c[C_SPATIAL] == 0.0:
+    if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
         a0, a1, a2 = action[i, 0], action[i, 1], action[i, 2]
         tr, si, ac, te, ep, eo = family_planar.reward_terms(
             c, xi[0], xi[1], xi[2], g[0], g[1], g[2], k[i], a0, a1, a2, reason[i]

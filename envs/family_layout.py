@@ -41,7 +41,19 @@ C_P = 61  # platform points P_i (x, y, z) in {P} [m], 6 × 3 entries
 C_SLOW = 79  # box tasks are drawn from, 6 entries
 C_SHIGH = 85
 C_HARD_KIND = 91  # 0: the straight path dips below k_safe and a detour is certified; 1: ill-conditioned targets
-C_SIZE = 92
+# -- the actuation, leg by leg: A_i(q) = B_i + a_i (cos q u_i + sin q v_i) + q e_i, ℓ_i(q) = λ_i q + l_i ---------
+C_LEGS = 92  # 1.0 when every actuator is an extensible leg (A_i = B_i, ℓ_i = q_i): the kernels' fast path
+C_TRANSLATIONAL = 93  # 1.0 for the translational pose space (x = p, R = I)
+C_A = 94  # crank radii a_i [m], 6 entries (0 for other kinds)
+C_U = 100  # crank axes u_i, 6 × 3 entries
+C_V = 118  # crank axes v_i, 6 × 3 entries
+C_E = 136  # rail directions e_i, 6 × 3 entries
+C_LAM = 154  # λ_i: 1 for a leg, 0 otherwise, 6 entries
+C_ELL = 160  # link lengths l_i [m] of cranks and sliders, 6 entries
+C_BRANCH = 166  # inverse-kinematics branch (±1) of each crank and slider, 6 entries
+C_HARD1 = 172  # actuator condition number (Type I measure) below which the episode terminates
+C_SIZE = 173
 
 # Termination reason codes (the order of ``envs.core.TERMINATION_REASONS``).
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
+_ACTUATOR_SINGULAR = 6  # a Type I singularity (J_q singular): a crank's link in line with its arm

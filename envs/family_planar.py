@@ -24,6 +24,7 @@ import numpy as np
 
 from envs import family_layout, linalg_kernels
 from envs.family_layout import (
+    _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
     _NEWTON_FAILED,
     _OUT_OF_BOUNDS,
@@ -32,6 +33,7 @@ from envs.family_layout import (
     C_B,
     C_DT,
     C_HARD,
+    C_HARD1,
     C_HIGH,
     C_JUMP,
     C_LC,
@@ -217,7 +219,7 @@ def substeps(c, r0, r1, r2):
 
 
 @_jit_inline
-def termination_reason(c, failed, jump, sign, mode, k, out):
+def termination_reason(c, failed, jump, sign, mode, k, out, k1):
     """The step's termination reason code (0: none), first match in the order of ``TERMINATION_REASONS``.
 
     Args:
@@ -226,8 +228,9 @@ def termination_reason(c, failed, jump, sign, mode, k, out):
         jump: Largest correction of the step [m].
         sign: sign(det J_x) at the new pose.
         mode: The episode's sign(det J_x) (its working mode).
-        k: Inverse condition number at the new pose.
+        k: Inverse condition number at the new pose (Type II measure).
         out: Whether the pose left its bounds.
+        k1: Actuator condition number at the new pose (Type I measure; 1 for legs).
     """
     if failed:
         return _NEWTON_FAILED
@@ -239,6 +242,8 @@ def termination_reason(c, failed, jump, sign, mode, k, out):
         return _SINGULAR
     if out:
         return _OUT_OF_BOUNDS
+    if k1 < c[C_HARD1]:
+        return _ACTUATOR_SINGULAR
     return 0
 
 
@@ -306,7 +311,7 @@ def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res,
     for j, value in enumerate((kx0, kx1, kx2)):
         if value < c[C_LOW + j] or value > c[C_HIGH + j]:
             out = True
-    reason = termination_reason(c, failed, jump, sign, det_sign[i], k_new, out)
+    reason = termination_reason(c, failed, jump, sign, det_sign[i], k_new, out, 1.0)
     o_q[i, 0], o_q[i, 1], o_q[i, 2] = kq0, kq1, kq2
     o_x[i, 0], o_x[i, 1], o_x[i, 2] = kx0, kx1, kx2
     o_k[i] = k_new

@@ -185,6 +185,8 @@ def _pack_family_copy(c: np.ndarray, robot) -> None:
     """Write the family's packed constants of the same robot and settings into c[C_FAMILY:] (the step reads them)."""
     f = c[C_FAMILY:]
     f[fl.C_N], f[fl.C_SPATIAL] = 3.0, 0.0
+    f[fl.C_LEGS] = 1.0
+    f[fl.C_LAM : fl.C_LAM + 3] = 1.0
     f[fl.C_B : fl.C_B + 9] = np.pad(np.asarray(robot.base, dtype=np.float64), ((0, 0), (0, 1))).ravel()
     f[fl.C_P : fl.C_P + 9] = np.pad(np.asarray(robot.platform, dtype=np.float64), ((0, 0), (0, 1))).ravel()
     f[fl.C_SCALE : fl.C_SCALE + 3] = c[C_SCALE : C_SCALE + 3]

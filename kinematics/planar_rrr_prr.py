@@ -29,7 +29,9 @@ class Planar3RRR(DistanceConstraintMechanism):
     """Symmetric planar 3-RRR with actuated base joints: three crank arms, three distal links, pose (x, y, φ).
 
     Motor i sits at B_i, a vertex of an equilateral triangle of circumradius R_b (at 90°, 210°, 330°); its crank
-    of length a makes the angle q_i [rad] with the x axis, A_i = B_i + a (cos q_i, sin q_i); a distal link of
+    of length a makes the angle q_i [rad] with the line from B_i to the base's centre, counter-clockwise
+    positive: A_i = B_i + a (cos q_i u_i + sin q_i v_i) with u_i = −B_i / R_b and v_i = u_i turned by +90°
+    (so a symmetric pose has the same q_i on every leg, and one pair of joint limits serves all); a distal link of
     length l joins the elbow A_i to the platform point P_i, a vertex of an equilateral triangle of circumradius
     r_p in {P} (same angles). Φ_i = ‖p + R(φ) P_i − A_i(q_i)‖² − l²: the crank legs of
     ``DistanceConstraintMechanism`` in the planar pose space.
@@ -73,14 +75,18 @@ class Planar3RRR(DistanceConstraintMechanism):
                 f"platform_radius < crank + link, got {abs(a - l)!r} < {R_b - r_p!r} < {a + l!r}"
             )
         self._dims = (R_b, r_p, a, l)
+        base = _triangle(R_b)
+        inward = -base / R_b
+        axes = np.stack([inward, np.stack([-inward[:, 1], inward[:, 0]], axis=-1)], axis=1)
         # IK branch +1 puts the elbow at atan2(w) + acos(·): counter-clockwise of B_i → P_i, i.e. to the left.
         super().__init__(
-            _triangle(R_b),
+            base,
             _triangle(r_p),
             pose_space="planar",
             actuators="crank",
             link_lengths=l,
             crank_radii=a,
+            crank_axes=axes,
             branches=signs,
             home=np.zeros(3),
             singular_tolerance=singular_tolerance,

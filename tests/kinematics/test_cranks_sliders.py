@@ -73,7 +73,7 @@ def test_jacobians_against_central_differences(member) -> None:
 
 
 def test_3rrr_jacobians_against_sympy() -> None:
-    """The 3-RRR's Φ, J_q and J_x equal SymPy's derivatives of ‖p + R(φ) P_i − B_i − a (cos q_i, sin q_i)‖² − l²."""
+    """The 3-RRR's Φ, J_q, J_x equal SymPy's derivatives of ‖p + R(φ) P_i − B_i − a (cos q u_i + sin q v_i)‖² − l²."""
     robot = Planar3RRR()
     q_sym = sp.symbols("q0:3")
     X, Y, PHI = sp.symbols("x y phi")
@@ -83,7 +83,8 @@ def test_3rrr_jacobians_against_sympy() -> None:
     for i in range(3):
         B = sp.Matrix(robot.base[i].tolist())
         P = sp.Matrix(robot.platform[i].tolist())
-        elbow = B + a * sp.Matrix([sp.cos(q_sym[i]), sp.sin(q_sym[i])])
+        u, v = (sp.Matrix(axis.tolist()) for axis in robot.crank_axes[i])
+        elbow = B + a * (sp.cos(q_sym[i]) * u + sp.sin(q_sym[i]) * v)
         d = sp.Matrix([X, Y]) + R * P - elbow
         phi.append(d.dot(d) - ell**2)
     Phi = sp.Matrix(phi)
@@ -321,7 +322,9 @@ def test_3rrr_distal_links_through_one_point_is_type_two() -> None:
         w = P[i] - robot.base[i]
         t = max(np.roots([1.0, 2.0 * (u @ w), w @ w - a * a]).real)
         elbows[i], lengths[i] = P[i] + t * u, t
-    q = np.arctan2(elbows[:, 1] - robot.base[:, 1], elbows[:, 0] - robot.base[:, 0])
+    arm = elbows - robot.base
+    u, v = robot.crank_axes[:, 0], robot.crank_axes[:, 1]
+    q = np.arctan2(np.sum(arm * v, axis=-1), np.sum(arm * u, axis=-1))
     concurrent = DistanceConstraintMechanism(
         robot.base,
         robot.platform,
@@ -329,6 +332,7 @@ def test_3rrr_distal_links_through_one_point_is_type_two() -> None:
         actuators="crank",
         link_lengths=lengths,
         crank_radii=a,
+        crank_axes=robot.crank_axes,
         home=x,
         check_architecture=False,
     )

@@ -1,0 +1,121 @@
+"""The family's compiled transition for crank and slider actuators and the translational pose space.
+
+The Delta (translational, cranks), the 3-RRR (planar, cranks) and the 3-PRR (planar, sliders) step through the
+same kernels as the 3-RPR and the hexapod, with no robot-specific code; each step is checked against the NumPy
+reference of ``kinematics`` (inverse kinematics, constraints, Newton's forward kinematics, both singularity
+measures).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from envs import family
+from envs.core import TERMINATION_REASONS
+from envs.family_kernels import initial_batch
+from kinematics import Delta, Planar3PRR, Planar3RRR
+
+ROBOTS = {"delta": Delta, "3rrr": Planar3RRR, "3prr": Planar3PRR}
+SPREADS = {"delta": (0.3, 0.3, 0.15), "3rrr": (0.06, 0.06, 0.3), "3prr": (0.06, 0.06, 0.3)}
+
+
+def _setup(name: str, count: int = 200, seed: int = 0):
+    """(robot, params, x): wide pose bounds, and reachable poses with both measures above 0.05."""
+    robot = ROBOTS[name]()
+    home = robot.home_pose()
+    spread = np.array(SPREADS[name])
+    at_home = robot.inverse_kinematics(home)
+    band = 1.5 if name != "3prr" else 0.3
+    params = family.build_family_params(
+        robot,
+        pose_low=tuple(home - 3 * spread),
+        pose_high=tuple(home + 3 * spread),
+        sample_low=tuple(home - spread),
+        sample_high=tuple(home + spread),
+        stroke_limits=(float(at_home.min()) - band, float(at_home.max()) + band),
+        track_amplitude=tuple(0.5 * spread),
+    )
+    rng = np.random.default_rng(seed)
+    x = home + rng.uniform(-1.0, 1.0, (8 * count, 3)) * spread
+    q = robot.inverse_kinematics(x, validate=False)
+    ok = np.isfinite(q).all(axis=-1)
+    x, q = x[ok], q[ok]
+    ok = (robot.inverse_condition_number(q, x) > 0.05) & (robot.actuator_condition_number(q, x) > 0.05)
+    assert ok.sum() >= count
+    return robot, params, x[ok][:count]
+
+
+@pytest.mark.parametrize("name", sorted(ROBOTS))
+def test_initial_state_matches_the_reference(name: str) -> None:
+    """Strokes (closed-form IK on the chosen branches), k, sign(det J_x) and the residual at rest."""
+    robot, params, x = _setup(name)
+    q, k, sign, residual = initial_batch(params.packed, x)
+    np.testing.assert_allclose(q, robot.inverse_kinematics(x), atol=1e-13)
+    k_ref, det = robot.singularity_measures(q, x)
+    np.testing.assert_allclose(k, k_ref, rtol=1e-9)
+    np.testing.assert_array_equal(sign, np.sign(det))
+    assert residual.max() < 1e-13
+
+
+@pytest.mark.parametrize("name", sorted(ROBOTS))
+def test_transition_is_the_actuator_motion_integrated_and_corrected(name: str) -> None:
+    """One step: q' = q + a · rate · dt; Φ(q', x') = 0; x' is Newton's pose from x; k' is the reference's."""
+    robot, params, x = _setup(name)
+    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = family.initial_state(params, x, ref)
+    action = np.random.default_rng(1).uniform(-1.0, 1.0, (len(x), 3))
+    new, outcome = family.transition(params, state, action)
+    ok = outcome.reason == 0
+    assert ok.mean() > 0.95, np.bincount(outcome.reason)
+    lo, hi = params.stroke_limits
+    np.testing.assert_allclose(new.q, np.clip(state.q + action * params.max_rate * params.dt, lo, hi), atol=1e-15)
+    assert np.abs(robot.constraints(new.q[ok], new.x[ok])).max() <= 1e-10
+    fk = robot.forward_kinematics(new.q[ok], x[ok])
+    np.testing.assert_allclose(new.x[ok], fk.x, atol=1e-9)
+    np.testing.assert_allclose(
+        new.inverse_condition[ok], robot.inverse_condition_number(new.q[ok], new.x[ok]), rtol=1e-9
+    )
+    twist = np.einsum("nij,nj->ni", robot.forward_jacobian(state.q[ok], x[ok]), outcome.q_rate[ok]) * params.dt
+    moved = robot.pose_difference(new.x[ok], x[ok])
+    assert np.abs(moved - twist).max() < 0.05 * np.abs(twist).max()
+    # the kernels' own prediction J_f q̇ dt is right to first order: Newton corrects it by a small fraction
+    scale = np.where(robot.pose_scale == 1.0, 1.0, robot.characteristic_length)
+    assert np.max(outcome.jump[ok] / np.linalg.norm(moved * scale, axis=-1)) < 0.08
+
+
+def test_a_type_one_pose_terminates_as_actuator_singular() -> None:
+    """The Delta next to an arm stretched straight ends its episode with "actuator_singular" (and not below)."""
+    robot = Delta()
+    R_b, r_p, a, ell = robot.dimensions
+    z = -1.5
+    stretched = np.array([R_b - r_p - np.sqrt((a + ell) ** 2 - z * z), 0.0, z])
+    x = stretched + np.array([0.003, 0.0, 0.0])  # 3 mm back from the edge of arm 0's reach
+    q = robot.inverse_kinematics(x)
+    k1 = float(robot.actuator_condition_number(q, x))
+    assert 1e-3 < k1 < 0.2
+    for threshold, expected in ((2 * k1, "actuator_singular"), (0.2 * k1, "")):
+        params = family.build_family_params(
+            robot,
+            pose_low=(-1.5, -1.0, -2.0),
+            pose_high=(1.0, 1.0, -0.5),
+            sample_low=(-1.0, -0.5, -1.8),
+            sample_high=(0.5, 0.5, -0.8),
+            stroke_limits=(-1.0, 2.0),
+            actuator_hard_threshold=threshold,
+            hard_threshold=1e-4,
+            safe_threshold=1e-3,
+        )
+        ref = family.FamilyReference(x[None].copy(), np.zeros((1, 3)), np.zeros((1, 3)))
+        state = family.initial_state(params, x[None], ref)
+        _, outcome = family.transition(params, state, np.zeros((1, 3)))
+        assert TERMINATION_REASONS[outcome.reason[0]] == expected
+
+
+def test_stroke_limits_of_cranks_may_be_negative_but_legs_not() -> None:
+    """Crank angles take any limits q_min < q_max; leg lengths still need 0 < q_min."""
+    family.build_family_params(Delta(), stroke_limits=(-1.0, 1.0))
+    with pytest.raises(ValueError, match="0 < q_min < q_max"):
+        family.build_family_params(stroke_limits=(-0.1, 0.7))
+    with pytest.raises(ValueError, match="actuator_hard_threshold must be < 1"):
+        family.build_family_params(Delta(), actuator_hard_threshold=1.5)
