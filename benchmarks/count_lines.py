@@ -18,6 +18,8 @@ ROBOTS = {
     "planar 3-RPR (kinematics/planar_3rpr.py: geometry, plus its fused J_f and all assembly modes)": [
         "kinematics/planar_3rpr.py"
     ],
+    "Delta (kinematics/delta.py: geometry, plus its closed-form forward kinematics)": ["kinematics/delta.py"],
+    "planar 3-RRR and 3-PRR (kinematics/planar_rrr_prr.py)": ["kinematics/planar_rrr_prr.py"],
 }
 #: The generic family core, written once for every member.
 CORE = [
