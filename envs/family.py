@@ -218,6 +218,13 @@ class FamilyOutcome(NamedTuple):
 
 
 def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
+    if params.robot.pose_space.name == "translational":
+        # The compiled step runs translational robots (``transition``, ``initial_state``); the observation, the
+        # controllers' decoding and the HER view know planar and spatial poses only, so no env is built for them.
+        raise ValueError(
+            "the family's environments take planar or spatial robots; translational robots (such as the Delta) are "
+            f"stepped by envs.family.transition but have no environment yet, got {type(params.robot).__name__}"
+        )
     n = params.robot.n_actuators
     low_p, high_p = np.array(params.pose_low), np.array(params.pose_high)
     d = 3 if params.spatial else 2

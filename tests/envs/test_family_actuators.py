@@ -119,3 +119,33 @@ def test_stroke_limits_of_cranks_may_be_negative_but_legs_not() -> None:
         family.build_family_params(stroke_limits=(-0.1, 0.7))
     with pytest.raises(ValueError, match="actuator_hard_threshold must be < 1"):
         family.build_family_params(Delta(), actuator_hard_threshold=1.5)
+
+
+def test_no_environment_for_a_translational_robot_yet() -> None:
+    """The Delta steps through the physics, but an env of it would have no valid observation: a clear error."""
+    import gymnasium as gym
+
+    with pytest.raises(ValueError, match=r"translational robots .* have no environment yet, got Delta"):
+        gym.make("StewartGoughReach-v0", robot=Delta())
+
+
+@pytest.mark.parametrize("name", ["3rrr", "3prr"])
+def test_planar_cranks_and_sliders_step_through_the_family_env(name: str) -> None:
+    """A 3-RRR or 3-PRR given as data runs through gym.make with Gymnasium's checker silent."""
+    import warnings
+
+    import gymnasium as gym
+    from gymnasium.utils.env_checker import check_env
+
+    robot, params, x = _setup(name, count=10)
+    env = gym.make("StewartGoughReach-v0", robot=robot, stroke_limits=params.stroke_limits).unwrapped
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env, skip_render_check=True)
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    for _ in range(20):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        assert env.observation_space.contains(obs) and np.isfinite(reward)
+        if terminated:
+            break
