@@ -137,7 +137,7 @@ def test_planar_cranks_and_sliders_step_through_the_family_env(name: str) -> Non
     import gymnasium as gym
     from gymnasium.utils.env_checker import check_env
 
-    robot, params, x = _setup(name, count=10)
+    robot, params, _ = _setup(name, count=10)
     env = gym.make("StewartGoughReach-v0", robot=robot, stroke_limits=params.stroke_limits).unwrapped
     with warnings.catch_warnings():
         warnings.simplefilter("error")
