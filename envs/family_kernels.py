@@ -1199,35 +1199,26 @@ def _finite_actions(action):
     return True
 
 
+@_jit_inline
+def _step_range(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, span, out):
+    """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own."""
+    w = np.empty((W_SIZE, 6))
+    lanes = allocate_lanes()
+    begin, end = span
+    for start in range(begin, end, LANES):
+        count = min(LANES, end - start)
+        _step_block(
+            c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, start, count,
+            w, lanes, out,
+        )  # fmt: skip
+
+
 @_jit
 def _step_serial(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out):
     if not _finite_actions(action):
         return True
-    w = np.empty((W_SIZE, 6))
-    lanes = allocate_lanes()
-    n = q.shape[0]
-    for start in range(0, n, LANES):
-        count = min(LANES, n - start)
-        _step_block(
-            c,
-            low,
-            high,
-            with_velocity,
-            q,
-            x,
-            t,
-            det_sign,
-            residual,
-            center,
-            amplitude,
-            phase,
-            action,
-            start,
-            count,
-            w,
-            lanes,
-            out,
-        )
+    span = (0, q.shape[0])
+    _step_range(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, span, out)
     return False
 
 
@@ -1238,31 +1229,10 @@ def _step_parallel(c, low, high, with_velocity, q, x, t, det_sign, residual, cen
     n = q.shape[0]
     chunks = (n + CHUNK - 1) // CHUNK
     for chunk in numba.prange(chunks):
-        w = np.empty((W_SIZE, 6))
-        lanes = allocate_lanes()
-        stop = min(n, (chunk + 1) * CHUNK)
-        for start in range(chunk * CHUNK, stop, LANES):
-            count = min(LANES, stop - start)
-            _step_block(
-                c,
-                low,
-                high,
-                with_velocity,
-                q,
-                x,
-                t,
-                det_sign,
-                residual,
-                center,
-                amplitude,
-                phase,
-                action,
-                start,
-                count,
-                w,
-                lanes,
-                out,
-            )
+        span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
+        _step_range(
+            c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, span, out
+        )
     return False
 
 

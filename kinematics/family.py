@@ -44,7 +44,7 @@ import numpy as np
 
 from kinematics._validation import FloatArray, as_float_array, batch_vector, check_finite, point_set, positive_scalar
 from kinematics.linalg import batched_solve, singular_value_ratio
-from kinematics.mechanism import ParallelMechanism, SingularConfigurationError, _check_broadcast, _scalarize
+from kinematics.mechanism import ParallelMechanism, _check_broadcast, _scalarize
 
 __all__ = ["ACTUATOR_KINDS", "POSE_SPACES", "DistanceConstraintMechanism", "PoseSpace"]
 
@@ -802,15 +802,10 @@ class DistanceConstraintMechanism(ParallelMechanism):
         return _scalarize(np.sum(self._actuator_measures(q, x) <= rtol, axis=-1))
 
     def _raise_if_type1(self, q: FloatArray, x: FloatArray, what: str) -> None:
-        measure = np.min(self._actuator_measures(q, x), axis=-1)
-        if np.size(measure) and not np.min(measure) >= self.singular_tolerance:
-            bad = np.atleast_1d(~(measure >= self.singular_tolerance))
-            idx = tuple(int(i) for i in np.argwhere(bad)[0])
-            raise SingularConfigurationError(
-                f"J_q is singular (Type I singularity) where {what} is asked for: actuator condition number "
-                f"{float(np.nanmin(measure)):.3g} < singular_tolerance {self.singular_tolerance:.3g}"
-                + (f" at batch index {idx}" if np.ndim(measure) else "")
-            )
+        self._raise_below(
+            np.min(self._actuator_measures(q, x), axis=-1),
+            f"J_q is singular (Type I singularity) where {what} is asked for: actuator condition number",
+        )
 
     def inverse_jacobian(self, q: Any, x: Any, *, validate: bool = True) -> FloatArray:
         """Map platform velocity to actuator rates: q̇ = J_i ẋ, J_i = −J_q⁻¹ J_x (a solve).

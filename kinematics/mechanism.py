@@ -243,17 +243,20 @@ class ParallelMechanism(abc.ABC):
 
     def _raise_if_singular(self, J_x: FloatArray | None, what: str, ratio: Any = None) -> None:
         ratio = np.asarray(self._singularity_measure(J_x) if ratio is None else ratio)
-        if ratio.size == 0 or ratio.min() >= self._singular_tolerance:
+        what = f"J_x is singular (Type II singularity) where {what} is asked for: Hadamard ratio |det Ĵ_x|/∏‖rows‖"
+        self._raise_below(ratio, what)
+
+    def _raise_below(self, measure: Any, message: str) -> None:
+        """Raise ``SingularConfigurationError`` where a measure is below the tolerance (or NaN), naming where."""
+        measure = np.asarray(measure)
+        if measure.size == 0 or measure.min() >= self._singular_tolerance:
             return
-        bad = ratio < self._singular_tolerance
-        if np.any(bad):
-            idx = tuple(int(i) for i in np.argwhere(np.atleast_1d(bad))[0])
-            worst = float(np.min(ratio))
-            raise SingularConfigurationError(
-                f"J_x is singular (Type II singularity) where {what} is asked for: Hadamard ratio "
-                f"|det Ĵ_x|/∏‖rows‖ = {worst:.3g} < singular_tolerance {self._singular_tolerance:.3g}"
-                + (f" at batch index {idx}" if np.ndim(bad) else "")
-            )
+        bad = ~(measure >= self._singular_tolerance)  # NaN counts as singular
+        idx = tuple(int(i) for i in np.argwhere(np.atleast_1d(bad))[0])
+        raise SingularConfigurationError(
+            f"{message} = {float(np.nanmin(measure)):.3g} < singular_tolerance {self._singular_tolerance:.3g}"
+            + (f" at batch index {idx}" if np.ndim(bad) else "")
+        )
 
     def forward_jacobian(self, q: Any, x: Any, *, validate: bool = True) -> FloatArray:
         """Map actuator rates to platform velocity: ẋ = J_f q̇, with J_f = −J_x⁻¹ J_q (a solve).
