@@ -44,7 +44,13 @@ __all__ = [
     "transition",
 ]
 
-REWARD_TERMS = ("reward_tracking", "reward_singularity", "reward_action", "reward_termination")
+REWARD_TERMS = (
+    "reward_tracking",
+    "reward_singularity",
+    "reward_action",
+    "reward_termination",
+    "reward_actuator_singularity",
+)
 _TARGET_MODES = ("standard", "hard")
 _INTEGRATORS = ("euler", "rk4")
 TRAIL_LENGTH = 200
@@ -68,6 +74,8 @@ class FamilyParams:
         hard_threshold: k below which the episode terminates.
         actuator_hard_threshold: Actuator condition number (the Type I measure of cranks and sliders; 1 for
             legs) below which the episode terminates ("actuator_singular").
+        actuator_safe_threshold: Actuator condition number below which the Type I penalty and the cost start.
+        actuator_singularity_weight: w_s1, the weight of the Type I penalty.
         position_weight: w_p [1/m].
         orientation_weight: w_o [1/m] (multiplies ℓ_c · orientation error).
         singularity_weight: w_s.
@@ -101,6 +109,8 @@ class FamilyParams:
     safe_threshold: float = 0.1
     hard_threshold: float = 0.03
     actuator_hard_threshold: float = 0.02
+    actuator_safe_threshold: float = 0.1
+    actuator_singularity_weight: float = 1.0
     position_weight: float = 1.0
     orientation_weight: float = 1.0
     singularity_weight: float = 1.0
@@ -187,7 +197,8 @@ class FamilyState(NamedTuple):
         x: Platform poses of {P} in {B}, shape (N, m).
         t: Steps taken in the episode, shape (N,) (int).
         det_sign: sign(det J_x) at the start of the episode (the working mode), shape (N,).
-        inverse_condition: Homogeneous inverse condition number k at (q, x), shape (N,).
+        inverse_condition: Homogeneous inverse condition number k at (q, x) (Type II measure), shape (N,).
+        actuator_condition: Actuator condition number at (q, x) (Type I measure; 1 for legs), shape (N,).
         residual: Constraint residual max_i |Φ_i| [m²], shape (N,).
         reference: The targets' trajectories.
     """
@@ -197,6 +208,7 @@ class FamilyState(NamedTuple):
     t: np.ndarray
     det_sign: np.ndarray
     inverse_condition: np.ndarray
+    actuator_condition: np.ndarray
     residual: np.ndarray
     reference: FamilyReference
 
@@ -273,8 +285,8 @@ def _rows(a: Any, width: int, name: str) -> np.ndarray:
 def initial_state(params: FamilyParams, start: np.ndarray, reference: FamilyReference) -> FamilyState:
     """State of N robots at rest at ``start`` (shape (N, m)), strokes from the inverse kinematics."""
     start = _rows(start, params.robot.n_pose, "start")
-    q, k, det_sign, residual = fk.initial_batch(params.packed, start)
-    return FamilyState(q, start.copy(), np.zeros(len(start), dtype=np.int64), det_sign, k, residual, reference)
+    q, k, k1, det_sign, residual = fk.initial_batch(params.packed, start)
+    return FamilyState(q, start.copy(), np.zeros(len(start), dtype=np.int64), det_sign, k, k1, residual, reference)
 
 
 def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> tuple[FamilyState, FamilyOutcome]:
@@ -298,10 +310,10 @@ def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> 
     if not np.isfinite(action).all():
         rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
         raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}", rows)
-    q, x, k, residual, a, q_rate, reason, jump = fk.transition_batch(
+    q, x, k, k1, residual, a, q_rate, reason, jump = fk.transition_batch(
         params.packed, state.q, state.x, state.det_sign, state.residual, action
     )
-    new = FamilyState(q, x, state.t + 1, state.det_sign, k, residual, state.reference)
+    new = FamilyState(q, x, state.t + 1, state.det_sign, k, k1, residual, state.reference)
     return new, FamilyOutcome(a, q_rate, reason, jump)
 
 
@@ -332,6 +344,7 @@ def evaluate(
         state.x,
         state.t,
         state.inverse_condition,
+        state.actuator_condition,
         state.residual,
         ref.center,
         ref.amplitude,
@@ -348,6 +361,7 @@ def reward_terms(
     inverse_condition: np.ndarray,
     action: np.ndarray,
     reason: np.ndarray,
+    actuator_condition: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Every term of the reward of N poses against fixed targets (what HER's ``compute_reward`` calls).
 
@@ -358,18 +372,19 @@ def reward_terms(
         inverse_condition: k, shape (N,).
         action: Applied actions, shape (N, n).
         reason: Termination reason codes, shape (N,).
+        actuator_condition: k_I, shape (N,) (default 1: no Type I penalty, as for legs).
 
     Returns:
-        The four ``REWARD_TERMS``, each shape (N,).
+        The ``REWARD_TERMS``, each shape (N,).
     """
     m = params.robot.n_pose
     x, target = _rows(x, m, "x"), _rows(target, m, "target")
     n = len(x)
     k = np.asarray(inverse_condition, dtype=np.float64).reshape(n)
+    k1 = np.ones(n) if actuator_condition is None else np.asarray(actuator_condition, dtype=np.float64).reshape(n)
     ref = FamilyReference(target, np.zeros((n, m)), np.zeros((n, m)))
-    state = FamilyState(
-        np.full((n, m), np.mean(params.stroke_limits)), x, np.zeros(n, dtype=np.int64), np.ones(n), k, np.zeros(n), ref
-    )
+    strokes = np.full((n, m), np.mean(params.stroke_limits))
+    state = FamilyState(strokes, x, np.zeros(n, dtype=np.int64), np.ones(n), k, k1, np.zeros(n), ref)
     evaluation, _ = evaluate(params, state, action, reason, False)
     rows = params.evaluation_rows
     return {name: evaluation[rows[name]].copy() for name in REWARD_TERMS}
@@ -381,10 +396,10 @@ class StepBuffers:
     def __init__(self, params: FamilyParams, n: int, with_velocity: bool) -> None:
         obs_dim = observation_bounds(params, with_velocity)[0].shape[0]
         self.arrays = fk.allocate_step(n, params.robot.n_pose, obs_dim)
-        q, x, t, k, residual, a, q_rate, reason, jump, evaluation, observations = self.arrays
+        q, x, t, k, k1, residual, a, q_rate, reason, jump, evaluation, observations = self.arrays
         self.outcome = FamilyOutcome(a, q_rate, reason, jump)
         self.evaluation, self.observations = evaluation, observations
-        self.fields = (q, x, t, k, residual)
+        self.fields = (q, x, t, k, k1, residual)
 
 
 def step(
@@ -434,8 +449,8 @@ def step(
         rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
         where = f" (row(s) {rows[:10].tolist()} of {n})" if n > 1 else ""
         raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}{where}", rows)
-    q, x, t, k, residual = out.fields
-    return FamilyState(q, x, t, state.det_sign, k, residual, ref), out.outcome, out.evaluation, out.observations
+    q, x, t, k, k1, residual = out.fields
+    return FamilyState(q, x, t, state.det_sign, k, k1, residual, ref), out.outcome, out.evaluation, out.observations
 
 
 def copy_state(state: FamilyState) -> FamilyState:
@@ -446,9 +461,14 @@ def copy_state(state: FamilyState) -> FamilyState:
 def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
     """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order.
 
-    The 3-RPR's ``step_info`` over this core's row layout (``params.evaluation_rows``).
+    The 3-RPR's ``step_info`` over this core's row layout (``params.evaluation_rows``), with the Type I
+    terms after it.
     """
-    return planar_step_info(None, evaluation, reason, params.evaluation_rows)
+    info = planar_step_info(None, evaluation, reason, params.evaluation_rows)
+    rows = params.evaluation_rows
+    for name in ("reward_actuator_singularity", "actuator_condition_number"):
+        info[name] = evaluation[rows[name]].copy()
+    return info
 
 
 # -- argument checks ---------------------------------------------------------------------------------------
@@ -548,8 +568,13 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         kwargs.get("actuator_hard_threshold", defaults["actuator_hard_threshold"].default),
         allow_zero=True,
     )
-    if not hard1 < 1:
-        raise ValueError(f"actuator_hard_threshold must be < 1, got {hard1}")
+    safe1 = _number(
+        "actuator_safe_threshold", kwargs.get("actuator_safe_threshold", defaults["actuator_safe_threshold"].default)
+    )
+    if not hard1 < safe1 < 1:
+        raise ValueError(
+            f"thresholds must satisfy actuator_hard_threshold < actuator_safe_threshold < 1, got {hard1} and {safe1}"
+        )
     iterations = kwargs.get("newton_max_iterations", defaults["newton_max_iterations"].default)
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
         raise ValueError(f"newton_max_iterations must be an int ≥ 1, got {iterations!r}")
@@ -575,6 +600,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         "singularity_weight",
         "action_weight",
         "termination_penalty",
+        "actuator_singularity_weight",
         "stroke_margin",
         "min_distance",
     ):
@@ -587,6 +613,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         safe_threshold=safe,
         hard_threshold=hard,
         actuator_hard_threshold=hard1,
+        actuator_safe_threshold=safe1,
         newton_max_iterations=int(iterations),
         max_substeps=int(substeps),
         **values,
@@ -718,6 +745,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             "termination_reason": TERMINATION_REASONS[reason],
             "pose": row[rows["pose"]].copy(),
             "target": row[rows["target"]].copy(),
+            "reward_actuator_singularity": v[rows["reward_actuator_singularity"]],
+            "actuator_condition_number": v[rows["actuator_condition_number"]],
         }
 
     def sample_tasks(

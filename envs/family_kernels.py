@@ -89,6 +89,7 @@ from envs.family_layout import (
     C_RATE,
     C_RK4,
     C_SAFE,
+    C_SAFE1,
     C_SCALE,
     C_SHIGH,
     C_SIZE,
@@ -104,6 +105,7 @@ from envs.family_layout import (
     C_WO,
     C_WP,
     C_WS,
+    C_WS1,
 )
 
 drop_stale_caches(__file__, [family_layout.__file__, family_planar.__file__, kernels.__file__, linalg_kernels.__file__])
@@ -139,7 +141,8 @@ W_SIZE = 48
 #: Rows of the evaluation that do not depend on m; the target, its velocity and the pose follow (m rows each).
 E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION, E_REWARD = 0, 1, 2, 3, 4
 E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_K, E_RESIDUAL = 5, 6, 7, 8, 9, 10
-E_FIXED = 11
+E_ACTUATOR, E_K1 = 11, 12  # the Type I penalty and the actuator condition number (1 for legs)
+E_FIXED = 13
 
 #: Robots per chunk of a batch: each chunk allocates its work arrays once (a multiple of ``LANES``).
 CHUNK = 64
@@ -214,6 +217,8 @@ def pack_family(params) -> np.ndarray:
     c[C_ELL : C_ELL + n] = robot.link_lengths
     c[C_BRANCH : C_BRANCH + n] = robot.branches
     c[C_HARD1] = params.actuator_hard_threshold
+    c[C_SAFE1] = params.actuator_safe_threshold
+    c[C_WS1] = params.actuator_singularity_weight
     c.setflags(write=False)
     return c
 
@@ -232,6 +237,8 @@ def evaluation_rows(m: int) -> dict[str, int | slice]:
         "cost": E_COST,
         "inverse_condition_number": E_K,
         "constraint_residual": E_RESIDUAL,
+        "reward_actuator_singularity": E_ACTUATOR,
+        "actuator_condition_number": E_K1,
         "target": slice(E_FIXED, E_FIXED + m),
         "target_velocity": slice(E_FIXED + m, E_FIXED + 2 * m),
         "pose": slice(E_FIXED + 2 * m, E_FIXED + 3 * m),
@@ -805,7 +812,7 @@ def _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr
 
 @_jit_inline
 def _transition_block(
-    c, q, x, det_sign, residual, action, start, count, w, lanes, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+    c, q, x, det_sign, residual, action, start, count, w, lanes, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump
 ):
     """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
 
@@ -819,6 +826,7 @@ def _transition_block(
             family_planar.transition_row(
                 c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
             )
+            o_k1[i] = 1.0
         return
     if count == 1 or c[C_N] != 6.0:  # one robot (the single env; the plain Jacobi is cheaper) or m = 3
         for i in range(start, start + count):
@@ -826,6 +834,7 @@ def _transition_block(
             k, sign = _singularity(c, o_q[i], w, W_A)
             k1 = _actuator_condition(c, w)
             o_k[i] = k
+            o_k1[i] = k1
             o_reason[i] = family_planar.termination_reason(c, failed, o_jump[i], sign, det_sign[i], k, out, k1)
         return
     H, lane = lanes
@@ -843,13 +852,14 @@ def _transition_block(
         out = flags >= 2.0
         k = lane[L_K, r]
         o_k[i] = k
+        o_k1[i] = lane[L_K1, r]
         o_reason[i] = family_planar.termination_reason(
             c, failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out, lane[L_K1, r]
         )
 
 
 @_jit
-def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
+def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump):
     w = np.empty((W_SIZE, 6))
     lanes = allocate_lanes()
     n = q.shape[0]
@@ -869,6 +879,7 @@ def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res
             o_q,
             o_x,
             o_k,
+            o_k1,
             o_res,
             o_a,
             o_qr,
@@ -889,14 +900,14 @@ def transition_batch(c, q, x, det_sign, residual, action):
         action: Normalised stroke rates, shape (N, n), finite.
 
     Returns:
-        (q', x', k', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
+        (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
     """
     n, m = q.shape
     o_q, o_x, o_a, o_qr = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
-    o_k, o_res, o_jump = np.empty(n), np.empty(n), np.empty(n)
+    o_k, o_k1, o_res, o_jump = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     o_reason = np.empty(n, dtype=np.int64)
-    _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump)
-    return o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+    _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
+    return o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump
 
 
 @_jit
@@ -915,20 +926,21 @@ def singularity_batch(c, q, x):
 
 
 @_jit
-def _initial_loop(c, x, o_q, o_k, o_sign, o_res):
+def _initial_loop(c, x, o_q, o_k, o_k1, o_sign, o_res):
     w = np.empty((W_SIZE, 6))
     for i in range(x.shape[0]):
         _inverse_kinematics(c, x[i], w, o_q[i])
         o_k[i], o_sign[i] = _singularity(c, o_q[i], w, W_A)
+        o_k1[i] = _actuator_condition(c, w)
         o_res[i] = _residual(c, o_q[i], w)
 
 
 def initial_batch(c, x):
-    """Strokes (inverse kinematics), k, sign(det J_x) and residual of N robots at rest at poses x (N, m)."""
+    """Strokes (inverse kinematics), k, k_I, sign(det J_x) and residual of N robots at rest at poses x (N, m)."""
     n, m = x.shape
-    o_q, o_k, o_sign, o_res = np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n)
-    _initial_loop(c, x, o_q, o_k, o_sign, o_res)
-    return o_q, o_k, o_sign, o_res
+    o_q, o_k, o_k1, o_sign, o_res = np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    _initial_loop(c, x, o_q, o_k, o_k1, o_sign, o_res)
+    return o_q, o_k, o_k1, o_sign, o_res
 
 
 # -- reference, errors, reward, observation -------------------------------------------------------------
@@ -996,7 +1008,7 @@ def _encode_pose(c, x, o_obs, i, start, low, high):
 
 @_jit
 def _evaluate_row(
-    c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason, i, w, o_eval, o_obs
+    c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason, i, w, o_eval, o_obs
 ):
     """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.family.evaluate``).
 
@@ -1013,6 +1025,8 @@ def _evaluate_row(
         )
         o_eval[E_TRACKING, i], o_eval[E_SINGULARITY, i], o_eval[E_ACTION, i], o_eval[E_TERMINATION, i] = tr, si, ac, te
         o_eval[E_REWARD, i] = tr + si + ac + te
+        o_eval[E_ACTUATOR, i] = 0.0  # legs: no Type I singularity
+        o_eval[E_K1, i] = k1[i]
         o_eval[E_POSITION_ERROR, i], o_eval[E_ORIENTATION_ERROR, i] = ep, eo
         success = reason[i] == 0 and family_planar.is_success(c, ep, eo)
         o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
@@ -1040,16 +1054,24 @@ def _evaluate_row(
         a2 += action[i, j] * action[i, j]
     terminated = reason[i] != 0
     termination = -c[C_PENALTY] if terminated else 0.0
+    k1i = k1[i]
+    safe1 = c[C_SAFE1]
+    actuator = 0.0
+    if k1i < safe1:
+        gap1 = (safe1 - k1i) / safe1
+        actuator = -c[C_WS1] * gap1 * gap1
     o_eval[E_TRACKING, i] = tracking
     o_eval[E_SINGULARITY, i] = singularity
     o_eval[E_ACTION, i] = -c[C_WA] * a2
     o_eval[E_TERMINATION, i] = termination
-    o_eval[E_REWARD, i] = tracking + singularity - c[C_WA] * a2 + termination
+    o_eval[E_REWARD, i] = tracking + singularity - c[C_WA] * a2 + termination + actuator
+    o_eval[E_ACTUATOR, i] = actuator
+    o_eval[E_K1, i] = k1i
     o_eval[E_POSITION_ERROR, i] = position_error
     o_eval[E_ORIENTATION_ERROR, i] = orientation_error
     success = (not terminated) and position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
     o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
-    o_eval[E_COST, i] = 1.0 if ki < safe else 0.0
+    o_eval[E_COST, i] = 1.0 if ki < safe or k1i < safe1 else 0.0
     o_eval[E_K, i] = ki
     o_eval[E_RESIDUAL, i] = residual[i]
     for j in range(m):
@@ -1080,7 +1102,7 @@ def _evaluate_row(
 
 @_jit
 def _evaluate_serial(
-    c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason, o_eval, o_obs
+    c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason, o_eval, o_obs
 ):
     w = np.empty((W_SIZE, 6))
     for i in range(q.shape[0]):
@@ -1093,6 +1115,7 @@ def _evaluate_serial(
             x,
             t,
             k,
+            k1,
             residual,
             center,
             amplitude,
@@ -1106,7 +1129,7 @@ def _evaluate_serial(
         )
 
 
-def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason):
+def evaluate_batch(c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason):
     """Evaluation rows (``evaluation_rows``) and observations of N robots.
 
     Args:
@@ -1118,6 +1141,7 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, am
         x: Poses, shape (N, m).
         t: Step index, shape (N,) (int).
         k: Inverse condition numbers, shape (N,).
+        k1: Actuator condition numbers (Type I measure, 1 for legs), shape (N,).
         residual: Constraint residuals [m²], shape (N,).
         center: Reference centres, shape (N, m).
         amplitude: Reference amplitudes, shape (N, m).
@@ -1132,7 +1156,7 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, residual, center, am
     o_eval = np.empty((E_FIXED + 3 * m, n))
     o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
     _evaluate_serial(
-        c, low, high, with_velocity, q, x, t, k, residual, center, amplitude, phase, action, reason, o_eval, o_obs
+        c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason, o_eval, o_obs
     )
     return o_eval, o_obs
 
@@ -1162,9 +1186,27 @@ def _step_block(
     out,
 ):
     """Transition then evaluation of robots start .. start + count − 1 (count ≤ ``LANES``) into ``out``."""
-    o_q, o_x, o_t, o_k, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
+    o_q, o_x, o_t, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
     _transition_block(
-        c, q, x, det_sign, residual, action, start, count, w, lanes, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
+        c,
+        q,
+        x,
+        det_sign,
+        residual,
+        action,
+        start,
+        count,
+        w,
+        lanes,
+        o_q,
+        o_x,
+        o_k,
+        o_k1,
+        o_res,
+        o_a,
+        o_qr,
+        o_reason,
+        o_jump,
     )
     for i in range(start, start + count):
         o_t[i] = t[i] + 1
@@ -1177,6 +1219,7 @@ def _step_block(
             o_x,
             o_t,
             o_k,
+            o_k1,
             o_res,
             center,
             amplitude,
@@ -1237,11 +1280,15 @@ def _step_parallel(c, low, high, with_velocity, q, x, t, det_sign, residual, cen
 
 
 def allocate_step(n, m, obs_dim):
-    """Output arrays of ``step_batch`` for n robots with m pose coordinates and obs_dim observations."""
+    """Output arrays of ``step_batch`` for n robots with m pose coordinates and obs_dim observations.
+
+    (q, x, t, k, k_I, residual, action, stroke rates, reasons, jumps, evaluation, observations).
+    """
     return (
         np.empty((n, m)),
         np.empty((n, m)),
         np.empty(n, dtype=np.int64),
+        np.empty(n),
         np.empty(n),
         np.empty(n),
         np.empty((n, m)),

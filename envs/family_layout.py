@@ -52,7 +52,9 @@ C_LAM = 154  # λ_i: 1 for a leg, 0 otherwise, 6 entries
 C_ELL = 160  # link lengths l_i [m] of cranks and sliders, 6 entries
 C_BRANCH = 166  # inverse-kinematics branch (±1) of each crank and slider, 6 entries
 C_HARD1 = 172  # actuator condition number (Type I measure) below which the episode terminates
-C_SIZE = 173
+C_SAFE1 = 173  # actuator condition number below which the Type I penalty and the cost start
+C_WS1 = 174  # weight of the Type I penalty
+C_SIZE = 175
 
 # Termination reason codes (the order of ``envs.core.TERMINATION_REASONS``).
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5

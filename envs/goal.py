@@ -102,7 +102,8 @@ class GoalReachWrapper(gym.Wrapper):
         """The reward of a transition had the goal been ``desired_goal`` (batched, for HER).
 
         reward = tracking(achieved, desired) + singularity(k) + info's action term + info's termination
-        term, summed in the order ``step`` sums them; the first two come from ``core.reward_terms``.
+        term (+ info's Type I term, for the family), summed in the order ``step`` sums them; the first two
+        come from ``core.reward_terms``.
 
         Args:
             achieved_goal: Poses reached, shape (3,) or (B, 3).
@@ -130,4 +131,6 @@ class GoalReachWrapper(gym.Wrapper):
             self.params, achieved, desired, k, np.zeros((n, self._n)), np.zeros(n, dtype=np.int64)
         )
         reward = terms["reward_tracking"] + terms["reward_singularity"] + action + termination
+        if "reward_actuator_singularity" in infos[0]:  # the family's Type I term (0 for legs), goal-free
+            reward = reward + np.array([i["reward_actuator_singularity"] for i in infos], dtype=np.float64)
         return float(reward[0]) if single else reward

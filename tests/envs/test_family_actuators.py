@@ -50,7 +50,8 @@ def _setup(name: str, count: int = 200, seed: int = 0):
 def test_initial_state_matches_the_reference(name: str) -> None:
     """Strokes (closed-form IK on the chosen branches), k, sign(det J_x) and the residual at rest."""
     robot, params, x = _setup(name)
-    q, k, sign, residual = initial_batch(params.packed, x)
+    q, k, k1, sign, residual = initial_batch(params.packed, x)
+    np.testing.assert_allclose(k1, robot.actuator_condition_number(q, x), rtol=1e-12)
     np.testing.assert_allclose(q, robot.inverse_kinematics(x), atol=1e-13)
     k_ref, det = robot.singularity_measures(q, x)
     np.testing.assert_allclose(k, k_ref, rtol=1e-9)
@@ -103,6 +104,7 @@ def test_a_type_one_pose_terminates_as_actuator_singular() -> None:
             sample_high=(0.5, 0.5, -0.8),
             stroke_limits=(-1.0, 2.0),
             actuator_hard_threshold=threshold,
+            actuator_safe_threshold=0.5,
             hard_threshold=1e-4,
             safe_threshold=1e-3,
         )
@@ -117,8 +119,8 @@ def test_stroke_limits_of_cranks_may_be_negative_but_legs_not() -> None:
     family.build_family_params(Delta(), stroke_limits=(-1.0, 1.0))
     with pytest.raises(ValueError, match="0 < q_min < q_max"):
         family.build_family_params(stroke_limits=(-0.1, 0.7))
-    with pytest.raises(ValueError, match="actuator_hard_threshold must be < 1"):
-        family.build_family_params(Delta(), actuator_hard_threshold=1.5)
+    with pytest.raises(ValueError, match="actuator_hard_threshold < actuator_safe_threshold < 1"):
+        family.build_family_params(Delta(), actuator_hard_threshold=0.2, actuator_safe_threshold=0.1)
 
 
 def test_no_environment_for_a_translational_robot_yet() -> None:
@@ -150,3 +152,33 @@ def test_planar_cranks_and_sliders_step_through_the_family_env(name: str) -> Non
         assert info["termination_reason"] in ("", "out_of_bounds", "actuator_singular", "singular")
         if terminated or truncated:
             break
+
+
+def test_the_type_one_penalty_and_cost_are_reported_apart_from_type_two() -> None:
+    """Below actuator_safe_threshold the reward loses w_s1 ((s1 − k_I)/s1)² and the cost is 1; info has both terms."""
+    robot, params, x = _setup("3rrr", count=50)
+    params = family.build_family_params(
+        robot,
+        pose_low=params.pose_low,
+        pose_high=params.pose_high,
+        sample_low=params.sample_low,
+        sample_high=params.sample_high,
+        stroke_limits=params.stroke_limits,
+        actuator_hard_threshold=0.01,
+        actuator_safe_threshold=0.9,
+        actuator_singularity_weight=2.0,
+    )
+    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = family.initial_state(params, x, ref)
+    zeros = np.zeros((len(x), 3))
+    evaluation, _ = family.evaluate(params, state, zeros, np.zeros(len(x), dtype=np.int64), False)
+    info = family.step_info(params, evaluation, np.zeros(len(x), dtype=np.int64))
+    k1 = robot.actuator_condition_number(state.q, x)
+    np.testing.assert_allclose(info["actuator_condition_number"], k1, rtol=1e-12)
+    expected = np.where(k1 < 0.9, -2.0 * ((0.9 - k1) / 0.9) ** 2, 0.0)
+    np.testing.assert_allclose(info["reward_actuator_singularity"], expected, rtol=1e-12, atol=1e-15)
+    assert (k1 < 0.9).any() and (k1 >= 0.9).any()
+    total = sum(info[name] for name in family.REWARD_TERMS)
+    np.testing.assert_allclose(evaluation[params.evaluation_rows["reward"]], total, rtol=1e-12, atol=1e-12)
+    k2 = info["inverse_condition_number"]
+    np.testing.assert_array_equal(info["cost"], ((k2 < params.safe_threshold) | (k1 < 0.9)).astype(float))
