@@ -1310,8 +1310,21 @@ def step_batch(c, low, high, with_velocity, q, x, t, det_sign, residual, center,
 
 
 @_jit
+def _safety(c, strokes, w):
+    """The measure tasks are certified on, on k's scale: k, or with cranks and sliders min(k, k_I · s / s_I).
+
+    So a configuration has safety ≥ safe_threshold (s) exactly when k ≥ s and k_I ≥ actuator_safe_threshold
+    (s_I): both kinds of singularity are kept at bay. Needs the rows of A at (strokes, x) in w.
+    """
+    k, _ = _singularity(c, strokes, w, W_A)
+    if c[C_LEGS] != 0.0:
+        return k
+    return min(k, _actuator_condition(c, w) * c[C_SAFE] / c[C_SAFE1])
+
+
+@_jit
 def _safe(c, x, w, strokes):
-    """Whether x lies in the sampling box, its strokes within the limits less the margin, and k ≥ safe_threshold."""
+    """Whether x is in the sampling box, its strokes within the limits less the margin, and safety ≥ safe_threshold."""
     m = int(c[C_N])
     for j in range(m):
         if not (c[C_SLOW + j] <= x[j] <= c[C_SHIGH + j]):
@@ -1321,15 +1334,15 @@ def _safe(c, x, w, strokes):
     for j in range(m):
         if not (lo <= strokes[j] <= hi):
             return False
-    k, _ = _singularity(c, strokes, w, W_A)
-    return k >= c[C_SAFE]
+    return _safety(c, strokes, w) >= c[C_SAFE]
 
 
 @_jit
 def _segment_min_k(c, start, target, w, strokes, stop_below):
-    """Smallest k along the geodesic start → target (p linear, R along exp), points ≤ ``segment_spacing`` apart.
+    """Smallest ``_safety`` along the geodesic start → target (p linear, R along exp).
 
-    A point outside the safe set's box or stroke limits counts as k = −1. Stops early once k < ``stop_below``.
+    Checked points are at most ``segment_spacing`` apart. A point outside the safe set's box or stroke limits
+    counts as −1. Stops early once below ``stop_below``.
     """
     m = int(c[C_N])
     direction, point = w[W_SEG_D], w[W_SEG]
@@ -1349,8 +1362,7 @@ def _segment_min_k(c, start, target, w, strokes, stop_below):
                 inside = False
         if not inside:
             return -1.0
-        k, _ = _singularity(c, strokes, w, W_A)
-        worst = min(worst, k)
+        worst = min(worst, _safety(c, strokes, w))
         if worst < stop_below:
             return worst
     return worst

@@ -182,3 +182,25 @@ def test_the_type_one_penalty_and_cost_are_reported_apart_from_type_two() -> Non
     np.testing.assert_allclose(evaluation[params.evaluation_rows["reward"]], total, rtol=1e-12, atol=1e-12)
     k2 = info["inverse_condition_number"]
     np.testing.assert_array_equal(info["cost"], ((k2 < params.safe_threshold) | (k1 < 0.9)).astype(float))
+
+
+def test_tasks_are_certified_against_both_kinds_of_singularity() -> None:
+    """Reach tasks of a 3-RRR: start, target and the straight path between keep k ≥ k_safe and k_I ≥ k_I,safe."""
+    import gymnasium as gym
+
+    robot, params, _ = _setup("3rrr", count=10)
+    env = gym.make(
+        "StewartGoughReach-v0", robot=robot, stroke_limits=params.stroke_limits, actuator_safe_threshold=0.5
+    ).unwrapped
+    safe, safe1 = env.params.safe_threshold, env.params.actuator_safe_threshold
+    worst_k1 = np.inf
+    for seed in range(20):
+        _, info = env.reset(seed=seed)
+        start, target = info["pose"], info["target"]
+        path = start + np.linspace(0.0, 1.0, 60)[:, None] * (target - start)
+        q = robot.inverse_kinematics(path)
+        assert (robot.inverse_condition_number(q, path) >= safe - 1e-9).all()
+        k1 = robot.actuator_condition_number(q, path)
+        assert (k1 >= safe1 - 1e-9).all()
+        worst_k1 = min(worst_k1, k1.min())
+    assert worst_k1 < 0.8  # the Type I bound was active somewhere near, not trivially far
