@@ -721,6 +721,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             view_high=self.params.pose_high,
             trail=list(self._trail),
             step=int(self._state.t[0]),
+            q=self._state.q[0],
         )
 
     @property
@@ -998,6 +999,7 @@ class FamilyVectorEnv(Planar3RPRVectorEnv):
                 view_high=self.params.pose_high,
                 trail=list(self._trails[i]),
                 step=int(state.t[i]),
+                q=state.q[i],
             )
             for i in range(self.num_envs)
         )

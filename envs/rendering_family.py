@@ -146,8 +146,13 @@ def _draw_planar(
     box: tuple[np.ndarray, np.ndarray],
     trail: np.ndarray,
     size: int,
+    anchors: np.ndarray | None = None,
 ) -> None:
-    """Top-down drawing: base triangle, target ghost, trail, legs, platform and its (x, y) triad."""
+    """Top-down drawing: base triangle, target ghost, trail, legs, platform and its (x, y) triad.
+
+    With ``anchors`` (cranks' elbows or sliders' carriages, shape (n, 2) [m]) each leg is drawn as its actuator's
+    part B_i → A_i in grey and its link A_i → P_i in the conditioning colour.
+    """
     view = _PlanView(*box, size)
     line, dot, axis = max(2, size // 120), max(3, size // 96), 0.5 * robot.characteristic_length
     base = view(robot.base)
@@ -161,7 +166,11 @@ def _draw_planar(
     if len(trail) > 1:
         draw.line(_points(view(trail)), fill=_TRAIL, width=max(1, line // 2))
     platform = view(robot.platform_points_in_base(x, validate=False))
-    for b, p in zip(base, platform):
+    starts = base if anchors is None else view(anchors)
+    if anchors is not None:
+        for b, a in zip(base, starts):
+            draw.line([tuple(b), tuple(a)], fill=_BASE, width=2 * line)
+    for b, p in zip(starts, platform):
         draw.line([tuple(b), tuple(p)], fill=color, width=2 * line)
     draw.polygon(_points(platform), fill=_PLATFORM_FILL, outline=_PLATFORM, width=line)
     R = robot.rotation_matrix(x, validate=False)
@@ -245,6 +254,7 @@ def render_family_frame(
     trail: Sequence[Any] = (),
     step: int | None = None,
     size: int = 480,
+    q: Any = None,
 ) -> np.ndarray:
     """Draw a robot of the distance-constraint family, its legs coloured by conditioning, its target and a trail.
 
@@ -272,6 +282,8 @@ def render_family_frame(
         trail: Past platform positions [m] in {B}, each of shape (d,), oldest first; drawn as a polyline.
         step: Step index to print, if given.
         size: Side of the square image [px], at least 32.
+        q: Actuator coordinates, shape (n,); with cranks or sliders they place the elbows or carriages (default:
+            the robot's inverse kinematics of x, on its chosen branches). Planar robots only draw them.
 
     Returns:
         The frame, uint8 of shape (size, size, 3).
@@ -301,8 +313,14 @@ def render_family_frame(
     draw = ImageDraw.Draw(image)
     color = leg_color(inverse_condition, safe_threshold, hard_threshold)
     box = _framed_box(robot, low, high)
-    drawer = _draw_planar if space.name == "planar" else _draw_spatial
-    drawer(draw, robot, x, target, color, box, trail_points, size)
+    if space.name == "planar":
+        anchors = None
+        if any(kind != "leg" for kind in robot.actuator_kinds):
+            strokes = robot.inverse_kinematics(x, validate=False) if q is None else np.asarray(q, dtype=np.float64)
+            anchors = robot.anchors(strokes, validate=False)
+        _draw_planar(draw, robot, x, target, color, box, trail_points, size, anchors)
+    else:
+        _draw_spatial(draw, robot, x, target, color, box, trail_points, size)
 
     text = f"k = {float(inverse_condition):.3f}"
     if step is not None:

@@ -204,3 +204,34 @@ def test_tasks_are_certified_against_both_kinds_of_singularity() -> None:
         assert (k1 >= safe1 - 1e-9).all()
         worst_k1 = min(worst_k1, k1.min())
     assert worst_k1 < 0.8  # the Type I bound was active somewhere near, not trivially far
+
+
+def test_planar_cranks_are_drawn_from_their_angles() -> None:
+    """The headless frame of a 3-RRR draws each crank from its angle: the env's frame is the one of its state's q."""
+    import gymnasium as gym
+
+    from envs.rendering_family import render_family_frame
+
+    robot, params, _ = _setup("3rrr", count=10)
+    env = gym.make("StewartGoughReach-v0", robot=robot, stroke_limits=params.stroke_limits, render_mode="rgb_array")
+    env.reset(seed=3)
+    frame = env.render()
+    assert frame.shape == (480, 480, 3) and frame.dtype == np.uint8
+    state = env.unwrapped._state
+    p = env.unwrapped.params
+    target = env.unwrapped._info(
+        family.evaluate(p, state, np.zeros((1, 3)), np.zeros(1, dtype=np.int64), False)[0][:, 0], 0
+    )["target"]
+    common = {
+        "safe_threshold": p.safe_threshold,
+        "hard_threshold": p.hard_threshold,
+        "view_low": p.pose_low,
+        "view_high": p.pose_high,
+        "trail": [state.x[0][:2]],
+        "step": 0,
+    }
+    k = float(state.inverse_condition[0])
+    same = render_family_frame(robot, state.x[0], target, k, q=state.q[0], **common)
+    np.testing.assert_array_equal(frame, same)
+    turned = render_family_frame(robot, state.x[0], target, k, q=state.q[0] + 0.3, **common)
+    assert np.abs(turned.astype(int) - frame.astype(int)).sum() > 0
