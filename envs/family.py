@@ -763,7 +763,7 @@ _ARGUMENTS_DOC = """
     |-----------|------|---------|-------------|
     | `render_mode` | str or None | `None` | "rgb_array" (headless) |
     | `robot` | DistanceConstraintMechanism or None | `None` | the robot; None: `StewartGough()` |
-    | `stroke_limits` | (float, float) | `(0.45, 0.75)` | leg length limits [m] |
+    | `stroke_limits` | (float, float) | `(0.45, 0.75)` | actuator limits: leg lengths [m], crank angles [rad] |
     | `dt` | float | `0.05` | control period [s] |
     | `max_rate` | float | `0.1` | stroke rate of a unit action [m/s] |
     | `integrator` | str | `"euler"` | "euler" or "rk4" |
@@ -773,6 +773,9 @@ _ARGUMENTS_DOC = """
     | `sample_high` | sequence of m floats | `(0.1, 0.1, 0.6, 0.2, 0.2, 0.5)` | task box [m, rad] |
     | `safe_threshold` | float | `0.1` | k below which the penalty and the cost start |
     | `hard_threshold` | float | `0.03` | k below which the episode terminates |
+    | `actuator_safe_threshold` | float | `0.1` | k_I (cranks, sliders) below which its penalty and the cost start |
+    | `actuator_hard_threshold` | float | `0.02` | k_I (cranks, sliders) below which the episode terminates |
+    | `actuator_singularity_weight` | float | `1.0` | w_s1, the Type I penalty's weight |
     | `position_weight` | float | `1.0` | w_p [1/m] |
     | `orientation_weight` | float | `1.0` | w_o [1/m] |
     | `singularity_weight` | float | `1.0` | w_s |
@@ -851,7 +854,8 @@ class FamilyReachEnv(FamilyEnvBase):
     ## Episode End
     Termination (penalty P), first applicable: `newton_failed`, `assembly_mode_change` (prediction and
     correction more than `jump_tolerance` apart), `singularity_crossed` (sign(det J_x) flipped),
-    `singular` (k < `hard_threshold`), `out_of_bounds`. Truncation after the registered 200 steps.
+    `singular` (k < `hard_threshold`), `out_of_bounds`, and for cranks and sliders `actuator_singular` (the Type I
+    measure below `actuator_hard_threshold`). Truncation after the registered 200 steps.
     `info["is_success"]`: position error ≤ `success_position_tolerance` and orientation error ≤
     `success_orientation_tolerance`.
     {arguments}
