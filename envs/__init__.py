@@ -60,6 +60,39 @@ _SPECS = {
         {"targets": "hard", **ROBOT_PRESETS["stewart_gough_hard"]},
     ),
     "StewartGoughTrack-v0": ("envs.family:FamilyTrackEnv", "envs.family:FamilyTrackVectorEnv", 400, {}),
+    # Crank- and slider-driven members (``kinematics.Delta``, ``Planar3RRR``, ``Planar3PRR``): Type I singularities too.
+    "DeltaReach-v0": ("envs.family:FamilyReachEnv", "envs.family:FamilyReachVectorEnv", 200, ROBOT_PRESETS["delta"]),
+    "DeltaReachHard-v0": (
+        "envs.family:FamilyReachEnv",
+        "envs.family:FamilyReachVectorEnv",
+        200,
+        {"targets": "hard", **ROBOT_PRESETS["delta"]},
+    ),
+    # The adept cycle (25 mm up, 305 mm across, 25 mm down and back) every 4 s.
+    "DeltaTrack-v0": (
+        "envs.family:FamilyTrackEnv",
+        "envs.family:FamilyTrackVectorEnv",
+        400,
+        ROBOT_PRESETS["delta_track"],
+    ),
+    "Planar3RRRReach-v0": (
+        "envs.family:FamilyReachEnv",
+        "envs.family:FamilyReachVectorEnv",
+        200,
+        ROBOT_PRESETS["planar_3rrr"],
+    ),
+    "Planar3RRRReachHard-v0": (
+        "envs.family:FamilyReachEnv",
+        "envs.family:FamilyReachVectorEnv",
+        200,
+        {"targets": "hard", **ROBOT_PRESETS["planar_3rrr"]},
+    ),
+    "Planar3PRRReach-v0": (
+        "envs.family:FamilyReachEnv",
+        "envs.family:FamilyReachVectorEnv",
+        200,
+        ROBOT_PRESETS["planar_3prr"],
+    ),
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)

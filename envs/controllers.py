@@ -184,7 +184,8 @@ class FamilyResolvedRateController:
     """Resolved-rate control of any robot of the distance-constraint family (``envs.family``): q̇ = J_i v.
 
     v = ẋ* + K e, with e = (p* − p, δθ) the exact twist error of the observation (δθ the rotation vector of
-    R* Rᵀ in {B}; planar: (x* − x, y* − y, wrap(φ* − φ))), capped at ``max_speed`` in (δp, ℓ_c δθ); q̇ is
+    R* Rᵀ in {B}; planar: (x* − x, y* − y, wrap(φ* − φ)); translational: p* − p), the feedback K e capped at
+    ``max_speed`` in (δp, ℓ_c δθ) (the reference's own rate ẋ* is fed forward uncapped); q̇ is
     scaled down as a whole when a leg would exceed ``max_rate``, so the platform keeps its direction: a
     straight geodesic toward the target. The pose and strokes come from the observation, J_i from the
     kinematics library.
@@ -192,7 +193,7 @@ class FamilyResolvedRateController:
     Args:
         params: Environment constants (``envs.family.FamilyParams``).
         gain: K [1/s].
-        max_speed: Cap on the scaled platform speed [m/s].
+        max_speed: Cap on the scaled feedback speed [m/s].
     """
 
     name = "resolved-rate"
@@ -204,7 +205,7 @@ class FamilyResolvedRateController:
         self.gain = float(gain)
         self.max_speed = float(max_speed)
         robot = params.robot
-        self._layout = observation_layout(params.spatial, robot.n_actuators, True)
+        self._layout = observation_layout(robot.pose_space.name, robot.n_actuators, True)
         self._metric = np.where(robot.pose_scale < 1.0, 1.0 / robot.pose_scale, 1.0)
 
     def decode(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -213,9 +214,12 @@ class FamilyResolvedRateController:
 
         obs = np.asarray(obs, dtype=np.float64)
         code = obs[:, self._layout["pose"]]
-        if self.params.spatial:
+        space = self.params.robot.pose_space.name
+        if space == "spatial":
             quat = code[:, [4, 5, 6, 3]]  # SciPy's (x, y, z, w)
             pose = np.concatenate([code[:, :3], Rotation.from_quat(quat).as_rotvec()], axis=-1)
+        elif space == "translational":
+            pose = code.copy()
         else:
             pose = np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
         error = obs[:, self._layout["error"]]
@@ -226,9 +230,9 @@ class FamilyResolvedRateController:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Normalised stroke rates in [−1, 1] for a batch of observations, shape (N, n), float32."""
         pose, error, velocity = self.decode(obs)
-        v = velocity + self.gain * error
-        speed = np.linalg.norm(v * self._metric, axis=-1, keepdims=True)
-        v = v / np.maximum(speed / self.max_speed, 1.0)
+        feedback = self.gain * error
+        speed = np.linalg.norm(feedback * self._metric, axis=-1, keepdims=True)
+        v = velocity + feedback / np.maximum(speed / self.max_speed, 1.0)
         robot = self.params.robot
         q = robot.inverse_kinematics(pose, validate=False)
         q_dot = np.einsum("nij,nj->ni", robot.inverse_jacobian(q, pose, validate=False), v)

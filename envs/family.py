@@ -25,10 +25,12 @@ from envs import family_kernels as fk
 from envs.core import TERMINATION_REASONS, NonFiniteActionError
 from envs.planar_3rpr import step_info as planar_step_info
 from envs.vector import Planar3RPRVectorEnv
-from kinematics import DistanceConstraintMechanism, StewartGough
+from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RRR, StewartGough
 
 __all__ = [
+    "ADEPT_CYCLE",
     "REWARD_TERMS",
+    "ROBOTS",
     "ROBOT_PRESETS",
     "FamilyParams",
     "FamilyReachEnv",
@@ -89,7 +91,11 @@ class FamilyParams:
         max_substep: Largest predicted motion per substep [m].
         max_substeps: Most substeps per period.
         track_period: Period of the Track references [s].
-        track_amplitude: Largest amplitude of each pose coordinate of a Track reference, shape (m,).
+        track_amplitude: Largest amplitude of each pose coordinate of a Track reference, shape (m,); with a
+            ``track_path``, the scale a_j of its coordinate j.
+        track_path: Vertices W_k of a closed polyline Track reference, each of m normalised coordinates
+            (x*_j = c_j + a_j W_kj at vertex k, the first two turned by a random heading); () for sinusoids.
+        track_path_times: The share of the period each segment W_k → W_k+1 (mod K) takes, K positive values.
         stroke_margin: Strokes of the safe set keep this far from the limits [m].
         segment_spacing: Largest gap between checked points of a certified path [m].
         min_distance: Smallest ‖(δp, ℓ_c δθ)‖ between start and target [m].
@@ -125,6 +131,8 @@ class FamilyParams:
     max_substeps: int = 16
     track_period: float = 8.0
     track_amplitude: tuple[float, ...] = (0.05, 0.0, 0.04, 0.0, 0.1, 0.0)
+    track_path: tuple[tuple[float, ...], ...] = ()
+    track_path_times: tuple[float, ...] = ()
     stroke_margin: float = 0.02
     segment_spacing: float = 0.01
     min_distance: float = 0.05
@@ -151,6 +159,62 @@ class FamilyParams:
         return _observation_bounds(self, False), _observation_bounds(self, True)
 
 
+#: The robots a family environment builds by name (``robot="delta"``), each with its default geometry.
+ROBOTS: dict[str, type[DistanceConstraintMechanism]] = {
+    "stewart_gough": StewartGough,
+    "delta": Delta,
+    "planar_3rrr": Planar3RRR,
+    "planar_3prr": Planar3PRR,
+}
+
+#: The "adept cycle" of pick-and-place benchmarks as a Track path of a translational robot: from the pick point up
+#: 25 mm, across 305 mm, down 25 mm to the place point, and back the same way (vertices in units of
+#: ``track_amplitude`` = (0.305, 0, 0.025) m; the heading in the horizontal plane is drawn per episode). The
+#: vertical moves take 1/10 of the period each, the moves across 3/10, at rest at every corner.
+ADEPT_CYCLE: dict[str, Any] = {
+    "track_path": (
+        (0.0, 0.0, 0.0),
+        (0.0, 0.0, 1.0),
+        (1.0, 0.0, 1.0),
+        (1.0, 0.0, 0.0),
+        (1.0, 0.0, 1.0),
+        (0.0, 0.0, 1.0),
+    ),
+    "track_path_times": (1.0, 3.0, 1.0, 1.0, 3.0, 1.0),
+    "track_amplitude": (0.305, 0.0, 0.025),
+}
+
+_DELTA: dict[str, Any] = {
+    # An ABB IRB 360 size (``kinematics.DEFAULT_DELTA``), plate below the base (z < 0). Motors turn 1 rad/s at a unit
+    # action, within −0.6 to 1.7 rad (0: arm horizontal, positive down). Tasks in a 0.8 m square, 0.45 m deep
+    # around the home (every arm 30° down, z = −1.354 m); the plate must stay within ±0.6 m, z −1.6 to −0.85 m.
+    "robot": "delta",
+    "stroke_limits": (-0.6, 1.7),
+    "max_rate": 1.0,
+    "pose_low": (-0.75, -0.75, -1.8),
+    "pose_high": (0.75, 0.75, -0.85),
+    "sample_low": (-0.6, -0.6, -1.7),
+    "sample_high": (0.6, 0.6, -1.0),
+    "min_distance": 0.1,
+    "stroke_margin": 0.05,
+    "track_period": 4.0,
+    "hard_kind": "ill_conditioned",
+}
+
+_PLANAR_3RRR: dict[str, Any] = {
+    # ``kinematics.Planar3RRR()`` (base radius 0.25 m, cranks and links 0.14 m, elbows "−−−"): cranks turn
+    # 0.5 rad/s at a unit action within −2.2 to 0.6 rad. Tasks within ±0.1 m and φ ±0.7 rad, where a band of
+    # Type II singularities (the links' lines concurrent) lies near φ ≈ 0.3–0.6 rad.
+    "robot": "planar_3rrr",
+    "stroke_limits": (-2.2, 0.6),
+    "max_rate": 0.5,
+    "pose_low": (-0.125, -0.125, -0.9),
+    "pose_high": (0.125, 0.125, 0.9),
+    "sample_low": (-0.1, -0.1, -0.7),
+    "sample_high": (0.1, 0.1, 0.7),
+    "stroke_margin": 0.05,
+}
+
 #: Documented defaults of the robots with registered ids: constructor keyword arguments of the envs.
 ROBOT_PRESETS: dict[str, dict[str, Any]] = {
     # A symmetric 6-6 hexapod (``kinematics.StewartGough()``): base radius 0.5 m, platform radius 0.3 m, legs
@@ -168,6 +232,11 @@ ROBOT_PRESETS: dict[str, dict[str, Any]] = {
         "sample_high": (0.12, 0.12, 0.62, 0.3, 0.3, 1.45),
         "hard_kind": "ill_conditioned",
     },
+    "delta": _DELTA,
+    "delta_track": {**_DELTA, **ADEPT_CYCLE},
+    "planar_3rrr": _PLANAR_3RRR,
+    # ``kinematics.Planar3PRR()``: sliders along the base triangle's sides at 0.1 m/s; bounds around its home.
+    "planar_3prr": {"robot": "planar_3prr"},
 }
 
 
@@ -230,20 +299,16 @@ class FamilyOutcome(NamedTuple):
 
 
 def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
-    if params.robot.pose_space.name == "translational":
-        # The compiled step runs translational robots (``transition``, ``initial_state``); the observation, the
-        # controllers' decoding and the HER view know planar and spatial poses only, so no env is built for them.
-        raise ValueError(
-            "the family's environments take planar or spatial robots; translational robots (such as the Delta) are "
-            f"stepped by envs.family.transition but have no environment yet, got {type(params.robot).__name__}"
-        )
     n = params.robot.n_actuators
+    space = params.robot.pose_space.name
     low_p, high_p = np.array(params.pose_low), np.array(params.pose_high)
-    d = 3 if params.spatial else 2
+    d = 2 if space == "planar" else 3
     span = high_p[:d] - low_p[:d]
-    if params.spatial:
+    if space == "spatial":
         code_lo, code_hi = [0.0, -1.0, -1.0, -1.0], [1.0, 1.0, 1.0, 1.0]
         rot_err = [np.pi] * 3
+    elif space == "translational":
+        code_lo, code_hi, rot_err = [], [], []
     else:
         code_lo, code_hi = [-1.0, -1.0], [1.0, 1.0]
         rot_err = [np.pi]
@@ -253,13 +318,31 @@ def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.n
     high = [*pose_hi, *pose_hi, *span, *rot_err, *[1.0] * (2 * n), 1.0]
     if with_velocity:
         # |ẋ*_j| ≤ a_j ω; coordinates that do not move keep a small non-empty range (Gymnasium's checker).
-        v_max = np.maximum(np.array(params.track_amplitude) * 2.0 * np.pi / params.track_period, 1e-3)
+        v_max = np.maximum(_track_speed_bounds(params), 1e-3)
         low += list(-v_max)
         high += list(v_max)
     low_arr, high_arr = np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
     low_arr.setflags(write=False)
     high_arr.setflags(write=False)
     return low_arr, high_arr
+
+
+def _track_speed_bounds(params: FamilyParams) -> np.ndarray:
+    """Largest |ẋ*_j| of a Track reference, shape (m,).
+
+    a_j ω for sinusoids; for a path, the peak rate of its cosine profile on each segment, π |a_j ΔW_j| / (2 D_k),
+    with the first two coordinates' norm for both (any heading).
+    """
+    amplitude = np.array(params.track_amplitude)
+    if not params.track_path:
+        return amplitude * 2.0 * np.pi / params.track_period
+    path = np.array(params.track_path)
+    times = np.array(params.track_path_times) / np.sum(params.track_path_times) * params.track_period
+    step = (np.roll(path, -1, axis=0) - path) * amplitude
+    peak = np.pi * np.abs(step) / (2.0 * times[:, None])
+    if len(amplitude) >= 2:
+        peak[:, :2] = np.pi * np.linalg.norm(step[:, :2], axis=1, keepdims=True) / (2.0 * times[:, None])
+    return peak.max(axis=0)
 
 
 def observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -493,11 +576,31 @@ def _vector(name: str, value: Any, size: int) -> tuple[float, ...]:
     return tuple(float(v) for v in arr)
 
 
+def _track_path(path: Any, times: Any, m: int) -> tuple[tuple[tuple[float, ...], ...], tuple[float, ...]]:
+    """Validate a polyline Track reference: 2–8 vertices of m finite values and as many positive time shares."""
+    if len(path) == 0 and len(times) == 0:
+        return (), ()
+    vertices = np.asarray(path, dtype=np.float64)
+    if vertices.ndim != 2 or vertices.shape[1] != m or not 2 <= len(vertices) <= fk.PATH_VERTICES:
+        raise ValueError(
+            f"track_path must hold 2 to {fk.PATH_VERTICES} vertices of {m} values, got shape {vertices.shape}"
+        )
+    shares = np.asarray(times, dtype=np.float64)
+    if shares.shape != (len(vertices),) or not np.all(np.isfinite(shares)) or not np.all(shares > 0):
+        raise ValueError(
+            f"track_path_times must be {len(vertices)} positive shares (one per segment), got {tuple(np.ravel(times))}"
+        )
+    if not np.all(np.isfinite(vertices)):
+        raise ValueError(f"track_path must be finite, got {vertices.tolist()}")
+    return tuple(tuple(map(float, v)) for v in vertices), tuple(map(float, shares))
+
+
 def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwargs: Any) -> FamilyParams:
     """Validate constructor arguments into ``FamilyParams``; a robot without bounds gets ones around its home pose.
 
     Args:
-        robot: The mechanism (default ``StewartGough()``).
+        robot: The mechanism, or the name of one with its default geometry (a key of ``ROBOTS``); default
+            ``StewartGough()``.
         **kwargs: Fields of ``FamilyParams``.
 
     Returns:
@@ -509,6 +612,10 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     """
     if robot is None:
         robot = StewartGough()
+    if isinstance(robot, str):
+        if robot not in ROBOTS:
+            raise ValueError(f"robot must be a DistanceConstraintMechanism or one of {sorted(ROBOTS)}, got {robot!r}")
+        robot = ROBOTS[robot]()
     if not isinstance(robot, DistanceConstraintMechanism):
         raise TypeError(f"robot must be a kinematics.DistanceConstraintMechanism, got {type(robot).__name__}")
     m = robot.n_pose
@@ -517,7 +624,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         # Bounds of the spatial defaults do not fit: derive them from the robot's home pose.
         home = robot.home_pose()
         reach = 0.5 * float(np.mean(np.linalg.norm(robot.base - robot.base.mean(axis=0), axis=1)))
-        half = np.array([reach, reach, 0.6])
+        half = np.array([reach, reach, 0.6 if robot.pose_space.name == "planar" else reach])
         kwargs.setdefault("pose_low", tuple(home - half))
         kwargs.setdefault("pose_high", tuple(home + half))
         kwargs.setdefault("sample_low", tuple(home - 0.6 * half))
@@ -553,6 +660,9 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         )
     if robot.pose_space.name == "spatial" and max(map(abs, values["pose_low"][3:] + values["pose_high"][3:])) >= 2.5:
         raise ValueError("rotation-vector bounds must stay within ±2.5 rad, away from the wrap at |r| = π")
+    values["track_path"], values["track_path_times"] = _track_path(
+        kwargs.get("track_path", ()), kwargs.get("track_path_times", ()), m
+    )
     hard_kind = kwargs.get("hard_kind", "detour")
     if hard_kind not in ("detour", "ill_conditioned"):
         raise ValueError(f"hard_kind must be 'detour' or 'ill_conditioned', got {hard_kind!r}")
@@ -939,7 +1049,7 @@ class FamilyTrackEnv(FamilyEnvBase):
         if found is None:
             raise RuntimeError(f"no safe reference found in the task box after {fk.SAMPLER_TRIES} tries")
         center, amplitude, phase = found
-        start = center + amplitude * np.sin(phase)
+        start, _ = fk.reference_batch(self.params.packed, np.zeros(n, dtype=np.int64), center, amplitude, phase)
         return start, FamilyReference(center, amplitude, phase)
 
 

@@ -44,12 +44,14 @@ from envs.numba_cache import drop_stale_caches
 __all__ = [
     "C_SIZE",
     "E_FIXED",
+    "PATH_VERTICES",
     "allocate_step",
     "evaluate_batch",
     "evaluation_rows",
     "initial_batch",
     "observation_layout",
     "pack_family",
+    "reference_batch",
     "safe_batch",
     "sample_reach_batch",
     "sample_track_batch",
@@ -85,6 +87,9 @@ from envs.family_layout import (
     C_NEWTON_TOL,
     C_OMEGA,
     C_P,
+    C_PATH,
+    C_PATH_T,
+    C_PATH_W,
     C_PENALTY,
     C_RATE,
     C_RK4,
@@ -106,6 +111,7 @@ from envs.family_layout import (
     C_WP,
     C_WS,
     C_WS1,
+    PATH_VERTICES,
 )
 
 drop_stale_caches(__file__, [family_layout.__file__, family_planar.__file__, kernels.__file__, linalg_kernels.__file__])
@@ -219,6 +225,13 @@ def pack_family(params) -> np.ndarray:
     c[C_HARD1] = params.actuator_hard_threshold
     c[C_SAFE1] = params.actuator_safe_threshold
     c[C_WS1] = params.actuator_singularity_weight
+    path = np.asarray(params.track_path, dtype=np.float64).reshape(-1, m)
+    if len(path):
+        c[C_PATH] = len(path)
+        for k, vertex in enumerate(path):
+            c[C_PATH_W + 6 * k : C_PATH_W + 6 * k + m] = vertex
+        c[C_PATH_T : C_PATH_T + len(path)] = np.cumsum(params.track_path_times) / np.sum(params.track_path_times)
+        c[C_PATH_T + len(path) - 1] = 1.0
     c.setflags(write=False)
     return c
 
@@ -245,10 +258,25 @@ def evaluation_rows(m: int) -> dict[str, int | slice]:
     }
 
 
-def observation_layout(spatial: bool, n: int, with_velocity: bool) -> dict[str, slice]:
-    """Slices of the observation vector (see ``envs.family.observation``)."""
-    pose = 7 if spatial else 4
-    m = 6 if spatial else 3
+#: Width of the pose code and number of pose coordinates m of each pose space: (x, y, cos φ, sin φ) and
+#: (x, y, φ); (p, quaternion) and (p, rotation vector); p and p.
+POSE_CODES = {"planar": (4, 3), "spatial": (7, 6), "translational": (3, 3)}
+
+
+def observation_layout(pose_space: str, n: int, with_velocity: bool) -> dict[str, slice]:
+    """Slices of the observation vector (see ``envs.family.FamilyReachEnv``).
+
+    Args:
+        pose_space: "planar", "spatial" or "translational" (a ``PoseSpace.name``).
+        n: Number of actuators.
+        with_velocity: Whether the observation ends with the target velocity (Track).
+
+    Returns:
+        name → slice: pose, target, error, strokes, stroke_error, k (and target_velocity).
+    """
+    if pose_space not in POSE_CODES:
+        raise ValueError(f"pose_space must be one of {sorted(POSE_CODES)}, got {pose_space!r}")
+    pose, m = POSE_CODES[pose_space]
     names = [("pose", pose), ("target", pose), ("error", m), ("strokes", n), ("stroke_error", n), ("k", 1)]
     if with_velocity:
         names.append(("target_velocity", m))
@@ -947,19 +975,71 @@ def initial_batch(c, x):
 
 
 @_jit
-def _reference(c, t, center, amplitude, phase, i, o_pose, o_velocity):
-    """Target pose x*_j = c_j + a_j sin(ω t dt + θ_j) and its rate a_j ω cos(…) of robot i at step t."""
-    omega = c[C_OMEGA]
-    tau = omega * t * c[C_DT]
-    for j in range(int(c[C_N])):
+def _reference_at(c, tau, center, amplitude, phase, i, o_pose, o_velocity):
+    """Target pose and rate of robot i at the angle τ = ω t [rad] of its reference (``envs.family.FamilyReference``).
+
+    Sinusoids (C_PATH = 0): x*_j = c_j + a_j sin(τ + θ_j). A polyline path of K vertices W_k: the period is cut
+    into K segments (W_k → W_k+1 mod K, ending at the fractions C_PATH_T of the period, shifted by θ_0 / 2π);
+    on a segment the point moves with the cosine profile s = (1 − cos πu) / 2 of its time fraction u (at rest at
+    every vertex, the rate continuous) through the offsets d_j = a_j (W_kj + s (W_k+1,j − W_kj)), and
+    x* = c + d with (d_0, d_1) turned by the heading ψ = θ_1 in their plane.
+    """
+    m = int(c[C_N])
+    count = int(c[C_PATH])
+    if count == 0:
+        omega = c[C_OMEGA]
+        for j in range(m):
+            a = amplitude[i, j]
+            if a == 0.0:
+                o_pose[j] = center[i, j]
+                o_velocity[j] = 0.0
+            else:
+                u = tau + phase[i, j]
+                o_pose[j] = center[i, j] + a * math.sin(u)
+                o_velocity[j] = a * omega * math.cos(u)
+        return
+    f = (tau + phase[i, 0]) / _TWO_PI
+    f -= math.floor(f)
+    k = 0
+    while k < count - 1 and f >= c[C_PATH_T + k]:
+        k += 1
+    begin = 0.0 if k == 0 else c[C_PATH_T + k - 1]
+    duration = (c[C_PATH_T + k] - begin) * _TWO_PI / c[C_OMEGA]  # [s]
+    u = min(max((f - begin) * _TWO_PI / c[C_OMEGA] / duration, 0.0), 1.0)
+    s = 0.5 - 0.5 * math.cos(math.pi * u)
+    rate = 0.5 * math.pi * math.sin(math.pi * u) / duration
+    nxt = 0 if k == count - 1 else k + 1
+    for j in range(m):
+        w0, w1 = c[C_PATH_W + 6 * k + j], c[C_PATH_W + 6 * nxt + j]
         a = amplitude[i, j]
-        if a == 0.0:
-            o_pose[j] = center[i, j]
-            o_velocity[j] = 0.0
-        else:
-            u = tau + phase[i, j]
-            o_pose[j] = center[i, j] + a * math.sin(u)
-            o_velocity[j] = a * omega * math.cos(u)
+        o_pose[j] = a * (w0 + s * (w1 - w0))
+        o_velocity[j] = a * (w1 - w0) * rate
+    cs, sn = math.cos(phase[i, 1]), math.sin(phase[i, 1])
+    d0, d1 = o_pose[0], o_pose[1]
+    o_pose[0], o_pose[1] = cs * d0 - sn * d1, sn * d0 + cs * d1
+    v0, v1 = o_velocity[0], o_velocity[1]
+    o_velocity[0], o_velocity[1] = cs * v0 - sn * v1, sn * v0 + cs * v1
+    for j in range(m):
+        o_pose[j] += center[i, j]
+
+
+@_jit
+def _reference(c, t, center, amplitude, phase, i, o_pose, o_velocity):
+    """Target pose and its rate of robot i at step t (``_reference_at`` at τ = ω t dt)."""
+    _reference_at(c, c[C_OMEGA] * t * c[C_DT], center, amplitude, phase, i, o_pose, o_velocity)
+
+
+@_jit
+def _reference_loop(c, t, center, amplitude, phase, o_pose, o_velocity):
+    for i in range(center.shape[0]):
+        _reference(c, t[i], center, amplitude, phase, i, o_pose[i], o_velocity[i])
+
+
+def reference_batch(c, t, center, amplitude, phase):
+    """Target poses and rates of N references at steps t (shape (N,), int), each (N, m) (``_reference_at``)."""
+    o_pose, o_velocity = np.empty(center.shape), np.empty(center.shape)
+    _reference_loop(c, np.asarray(t, dtype=np.int64), center, amplitude, phase, o_pose, o_velocity)
+    return o_pose, o_velocity
 
 
 @_jit
@@ -1483,27 +1563,35 @@ def sample_reach_batch(c, streams, n, m, hard, min_distance):
 
 @_jit
 def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
-    """Fill references (centre, amplitude, phase) whose poses at ``n_check`` times of a period are all safe."""
+    """Fill references (centre, amplitude, phase) whose poses at ``n_check`` times of a period are all safe.
+
+    Sinusoids: a_j uniform in [½, 1] of ``max_amplitude`` and θ_j uniform. A path: a = ``max_amplitude``, θ_0 = 0
+    (the start at the first vertex) and the heading θ_1 = ψ uniform in [0, 2π) (see ``_reference_at``).
+    """
     m = int(c[C_N])
+    path = c[C_PATH] != 0.0
     shared = streams.shape[0] == 1
     w = np.empty((W_SIZE, 6))
-    strokes, point, previous = np.empty(6), np.empty(6), np.empty(6)
-    center, amplitude, phase = np.empty(6), np.empty(6), np.empty(6)
+    strokes, point, previous, rate = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
     for i in range(o_center.shape[0]):
         s = 0 if shared else i
         fn, st = streams[s, 0], streams[s, 1]
         done = False
         for _ in range(SAMPLER_TRIES):
-            if not _draw_safe(c, fn, st, w, strokes, center):
+            if not _draw_safe(c, fn, st, w, strokes, o_center[i]):
                 return i
             for j in range(m):
-                amplitude[j] = max_amplitude[j] * (0.5 + 0.5 * _next_double(fn, st))
-                phase[j] = _TWO_PI * _next_double(fn, st)
+                if path:
+                    o_amplitude[i, j] = max_amplitude[j]
+                    o_phase[i, j] = 0.0
+                else:
+                    o_amplitude[i, j] = max_amplitude[j] * (0.5 + 0.5 * _next_double(fn, st))
+                    o_phase[i, j] = _TWO_PI * _next_double(fn, st)
+            if path:
+                o_phase[i, 1] = _TWO_PI * _next_double(fn, st)
             ok = True
             for step in range(n_check + 1):
-                tau = _TWO_PI * step / n_check
-                for j in range(m):
-                    point[j] = center[j] + amplitude[j] * math.sin(tau + phase[j])
+                _reference_at(c, _TWO_PI * step / n_check, o_center, o_amplitude, o_phase, i, point, rate)
                 if step > 0 and _segment_min_k(c, previous, point, w, strokes, c[C_SAFE]) < c[C_SAFE]:
                     ok = False
                     break
@@ -1514,10 +1602,6 @@ def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_p
                 break
         if not done:
             return i
-        for j in range(m):
-            o_center[i, j] = center[j]
-            o_amplitude[i, j] = amplitude[j]
-            o_phase[i, j] = phase[j]
     return -1
 
 

@@ -54,7 +54,12 @@ C_BRANCH = 166  # inverse-kinematics branch (±1) of each crank and slider, 6 en
 C_HARD1 = 172  # actuator condition number (Type I measure) below which the episode terminates
 C_SAFE1 = 173  # actuator condition number below which the Type I penalty and the cost start
 C_WS1 = 174  # weight of the Type I penalty
-C_SIZE = 175
+# -- the Track reference's path: sinusoids (C_PATH = 0) or a closed polyline of up to 8 vertices ----------------
+C_PATH = 175  # number of vertices K of the path (0: x*_j = c_j + a_j sin(ω t + θ_j))
+C_PATH_W = 176  # vertices W_k, normalised (x*_j = c_j + a_j W_kj at vertex k), 8 × 6 entries
+C_PATH_T = 224  # the fraction of the period at which segment k → k + 1 (mod K) ends, 8 entries (the last is 1)
+C_SIZE = 232
+PATH_VERTICES = 8  # most vertices of a polyline path
 
 # Termination reason codes (the order of ``envs.core.TERMINATION_REASONS``).
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5

@@ -22,24 +22,24 @@ from envs.family_kernels import observation_layout
 __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]
 
 
-def goal_free_index(spatial: bool, n: int) -> np.ndarray:
+def goal_free_index(pose_space: str, n: int) -> np.ndarray:
     """Entries of the flat observation that do not depend on the goal: pose code, normalised strokes and k.
 
     The layout is ``envs.family_kernels.observation_layout``, which the 3-RPR's ``core.observation`` shares.
 
     Args:
-        spatial: Whether the pose space is spatial.
+        pose_space: "planar", "spatial" or "translational".
         n: Number of actuators.
 
     Returns:
         Indices into the observation vector, int array.
     """
-    layout = observation_layout(spatial, n, False)
+    layout = observation_layout(pose_space, n, False)
     return np.concatenate([np.arange(layout[name].start, layout[name].stop) for name in ("pose", "strokes", "k")])
 
 
 #: The 3-RPR's goal-free entries: pose (x, y, cos φ, sin φ), the normalised strokes and k.
-OBSERVATION_INDEX = goal_free_index(False, 3)
+OBSERVATION_INDEX = goal_free_index("planar", 3)
 
 
 class GoalReachWrapper(gym.Wrapper):
@@ -65,7 +65,7 @@ class GoalReachWrapper(gym.Wrapper):
         self.params = base.params
         self._physics = base.physics
         self._n = base.action_space.shape[0]
-        self._index = goal_free_index(self.params.robot.pose_space.name == "spatial", self._n)
+        self._index = goal_free_index(self.params.robot.pose_space.name, self._n)
         flat = env.observation_space
         goal_low = np.array(self.params.pose_low, dtype=np.float32)
         goal_high = np.array(self.params.pose_high, dtype=np.float32)

@@ -323,7 +323,7 @@ class _PlannerWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
         self.follower = PathFollower(base.params, lookahead)
         box = env.observation_space
-        error = observation_layout(False, 3, False)["error"]
+        error = observation_layout("planar", 3, False)["error"]
         self._low, self._high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
         self.observation_space = spaces.Box(
             np.concatenate([box.low, box.low[error], extra_low]).astype(np.float32),

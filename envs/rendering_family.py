@@ -51,15 +51,16 @@ def _framed_box(robot: Any, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarr
     """Corners (lo, hi) [m], shape (d,), of the box holding the base anchors and the platforms in the bounds.
 
     The position bounds are widened by the platform's radius horizontally and by half of it vertically (a
-    platform tilted by up to 30°).
+    platform tilted by up to 30°), the base by the longest crank.
     """
     d = robot.pose_space.point_dim
     reach = np.full(d, float(np.max(np.linalg.norm(robot.platform, axis=1))))
     if d == 3:
         reach[2] *= 0.5
     base = np.asarray(robot.base)
-    lo = np.minimum(low[:d] - reach, base.min(axis=0))
-    hi = np.maximum(high[:d] + reach, base.max(axis=0))
+    arm = float(np.max(robot.crank_radii))  # the cranks' elbows swing this far around their motors
+    lo = np.minimum(low[:d] - reach, base.min(axis=0) - arm)
+    hi = np.maximum(high[:d] + reach, base.max(axis=0) + arm)
     return lo, hi
 
 
@@ -191,8 +192,13 @@ def _draw_spatial(
     box: tuple[np.ndarray, np.ndarray],
     trail: np.ndarray,
     size: int,
+    anchors: np.ndarray | None = None,
 ) -> None:
-    """Perspective drawing, far things first: ground grid, base, legs and platform by depth, then trail and triads."""
+    """Perspective drawing, far things first: ground grid, base, legs and platform by depth, then trail and triads.
+
+    With ``anchors`` (cranks' elbows or sliders' carriages, shape (n, 3) [m]) each leg is drawn as its actuator's
+    part B_i → A_i in grey and its link A_i → P_i in the conditioning colour.
+    """
     lo, hi = box
     camera = _Camera(lo, hi, size)
     line, dot = max(2, size // 120), max(3, size // 120)
@@ -214,12 +220,15 @@ def _draw_spatial(
         draw.ellipse([u - dot, v - dot, u + dot, v + dot], fill=_BASE)
 
     platform, platform_depth = camera(robot.platform_points_in_base(x, validate=False))
-    leg_depth = (base_depth + platform_depth) / 2.0
+    starts, start_depth = (base, base_depth) if anchors is None else camera(anchors)
+    leg_depth = (start_depth + platform_depth) / 2.0
     centre_depth = float(np.mean(platform_depth))
     order = np.argsort(-leg_depth)
 
     def draw_leg(i: int) -> None:
-        draw.line([tuple(base[i]), tuple(platform[i])], fill=color, width=2 * line + 1)
+        if anchors is not None:
+            draw.line([tuple(base[i]), tuple(starts[i])], fill=_BASE, width=2 * line + 1)
+        draw.line([tuple(starts[i]), tuple(platform[i])], fill=color, width=2 * line + 1)
         u, v = platform[i]
         draw.ellipse([u - dot, v - dot, u + dot, v + dot], fill=_BASE)
 
@@ -268,9 +277,9 @@ def render_family_frame(
     and the view bounds only, so that frames of one episode share a camera.
 
     Args:
-        robot: A ``kinematics.DistanceConstraintMechanism`` with ``pose_space.name`` "planar" or "spatial".
+        robot: A ``kinematics.DistanceConstraintMechanism`` (pose space planar, spatial or translational).
         x: Platform pose of {P} in {B}, shape (m,): planar (x [m], y [m], φ [rad]); spatial (p [m],
-            rotation vector r [rad]).
+            rotation vector r [rad]); translational (p [m], drawn as the spatial ones with R = I).
         target: Target pose, shape (m,), same convention.
         inverse_condition: Homogeneous inverse condition number k in [0, 1] (printed and used for the legs'
             colour, see ``leg_color``).
@@ -283,7 +292,7 @@ def render_family_frame(
         step: Step index to print, if given.
         size: Side of the square image [px], at least 32.
         q: Actuator coordinates, shape (n,); with cranks or sliders they place the elbows or carriages (default:
-            the robot's inverse kinematics of x, on its chosen branches). Planar robots only draw them.
+            the robot's inverse kinematics of x, on its chosen branches).
 
     Returns:
         The frame, uint8 of shape (size, size, 3).
@@ -293,8 +302,8 @@ def render_family_frame(
             order, empty view bounds or a size below 32.
     """
     space = robot.pose_space
-    if space.name not in ("planar", "spatial"):
-        raise ValueError(f"robot.pose_space.name must be 'planar' or 'spatial', got {space.name!r}")
+    if space.name not in ("planar", "spatial", "translational"):
+        raise ValueError(f"robot.pose_space.name must be 'planar', 'spatial' or 'translational', got {space.name!r}")
     m, d = space.n_pose, space.point_dim
     x, target = _pose("x", x, m), _pose("target", target, m)
     low, high = _pose("view_low", view_low, m), _pose("view_high", view_high, m)
@@ -313,14 +322,14 @@ def render_family_frame(
     draw = ImageDraw.Draw(image)
     color = leg_color(inverse_condition, safe_threshold, hard_threshold)
     box = _framed_box(robot, low, high)
+    anchors = None
+    if any(kind != "leg" for kind in robot.actuator_kinds):
+        strokes = robot.inverse_kinematics(x, validate=False) if q is None else np.asarray(q, dtype=np.float64)
+        anchors = robot.anchors(strokes, validate=False)
     if space.name == "planar":
-        anchors = None
-        if any(kind != "leg" for kind in robot.actuator_kinds):
-            strokes = robot.inverse_kinematics(x, validate=False) if q is None else np.asarray(q, dtype=np.float64)
-            anchors = robot.anchors(strokes, validate=False)
         _draw_planar(draw, robot, x, target, color, box, trail_points, size, anchors)
     else:
-        _draw_spatial(draw, robot, x, target, color, box, trail_points, size)
+        _draw_spatial(draw, robot, x, target, color, box, trail_points, size, anchors)
 
     text = f"k = {float(inverse_condition):.3f}"
     if step is not None:

@@ -123,12 +123,17 @@ def test_stroke_limits_of_cranks_may_be_negative_but_legs_not() -> None:
         family.build_family_params(Delta(), actuator_hard_threshold=0.2, actuator_safe_threshold=0.1)
 
 
-def test_no_environment_for_a_translational_robot_yet() -> None:
-    """The Delta steps through the physics, but an env of it would have no valid observation: a clear error."""
+def test_a_delta_given_as_data_gets_an_environment() -> None:
+    """A translational robot's observation: p, p*, p* − p, strokes, stroke errors, k (no rotation code)."""
     import gymnasium as gym
 
-    with pytest.raises(ValueError, match=r"translational robots .* have no environment yet, got Delta"):
-        gym.make("StewartGoughReach-v0", robot=Delta())
+    env = gym.make("StewartGoughReach-v0", robot=Delta(), max_rate=1.0)
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (3 + 3 + 3 + 3 + 3 + 1,)
+    np.testing.assert_allclose(obs[:3], info["pose"], atol=1e-6)
+    np.testing.assert_allclose(obs[3:6], info["target"], atol=1e-6)
+    np.testing.assert_allclose(obs[6:9], info["target"] - info["pose"], atol=1e-6)
+    assert info["orientation_error"] == 0.0
 
 
 @pytest.mark.parametrize("name", ["3rrr", "3prr"])

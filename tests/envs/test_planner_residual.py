@@ -13,7 +13,7 @@ import envs
 from envs.controllers import PlannerController
 from envs.family_kernels import observation_layout
 
-ERROR = observation_layout(False, 3, False)["error"]
+ERROR = observation_layout("planar", 3, False)["error"]
 
 
 def test_residual_wrapper_passes_the_checker_and_extends_the_observation():

@@ -13,7 +13,7 @@ import envs
 from envs.family_kernels import observation_layout
 from envs.tasks import segment_min_condition
 
-ERROR = observation_layout(False, 3, False)["error"]
+ERROR = observation_layout("planar", 3, False)["error"]
 
 
 def test_mixed_targets_draw_both_kinds():
