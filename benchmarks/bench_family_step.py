@@ -1,15 +1,16 @@
-"""Benchmark env.step of StewartGoughReach-v0 against Pendulum-v1 and MuJoCo's Reacher-v5, all through gym.make.
+"""Benchmark env.step of the family's robots against Pendulum-v1 and MuJoCo's Reacher-v5, all through gym.make.
 
 Run with ``python -m benchmarks.bench_family_step [--steps 20000] [--rounds 5] [--profile]``.
 Anchors, timed in the same run: Gymnasium's ``Pendulum-v1`` and MuJoCo's ``Reacher-v5`` (the ``bench`` extra:
 ``pip install -e ".[bench]"``; without MuJoCo the script says so and times the rest). ``Planar3RPRReach-v0``
-is timed too, so that one run shows both robots against Pendulum.
+is timed too, and the crank-driven ``DeltaReach-v0`` and ``Planar3RRRReach-v0``, so that one run shows every
+robot against Pendulum.
 Protocol (``bench_env_step``'s): every environment is made with its default wrappers (order enforcing,
 passive checker, time limit); actions are drawn in advance from each action space; resets on termination or
 truncation are part of the timed loop; 500 warm-up steps; the environments take turns over the rounds, the
 order reversed every other round (A B C D, D C B A, …) so that a change of machine load affects them alike;
 the median over the rounds is reported in microseconds per step.
-Targets: hexapod / Pendulum ≤ 1.5, hexapod / Reacher ≤ 1.0, Planar 3-RPR / Pendulum ≤ 1.0.
+Targets: hexapod / Pendulum ≤ 1.5, hexapod / Reacher ≤ 1.0, Planar 3-RPR, Delta and 3-RRR / Pendulum ≤ 1.0.
 """
 
 from __future__ import annotations
@@ -28,10 +29,18 @@ from benchmarks.bench_env_step import SteppedEnv, profile
 
 HEXAPOD = "StewartGoughReach-v0"
 PLANAR = "Planar3RPRReach-v0"
+DELTA = "DeltaReach-v0"
+RRR = "Planar3RRRReach-v0"
 PENDULUM = "Pendulum-v1"
 REACHER = "Reacher-v5"
 #: (subject, anchor, largest ratio subject / anchor of the median times per step).
-TARGETS = ((HEXAPOD, PENDULUM, 1.5), (HEXAPOD, REACHER, 1.0), (PLANAR, PENDULUM, 1.0))
+TARGETS = (
+    (HEXAPOD, PENDULUM, 1.5),
+    (HEXAPOD, REACHER, 1.0),
+    (PLANAR, PENDULUM, 1.0),
+    (DELTA, PENDULUM, 1.0),
+    (RRR, PENDULUM, 1.0),
+)
 WARM_UP_STEPS = 500
 
 
@@ -51,7 +60,7 @@ def main(argv: list[str] | None = None) -> None:
     """Time the environments in alternating rounds and print the medians, the ratios and the targets."""
     args = parse_positive(step_parser(__doc__, "the hexapod"), argv, "steps", "rounds")
 
-    steppers = [SteppedEnv(env_id, args.steps, args.seed) for env_id in (HEXAPOD, PLANAR, PENDULUM)]
+    steppers = [SteppedEnv(env_id, args.steps, args.seed) for env_id in (HEXAPOD, PLANAR, DELTA, RRR, PENDULUM)]
     reacher, reacher_note = make_reacher(args.steps, args.seed)
     if reacher is not None:
         steppers.append(reacher)

@@ -8,7 +8,8 @@ seed and fed random actions (uniform in [−1, 1], drawn in advance); autoresets
 2 warm-up steps; at each N the native env and the anchor take turns over the rounds (native, Sync, Sync,
 native, …) and the median env-steps per second of each is reported, with the ratio native / Sync. The
 "sampling share" is the part of the native step spent starting new episodes.
-Targets at N = 16384: ≥ 0.6 M env-steps/s for the hexapod, ≥ 2.5 M for the Planar 3-RPR.
+Targets at N = 16384: ≥ 0.6 M env-steps/s for the hexapod, ≥ 2.5 M for the Planar 3-RPR, ≥ 2 M for the Delta
+(``DeltaReach-v0``) and the 3-RRR (``Planar3RRRReach-v0``).
 """
 
 from __future__ import annotations
@@ -33,7 +34,12 @@ SIZES = (1024, 16384)
 ANCHOR_N = 1024
 TARGET_N = 16384
 #: Least native env-steps per second at N = TARGET_N, by env id.
-TARGET_RATES = {HEXAPOD: 600_000.0, PLANAR: 2_500_000.0}
+TARGET_RATES = {
+    HEXAPOD: 600_000.0,
+    PLANAR: 2_500_000.0,
+    "DeltaReach-v0": 2_000_000.0,
+    "Planar3RRRReach-v0": 2_000_000.0,
+}
 
 
 def main(argv: list[str] | None = None) -> None:

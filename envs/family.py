@@ -186,8 +186,9 @@ ADEPT_CYCLE: dict[str, Any] = {
 
 _DELTA: dict[str, Any] = {
     # An ABB IRB 360 size (``kinematics.DEFAULT_DELTA``), plate below the base (z < 0). Motors turn 1 rad/s at a unit
-    # action, within −0.6 to 1.7 rad (0: arm horizontal, positive down). Tasks in a 0.8 m square, 0.45 m deep
-    # around the home (every arm 30° down, z = −1.354 m); the plate must stay within ±0.6 m, z −1.6 to −0.85 m.
+    # action, within −0.6 to 1.7 rad (0: arm horizontal, positive down). Tasks in a 1.2 m square, 0.7 m deep
+    # (z −1.7 to −1.0 m; the home, every arm 30° down, is at z = −1.354 m); the plate must stay within ±0.75 m,
+    # z −1.8 to −0.85 m. Its Type II zone (k < 0.1) is the outer, lower edge of that box: hard targets are there.
     "robot": "delta",
     "stroke_limits": (-0.6, 1.7),
     "max_rate": 1.0,
@@ -199,6 +200,8 @@ _DELTA: dict[str, Any] = {
     "stroke_margin": 0.05,
     "track_period": 4.0,
     "hard_kind": "ill_conditioned",
+    # Substeps of up to 3 cm of predicted motion (1 cm for the smaller robots): 2.5 % of the 1.24 m forearms.
+    "max_substep": 0.03,
 }
 
 _PLANAR_3RRR: dict[str, Any] = {
@@ -549,7 +552,7 @@ def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) 
     """
     info = planar_step_info(None, evaluation, reason, params.evaluation_rows)
     rows = params.evaluation_rows
-    for name in ("reward_actuator_singularity", "actuator_condition_number"):
+    for name in ("reward_actuator_singularity", "actuator_condition_number", "cost_actuator_singularity"):
         info[name] = evaluation[rows[name]].copy()
     return info
 
@@ -734,6 +737,26 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
 # -- the environments ----------------------------------------------------------------------------------------
 
 
+#: The scalar entries of a single env's ``info``, in order; "is_success" becomes a bool, then come
+#: "termination_reason", "pose" and "target", then the Type I entries (``_TYPE_I_INFO``).
+_INFO_SCALARS = (
+    "reward_tracking",
+    "reward_singularity",
+    "reward_action",
+    "reward_termination",
+    "position_error",
+    "orientation_error",
+    "inverse_condition_number",
+    "constraint_residual",
+    "is_success",
+    "cost",
+    "reward_actuator_singularity",
+    "actuator_condition_number",
+    "cost_actuator_singularity",
+)
+_TYPE_I_INFO = ("reward_actuator_singularity", "actuator_condition_number", "cost_actuator_singularity")
+
+
 class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
     """Shared machinery of the single-robot family environments; see ``FamilyReachEnv`` for the documentation."""
 
@@ -756,7 +779,10 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._next = 0
         self._terminated = False
         self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
-        self._reward_row = params.evaluation_rows["reward"]
+        rows = params.evaluation_rows
+        self._reward_row = rows["reward"]
+        self._info_rows = tuple((name, rows[name]) for name in _INFO_SCALARS)
+        self._pose_rows, self._target_rows = rows["pose"], rows["target"]
 
     #: The pure functions of this env's physics (the shield and the HER view call them).
     physics = None  # set below to this module
@@ -774,7 +800,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._state = initial_state(self.params, start, reference)
         self._terminated = False
         self._trail.clear()
-        self._trail.append(self.params.robot.pose_space.position(self._state.x[0]).copy())
+        if self.render_mode is not None:  # the trail is drawn only
+            self._trail.append(self.params.robot.pose_space.position(self._state.x[0]).copy())
         n = self.params.robot.n_actuators
         evaluation, observations = evaluate(
             self.params, self._state, np.zeros((1, n)), np.zeros(1, dtype=np.int64), self.with_velocity
@@ -804,7 +831,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._terminated = reason != 0
         row = evaluation[:, 0]
         info = self._info(row, reason)
-        self._trail.append(self.params.robot.pose_space.position(info["pose"]).copy())
+        if self.render_mode is not None:
+            self._trail.append(self.params.robot.pose_space.position(info["pose"]).copy())
         return observations[0].copy(), float(row[self._reward_row]), self._terminated, False, info
 
     def render(self):
@@ -840,25 +868,15 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         return None if self._state is None else copy_state(self._state)
 
     def _info(self, row: np.ndarray, reason: int) -> dict[str, Any]:
-        rows = self.params.evaluation_rows
         v = row.tolist()
-        return {
-            "reward_tracking": v[rows["reward_tracking"]],
-            "reward_singularity": v[rows["reward_singularity"]],
-            "reward_action": v[rows["reward_action"]],
-            "reward_termination": v[rows["reward_termination"]],
-            "position_error": v[rows["position_error"]],
-            "orientation_error": v[rows["orientation_error"]],
-            "inverse_condition_number": v[rows["inverse_condition_number"]],
-            "constraint_residual": v[rows["constraint_residual"]],
-            "is_success": v[rows["is_success"]] != 0.0,
-            "cost": v[rows["cost"]],
-            "termination_reason": TERMINATION_REASONS[reason],
-            "pose": row[rows["pose"]].copy(),
-            "target": row[rows["target"]].copy(),
-            "reward_actuator_singularity": v[rows["reward_actuator_singularity"]],
-            "actuator_condition_number": v[rows["actuator_condition_number"]],
-        }
+        info = {name: v[index] for name, index in self._info_rows}
+        info["is_success"] = info["is_success"] != 0.0
+        info["termination_reason"] = TERMINATION_REASONS[reason]
+        info["pose"] = row[self._pose_rows].copy()
+        info["target"] = row[self._target_rows].copy()
+        for name in _TYPE_I_INFO:
+            info[name] = info.pop(name)
+        return info
 
     def sample_tasks(
         self, generators: Sequence[np.random.Generator], options: dict[str, Any]
@@ -872,7 +890,7 @@ _ARGUMENTS_DOC = """
     | Parameter | Type | Default | Description |
     |-----------|------|---------|-------------|
     | `render_mode` | str or None | `None` | "rgb_array" (headless) |
-    | `robot` | DistanceConstraintMechanism or None | `None` | the robot; None: `StewartGough()` |
+    | `robot` | mechanism, str or None | `None` | the robot or a name of `ROBOTS`; None: `StewartGough()` |
     | `stroke_limits` | (float, float) | `(0.45, 0.75)` | actuator limits: leg lengths [m], crank angles [rad] |
     | `dt` | float | `0.05` | control period [s] |
     | `max_rate` | float | `0.1` | stroke rate of a unit action [m/s] |
@@ -895,6 +913,8 @@ _ARGUMENTS_DOC = """
     | `success_orientation_tolerance` | float | `0.05` | [rad] |
     | `track_period` | float | `8.0` | Track reference period [s] |
     | `track_amplitude` | sequence of m floats | `(0.05, 0.0, 0.04, 0.0, 0.1, 0.0)` | largest amplitudes [m, rad] |
+    | `track_path` | sequence of m-tuples | `()` | vertices of a polyline Track reference (units of the amplitudes) |
+    | `track_path_times` | sequence of floats | `()` | share of the period of each segment of the path |
     | `hard_kind` | str | `"detour"` | "detour" or "ill_conditioned" hard targets |
     | `**kwargs` | | | any other field of `FamilyParams` (Newton, substeps, margins) |
 
@@ -914,6 +934,12 @@ class FamilyReachEnv(FamilyEnvBase):
     motion). Near a Type II singularity (J_x singular; for the hexapod, Fichter's: centred and turned by
     ±90° about the vertical) small stroke rates give huge platform motion.
 
+    Cranks and sliders (the Delta ``DeltaReach-v0``, the planar 3-RRR ``Planar3RRRReach-v0``, the 3-PRR
+    ``Planar3PRRReach-v0``; ``robot=`` takes a mechanism or a name of ``ROBOTS``) move their link's end
+    A_i(q_i) = B_i + a_i (cos q_i u_i + sin q_i v_i) + q_i e_i, Φ_i = ‖p + R P_i − A_i‖² − l_i², and bring Type I
+    singularities (J_q singular: a link in line with its crank or square to its rail), measured by the actuator
+    condition number k_I.
+
     ```
         ___P___      {P}: platform frame; pose x = (p [m], rotation vector r [rad]) of {P} in {B}
        /  / \\  \\     six legs B_i → P_i, lengths q_i actuated
@@ -921,7 +947,8 @@ class FamilyReachEnv(FamilyEnvBase):
     ```
 
     ## Action Space
-    `Box(-1, 1, (n,), float32)`: stroke rates q̇_i / max_rate (m/s); legs stop at `stroke_limits`.
+    `Box(-1, 1, (n,), float32)`: actuator rates q̇_i / max_rate (m/s for legs and sliders, rad/s for cranks);
+    actuators stop at `stroke_limits` (the joint limits).
 
     ## Observation Space
     `Box(low, high, (D,), float32)` with finite bounds; spatial robots (D = 33, or 39 with Track's velocity):
@@ -940,12 +967,14 @@ class FamilyReachEnv(FamilyEnvBase):
     | 33-38 | (Track) target velocity ẋ* = (ṗ*, ṙ*) | m/s, rad/s |
 
     Planar robots: (x, y, cos φ, sin φ), the target likewise, (x* − x, y* − y, wrap(φ* − φ)), strokes,
-    stroke errors, k (D = 18).
+    stroke errors, k (D = 18). Translational robots (the Delta): p, p*, p* − p, strokes, stroke errors, k (D = 16;
+    19 with Track's velocity).
 
     ## Rewards
     r = −(w_p ‖p* − p‖ + w_o ℓ_c θ_err) − w_s ((k_safe − k)/k_safe)² [k < k_safe] − w_a ‖a‖² − P [terminated],
-    with θ_err the angle of R* Rᵀ. Each term is in `info` and the reward is their sum; `info["cost"]` = 1
-    while k < k_safe.
+    − w_s1 ((k_I,safe − k_I)/k_I,safe)² [k_I < k_I,safe], with θ_err the angle of R* Rᵀ (the last term, Type I, is 0
+    for legs). Each term is in `info` and the reward is their sum; `info["cost"]` = 1 while k < k_safe or
+    k_I < k_I,safe, and `info["cost_actuator_singularity"]` = 1 while k_I < k_I,safe (the Type I part alone).
 
     ## Starting State
     Tasks are certified, not guessed (a 6-D pose space cannot be gridded): start and target are drawn
@@ -956,10 +985,12 @@ class FamilyReachEnv(FamilyEnvBase):
     only when that geodesic dips below `safe_threshold` (staying inside the box and the stroke limits) and a
     waypoint is found whose two geodesics
     start → waypoint → target are safe at the same spacing: a detour is known, the straight line is not safe.
-    With `hard_kind="ill_conditioned"` (the hexapod's `StewartGoughReachHard-v0`, whose workspace has no
-    detour tasks: k is quasi-concave there) a hard target lies in the ill-conditioned band
-    2 `hard_threshold` ≤ k < `safe_threshold`, toward Fichter's singularity, on a geodesic from a safe start that
-    keeps k ≥ 2 `hard_threshold`. `reset(options={"targets": "hard"})` switches for one episode.
+    With `hard_kind="ill_conditioned"` (the hexapod's `StewartGoughReachHard-v0` and the Delta's
+    `DeltaReachHard-v0`, whose workspaces have no detour tasks) a hard target lies in the ill-conditioned band
+    2 `hard_threshold` ≤ k < `safe_threshold` (toward Fichter's singularity; for the Delta, at the outer, lower edge
+    of its workspace), on a geodesic from a safe start that keeps k ≥ 2 `hard_threshold`. For cranks and sliders
+    "safe" and "k" here are min(k, k_I k_safe / k_I,safe): both kinds of singularity.
+    `reset(options={"targets": "hard"})` switches for one episode.
 
     ## Episode End
     Termination (penalty P), first applicable: `newton_failed`, `assembly_mode_change` (prediction and
@@ -1008,7 +1039,10 @@ class FamilyTrackEnv(FamilyEnvBase):
 
     ## Description
     As ``FamilyReachEnv``, but the target moves: x*_j(t) = c_j + a_j sin(2π t / track_period + θ_j) for each
-    pose coordinate. With the hexapod's defaults the reference combines surge (x, ≤ 5 cm), heave (z, ≤ 4 cm)
+    pose coordinate, or, with a `track_path`, along a closed polyline once per `track_period`, at rest at each
+    vertex (the Delta's `DeltaTrack-v0`: the adept cycle ``ADEPT_CYCLE``, 25 mm up, 305 mm across, 25 mm down
+    and back, in a random horizontal direction, every 4 s). With the hexapod's defaults the reference combines
+    surge (x, ≤ 5 cm), heave (z, ≤ 4 cm)
     and pitch (rotation about y, ≤ 0.1 rad): a motion-simulator cue. The centre, amplitudes (½–1 of
     `track_amplitude`) and phases are drawn so that the whole period stays in the safe set (checked at points
     ≤ 1 cm apart). The observation ends with the target velocity. Truncation after the registered 400 steps.

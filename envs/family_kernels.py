@@ -43,6 +43,7 @@ from envs.numba_cache import drop_stale_caches
 
 __all__ = [
     "C_SIZE",
+    "E_COST1",
     "E_FIXED",
     "PATH_VERTICES",
     "allocate_step",
@@ -148,7 +149,8 @@ W_SIZE = 48
 E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION, E_REWARD = 0, 1, 2, 3, 4
 E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_K, E_RESIDUAL = 5, 6, 7, 8, 9, 10
 E_ACTUATOR, E_K1 = 11, 12  # the Type I penalty and the actuator condition number (1 for legs)
-E_FIXED = 13
+E_COST1 = 13  # the Type I cost: 1 while the actuator condition number is below its safe threshold
+E_FIXED = 14
 
 #: Robots per chunk of a batch: each chunk allocates its work arrays once (a multiple of ``LANES``).
 CHUNK = 64
@@ -252,6 +254,7 @@ def evaluation_rows(m: int) -> dict[str, int | slice]:
         "constraint_residual": E_RESIDUAL,
         "reward_actuator_singularity": E_ACTUATOR,
         "actuator_condition_number": E_K1,
+        "cost_actuator_singularity": E_COST1,
         "target": slice(E_FIXED, E_FIXED + m),
         "target_velocity": slice(E_FIXED + m, E_FIXED + 2 * m),
         "pose": slice(E_FIXED + 2 * m, E_FIXED + 3 * m),
@@ -1107,6 +1110,7 @@ def _evaluate_row(
         o_eval[E_REWARD, i] = tr + si + ac + te
         o_eval[E_ACTUATOR, i] = 0.0  # legs: no Type I singularity
         o_eval[E_K1, i] = k1[i]
+        o_eval[E_COST1, i] = 0.0
         o_eval[E_POSITION_ERROR, i], o_eval[E_ORIENTATION_ERROR, i] = ep, eo
         success = reason[i] == 0 and family_planar.is_success(c, ep, eo)
         o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
@@ -1152,6 +1156,7 @@ def _evaluate_row(
     success = (not terminated) and position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
     o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
     o_eval[E_COST, i] = 1.0 if ki < safe or k1i < safe1 else 0.0
+    o_eval[E_COST1, i] = 1.0 if k1i < safe1 else 0.0
     o_eval[E_K, i] = ki
     o_eval[E_RESIDUAL, i] = residual[i]
     for j in range(m):

@@ -10,7 +10,9 @@ policies, resolved-rate, singularity-aware and the planner, each also behind the
 ``trajectories_standard.png`` (paths over the conditioning map, one row per agent),
 ``condition_number_hard.png`` (k over time) and ``policy_hard.gif`` (the policy for both kinds of target on
 hard targets). On Planar3RPRTrack-v0 it compares the shipped Track policy with resolved-rate (with the
-reference's feed-forward velocity) in ``track.md``, and the hexapod's policies in ``hexapod.md``.
+reference's feed-forward velocity) in ``track.md``; each family robot with a shipped policy (the hexapod, the
+Delta, the 3-RRR, the 3-PRR) gets ``<robot>.md`` (its policies and resolved-rate on standard and hard targets),
+and the Delta's adept-cycle Track policy ``track_delta.md``.
 """
 
 from __future__ import annotations
@@ -39,11 +41,13 @@ from training.evaluate import (
 )
 
 __all__ = [
+    "FAMILY_DEMOS",
     "PRETRAINED_HEXAPOD_RUN",
     "PRETRAINED_RUN",
     "main",
     "record_regression",
     "run_demo",
+    "run_family_demo",
     "run_hexapod_demo",
     "run_track_demo",
 ]
@@ -66,6 +70,12 @@ PRETRAINED_HEXAPOD_RUN = Path(str(resources.files("training").joinpath("pretrain
 PRETRAINED_HEXAPOD_HARD_RUN = Path(
     str(resources.files("training").joinpath("pretrained", "ppo-StewartGoughReachHard-v0"))
 )
+
+
+def _pretrained(name: str) -> Path:
+    """The folder of a shipped run under ``training/pretrained``."""
+    return Path(str(resources.files("training").joinpath("pretrained", name)))
+
 
 #: Guard level of the singularity shield in the demo's shielded rows.
 DEMO_SHIELD = 0.05
@@ -161,64 +171,105 @@ def run_demo(
     return metrics
 
 
-def run_hexapod_demo(run: Path, out: Path, episodes: int, seed: int = 1000, shield: float | None = DEMO_SHIELD) -> dict:
-    """Evaluate the hexapod policy and resolved-rate on standard and hard hexapod targets; write ``hexapod.md``.
+#: The family robots of the report: file stem → (title, {targets: env id}, shipped runs (first: the main policy)).
+FAMILY_DEMOS: dict[str, tuple[str, dict[str, str], tuple[Path, ...]]] = {
+    "hexapod": (
+        "Stewart–Gough hexapod",
+        {"standard": "StewartGoughReach-v0", "hard": "StewartGoughReachHard-v0"},
+        (PRETRAINED_HEXAPOD_RUN, PRETRAINED_HEXAPOD_HARD_RUN),
+    ),
+    "delta": (
+        "Delta robot (cranks, translational plate)",
+        {"standard": "DeltaReach-v0", "hard": "DeltaReachHard-v0"},
+        (_pretrained("ppo-DeltaReach-v0"),),
+    ),
+    "planar_3rrr": (
+        "Planar 3-RRR (cranks)",
+        {"standard": "Planar3RRRReach-v0", "hard": "Planar3RRRReachHard-v0"},
+        (_pretrained("ppo-Planar3RRRReach-v0"),),
+    ),
+    "planar_3prr": (
+        "Planar 3-PRR (sliders)",
+        {"standard": "Planar3PRRReach-v0"},
+        (_pretrained("ppo-Planar3PRRReach-v0"),),
+    ),
+}
+#: Shipped Track policies of the family robots, compared with resolved-rate (``track_<stem>.md``) when present.
+FAMILY_TRACK_DEMOS: dict[str, Path] = {"delta": _pretrained("ppo-DeltaTrack-v0")}
 
-    Standard targets come from ``StewartGoughReach-v0``, hard (ill-conditioned) ones from
-    ``StewartGoughReachHard-v0``; every agent is also evaluated behind the shield when ``shield`` is set.
+
+def run_family_demo(
+    name: str, out: Path, episodes: int, seed: int = 1000, shield: float | None = DEMO_SHIELD
+) -> dict | None:
+    """Evaluate a family robot's shipped policies and resolved-rate on its targets; write ``<name>.md``.
+
+    Standard targets come from the robot's Reach id, hard ones (where it has them) from its ReachHard id; every
+    agent is also evaluated behind the shield when ``shield`` is set.
 
     Args:
-        run: Run folder of the hexapod policy.
+        name: A key of ``FAMILY_DEMOS`` ("hexapod", "delta", "planar_3rrr", "planar_3prr").
         out: Report folder (created).
         episodes: Episodes per agent and target set.
         seed: Seed of the first episode.
         shield: Guard level of ``envs.SingularityShield`` (None: no shielded rows).
 
     Returns:
-        Label → aggregated metrics.
+        Label → aggregated metrics, or None when the robot's main policy is not shipped.
     """
+    title, ids, runs = FAMILY_DEMOS[name]
+    shipped = [run for run in runs if run.is_dir()]
+    if not shipped or shipped[0] != runs[0]:
+        return None
     out.mkdir(parents=True, exist_ok=True)
-    policy, config = load_run(run)
-    policies = {f"{config['algo'].upper()} policy": policy}
-    if PRETRAINED_HEXAPOD_HARD_RUN.is_dir():
-        hard_policy, hard_config = load_run(PRETRAINED_HEXAPOD_HARD_RUN)
-        policies[f"{hard_config['algo'].upper()} policy (hard-trained)"] = hard_policy
-    ids = {"standard": "StewartGoughReach-v0", "hard": "StewartGoughReachHard-v0"}
+    policies = {}
+    for i, run in enumerate(shipped):
+        policy, config = load_run(run)
+        trained_on = gym.spec(config["env_id"]).kwargs.get("targets", "standard")
+        label = f"{config['algo'].upper()} policy" + ("" if i == 0 else f" ({trained_on}-trained)")
+        policies[label] = policy
     metrics: dict = {}
     frames: list[np.ndarray] = []
     for targets, env_id in ids.items():
         env = gym.make(env_id, render_mode="rgb_array")
         agents = {**policies, "resolved-rate": load_controller("resolved-rate", env)}
-        for name, agent in agents.items():
-            film = frames if (targets == "standard" and name == next(iter(policies))) else None
+        for label, agent in agents.items():
+            film = frames if (targets == "standard" and label == next(iter(policies))) else None
             recs = evaluate_agent(agent, env, episodes, seed, targets, film, 2)
-            metrics[f"{name} @ {targets}"] = aggregate(recs)
+            metrics[f"{label} @ {targets}"] = aggregate(recs)
             if shield is not None:
                 shielded = envs.SingularityShield(gym.make(env_id), k_guard=shield)
-                metrics[f"{name} + shield @ {targets}"] = aggregate(
+                metrics[f"{label} + shield @ {targets}"] = aggregate(
                     evaluate_agent(agent, shielded, episodes, seed, targets)
                 )
                 shielded.close()
         env.close()
-    plots.save_gif(frames, out / "hexapod_policy.gif", fps=20)
-    (out / "hexapod_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    (out / "hexapod.md").write_text(
-        f"# Stewart–Gough hexapod\n\nStandard targets: `StewartGoughReach-v0`; hard (ill-conditioned) targets: "
-        f"`StewartGoughReachHard-v0`. {episodes} episodes per row (reset seeds {seed}…{seed + episodes - 1}). "
-        f"Policies: `{run}`, and `{PRETRAINED_HEXAPOD_HARD_RUN}` (hard-trained) when shipped.\n\n"
-        f"{format_table(metrics)}\nPicture: `hexapod_policy.gif`.\n"
+    plots.save_gif(frames, out / f"{name}_policy.gif", fps=20)
+    (out / f"{name}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    kinds = "; ".join(f"{targets} targets: `{env_id}`" for targets, env_id in ids.items())
+    (out / f"{name}.md").write_text(
+        f"# {title}\n\n{kinds[0].upper() + kinds[1:]}. {episodes} episodes per row (reset seeds {seed}…"
+        f"{seed + episodes - 1}). Policies: " + ", ".join(f"`{_shown(run)}`" for run in shipped) + ".\n\n"
+        f"{format_table(metrics)}\nPicture: `{name}_policy.gif`.\n"
     )
     return metrics
 
 
-def run_track_demo(run: Path, out: Path, episodes: int, seed: int = 1000) -> dict:
-    """Compare the Track policy with resolved-rate (feed-forward) on Planar3RPRTrack-v0; write ``track.md``.
+def run_hexapod_demo(run: Path, out: Path, episodes: int, seed: int = 1000, shield: float | None = DEMO_SHIELD) -> dict:
+    """The hexapod's section (``run_family_demo("hexapod", ...)``; ``run`` must be the shipped policy)."""
+    if Path(run) != PRETRAINED_HEXAPOD_RUN:
+        raise EvaluationError(f"the hexapod section evaluates the shipped {PRETRAINED_HEXAPOD_RUN}, got {run}")
+    return run_family_demo("hexapod", out, episodes, seed, shield)
+
+
+def run_track_demo(run: Path, out: Path, episodes: int, seed: int = 1000, stem: str = "track") -> dict:
+    """Compare a Track policy with resolved-rate (feed-forward) on its Track id; write ``<stem>.md``.
 
     Args:
-        run: Run folder of the Track policy.
+        run: Run folder of the Track policy (Planar3RPRTrack-v0, DeltaTrack-v0, …).
         out: Report folder (created).
         episodes: Episodes per agent.
         seed: Seed of the first episode.
+        stem: File stem of the report and its metrics.
 
     Returns:
         Label → aggregated metrics (with their ``tracking`` block).
@@ -230,8 +281,8 @@ def run_track_demo(run: Path, out: Path, episodes: int, seed: int = 1000) -> dic
     metrics = {f"{name} @ track": aggregate(evaluate_agent(a, env, episodes, seed)) for name, a in agents.items()}
     env.close()
     groups = {label.split(" @ ")[0]: [m] for label, m in metrics.items()}  # one run per agent
-    (out / "track_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    (out / "track.md").write_text(
+    (out / f"{stem}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    (out / f"{stem}.md").write_text(
         f"# Tracking on `{config['env_id']}`\n\n{episodes} episodes per row "
         f"(reset seeds {seed}…{seed + episodes - 1}). Policy: `{_shown(run)}`; resolved-rate steers with the "
         "reference's feed-forward velocity.\n\n"
@@ -317,14 +368,21 @@ def main(argv: list[str] | None = None) -> int:
     except EvaluationError as exc:
         parser.error(str(exc))
     print_table(metrics)
-    if PRETRAINED_HEXAPOD_RUN.is_dir() and Path(args.run) == PRETRAINED_RUN:
-        hexapod = run_hexapod_demo(
-            PRETRAINED_HEXAPOD_RUN, Path(args.out), args.episodes, args.seed, args.shield or None
-        )
-        print_table(hexapod)
-    if PRETRAINED_TRACK_RUN.is_dir() and Path(args.run) == PRETRAINED_RUN:
-        print_table(run_track_demo(PRETRAINED_TRACK_RUN, Path(args.out), args.episodes, args.seed))
-    print(f"report written to {args.out}/report.md, track.md and hexapod.md ({time.perf_counter() - start:.0f} s)")
+    written = ["report.md"]
+    if Path(args.run) == PRETRAINED_RUN:
+        if PRETRAINED_TRACK_RUN.is_dir():
+            print_table(run_track_demo(PRETRAINED_TRACK_RUN, Path(args.out), args.episodes, args.seed))
+            written.append("track.md")
+        for name in FAMILY_DEMOS:
+            family_metrics = run_family_demo(name, Path(args.out), args.episodes, args.seed, args.shield or None)
+            if family_metrics is not None:
+                print_table(family_metrics)
+                written.append(f"{name}.md")
+        for name, run in FAMILY_TRACK_DEMOS.items():
+            if run.is_dir():
+                print_table(run_track_demo(run, Path(args.out), args.episodes, args.seed, stem=f"track_{name}"))
+                written.append(f"track_{name}.md")
+    print(f"report written to {args.out}: {', '.join(written)} ({time.perf_counter() - start:.0f} s)")
     return 0
 
 
