@@ -200,8 +200,10 @@ _DELTA: dict[str, Any] = {
     "stroke_margin": 0.05,
     "track_period": 4.0,
     "hard_kind": "ill_conditioned",
-    # Substeps of up to 3 cm of predicted motion (1 cm for the smaller robots): 2.5 % of the 1.24 m forearms.
+    # Substeps of up to 3 cm of predicted motion, and certified paths checked every 3 cm (1 cm for the smaller
+    # robots): 2.5 % of the 1.24 m forearms.
     "max_substep": 0.03,
+    "segment_spacing": 0.03,
 }
 
 _PLANAR_3RRR: dict[str, Any] = {

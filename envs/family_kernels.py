@@ -143,7 +143,14 @@ W_VEL = 44  # target velocity
 W_DIFF = 45  # a pose difference
 W_SEG = 46  # a point of a segment
 W_SEG_D = 47  # a segment's direction
-W_SIZE = 48
+# The anchors of cranks and sliders depend on q alone: cached per leg for the q they were computed at (Newton's
+# iterations and the substep's checks move x at fixed q). ``_work`` marks the cache empty (NaN).
+W_CQ = 48  # the q_i the cached values belong to
+W_CA = 49  # A_i(q_i), rows 49..51
+W_CD = 52  # A_i′(q_i), rows 52..54
+W_CELL = 55  # ℓ_i(q_i)
+W_CSPEED = 56  # ‖(A_i′, ℓ_i′)‖
+W_SIZE = 57
 
 #: Rows of the evaluation that do not depend on m; the target, its velocity and the pose follow (m rows each).
 E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION, E_REWARD = 0, 1, 2, 3, 4
@@ -431,6 +438,14 @@ def _all_finite(v, m):
 
 
 @_jit
+def _work():
+    """A work array of the kernels (rows ``W_*``, 6 columns), its anchor cache marked empty."""
+    w = np.empty((W_SIZE, 6))
+    w[W_CQ, :] = np.nan
+    return w
+
+
+@_jit
 def _anchor(c, i, qi):
     """Leg i's anchor A_i(q_i), its derivative A_i′ (each 3 numbers), ℓ_i(q_i) and ‖(A_i′, ℓ_i′)‖."""
     a = c[C_A + i]
@@ -492,7 +507,17 @@ def _rows_actuated(c, q, x, w):
         rp0 = r00 * P0 + r01 * P1 + r02 * P2
         rp1 = r10 * P0 + r11 * P1 + r12 * P2
         rp2 = r20 * P0 + r21 * P1 + r22 * P2
-        A0, A1, A2, D0, D1, D2, ell, speed = _anchor(c, i, q[i])
+        qi = q[i]
+        if w[W_CQ, i] == qi:  # the cache (never equal while NaN)
+            A0, A1, A2 = w[W_CA, i], w[W_CA + 1, i], w[W_CA + 2, i]
+            D0, D1, D2 = w[W_CD, i], w[W_CD + 1, i], w[W_CD + 2, i]
+            ell, speed = w[W_CELL, i], w[W_CSPEED, i]
+        else:
+            A0, A1, A2, D0, D1, D2, ell, speed = _anchor(c, i, qi)
+            w[W_CA, i], w[W_CA + 1, i], w[W_CA + 2, i] = A0, A1, A2
+            w[W_CD, i], w[W_CD + 1, i], w[W_CD + 2, i] = D0, D1, D2
+            w[W_CELL, i], w[W_CSPEED, i] = ell, speed
+            w[W_CQ, i] = qi
         d0 = p0 + rp0 - A0
         d1 = p1 + rp1 - A1
         d2 = p2 + rp2 - A2
@@ -891,7 +916,7 @@ def _transition_block(
 
 @_jit
 def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump):
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     lanes = allocate_lanes()
     n = q.shape[0]
     for start in range(0, n, LANES):
@@ -943,7 +968,7 @@ def transition_batch(c, q, x, det_sign, residual, action):
 
 @_jit
 def _singularity_loop(c, q, x, o_k, o_sign):
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     for i in range(q.shape[0]):
         _rows(c, q[i], x[i], w)
         o_k[i], o_sign[i] = _singularity(c, q[i], w, W_A)
@@ -958,7 +983,7 @@ def singularity_batch(c, q, x):
 
 @_jit
 def _initial_loop(c, x, o_q, o_k, o_k1, o_sign, o_res):
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     for i in range(x.shape[0]):
         _inverse_kinematics(c, x[i], w, o_q[i])
         o_k[i], o_sign[i] = _singularity(c, o_q[i], w, W_A)
@@ -1189,7 +1214,7 @@ def _evaluate_row(
 def _evaluate_serial(
     c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason, o_eval, o_obs
 ):
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     for i in range(q.shape[0]):
         _evaluate_row(
             c,
@@ -1330,7 +1355,7 @@ def _finite_actions(action):
 @_jit_inline
 def _step_range(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, span, out):
     """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own."""
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     lanes = allocate_lanes()
     begin, end = span
     for start in range(begin, end, LANES):
@@ -1498,7 +1523,7 @@ def _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint)
     """
     m = int(c[C_N])
     shared = streams.shape[0] == 1
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     strokes = np.empty(6)
     start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
     safe = c[C_SAFE]
@@ -1576,7 +1601,7 @@ def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_p
     m = int(c[C_N])
     path = c[C_PATH] != 0.0
     shared = streams.shape[0] == 1
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     strokes, point, previous, rate = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
     for i in range(o_center.shape[0]):
         s = 0 if shared else i
@@ -1623,7 +1648,7 @@ def sample_track_batch(c, streams, n, m, max_amplitude, n_check):
 
 @_jit
 def _safe_loop(c, x, out):
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     strokes = np.empty(6)
     for i in range(x.shape[0]):
         out[i] = _safe(c, x[i], w, strokes)
@@ -1638,7 +1663,7 @@ def safe_batch(c, x):
 
 @_jit
 def _segment_loop(c, start, target, out):
-    w = np.empty((W_SIZE, 6))
+    w = _work()
     strokes = np.empty(6)
     for i in range(start.shape[0]):
         out[i] = _segment_min_k(c, start[i], target[i], w, strokes, -np.inf)

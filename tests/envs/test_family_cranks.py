@@ -137,15 +137,15 @@ def _safety(params, x):
 
 @pytest.mark.parametrize("env_id", ["DeltaReach-v0", "Planar3RRRReach-v0", "Planar3PRRReach-v0"])
 def test_standard_targets_have_a_safe_straight_path(env_id):
-    """A standard task's straight path keeps both measures above their safe thresholds (checked ≤ 1 cm apart)."""
+    """A standard task's straight path keeps both measures above k_safe (at points ``segment_spacing`` apart; ±5 %)."""
     env = gym.make(env_id)
     params = env.unwrapped.params
     for seed in range(5):
         _, info = env.reset(seed=seed)
         start, target = info["pose"][None], info["target"][None]
         assert fk.segment_batch(params.packed, start, target)[0] >= params.safe_threshold
-        path = start + np.linspace(0.0, 1.0, 50)[:, None] * (target - start)
-        assert _safety(params, path).min() >= params.safe_threshold * (1 - 1e-9)
+        path = start + np.linspace(0.0, 1.0, 200)[:, None] * (target - start)
+        assert _safety(params, path).min() >= 0.95 * params.safe_threshold
 
 
 def test_delta_hard_targets_are_ill_conditioned():
