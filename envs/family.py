@@ -991,7 +991,7 @@ class FamilyReachEnv(FamilyEnvBase):
     `DeltaReachHard-v0`, whose workspaces have no detour tasks) a hard target lies in the ill-conditioned band
     2 `hard_threshold` ≤ k < `safe_threshold` (toward Fichter's singularity; for the Delta, at the outer, lower edge
     of its workspace), on a geodesic from a safe start that keeps k ≥ 2 `hard_threshold`. For cranks and sliders
-    "safe" and "k" here are min(k, k_I k_safe / k_I,safe): both kinds of singularity.
+    "safe" and the path's k are min(k, k_I k_safe / k_I,safe), both kinds of singularity (the band is on k).
     `reset(options={"targets": "hard"})` switches for one episode.
 
     ## Episode End

@@ -44,8 +44,8 @@ __all__ = [
     "wrap_for_run",
 ]
 
-#: Termination reasons that mean the robot met a singularity.
-SINGULARITY_REASONS = ("singular", "singularity_crossed", "assembly_mode_change", "newton_failed")
+#: Termination reasons that mean the robot met a singularity (Type II, and Type I for cranks and sliders).
+SINGULARITY_REASONS = ("singular", "singularity_crossed", "assembly_mode_change", "newton_failed", "actuator_singular")
 TARGET_SETS = ("standard", "hard")
 Agent = Callable[[np.ndarray], np.ndarray]
 
@@ -596,7 +596,8 @@ def write_outputs(
 
     out.mkdir(parents=True, exist_ok=True)
     metrics = aggregate(records)
-    (out / "metrics.json").write_text(json.dumps({"label": label, **metrics}, indent=2) + "\n")
+    env_id = env.spec.id if env.spec is not None else None
+    (out / "metrics.json").write_text(json.dumps({"label": label, "env_id": env_id, **metrics}, indent=2) + "\n")
     with open(out / "episodes.csv", "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(records[0].row()))
         writer.writeheader()

@@ -113,6 +113,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("out")
     parser.add_argument("evals", nargs="+", help="folders holding a metrics.json")
     parser.add_argument("--with-return", action="store_true", help="add a column of the episode return")
+    parser.add_argument(
+        "--by-env", action="store_true", help="group by env id too: rows 'agent @ env (targets)' (from metrics.json)"
+    )
     args = parser.parse_args(argv)
     groups: dict[str, list[dict]] = {}
     for folder in args.evals:
@@ -121,6 +124,8 @@ def main(argv: list[str] | None = None) -> int:
         shielded = " + shield" in agent or "shield" in Path(folder).name
         agent = agent.replace(" + shield", "").split(" (")[0]  # "ppo (run-s0)" → "ppo": seeds are grouped
         label = f"{agent}{' + shield' if shielded else ''} @ {targets}"
+        if args.by_env:
+            label = f"{agent}{' + shield' if shielded else ''} @ {metrics.get('env_id')} ({targets})"
         groups.setdefault(label, []).append(metrics)
     plans, tracking = planner_table(groups), tracking_table(groups)
     Path(args.out).write_text(

@@ -187,7 +187,7 @@ def aggregate_results(results: list[dict], out: Path, reps: int = 2000) -> dict[
                 "mean": float(point[label][0]),
                 "ci95": [float(interval[label][0, 0]), float(interval[label][1, 0])],
                 "iqm": float(metrics.aggregate_iqm(score[:, j : j + 1])),
-                "singularity_terminations": int(sum(m["scores"][task]["singularity_terminations"] for m in members)),
+                "singularity_terminations": int(sum(_singular_count(m["scores"][task]) for m in members)),
                 "episodes": int(sum(m["scores"][task]["episodes"] for m in members)),
                 "final_position_error_mm_median": float(
                     np.median([m["scores"][task]["final_position_error_mm"]["median"] for m in members])
@@ -229,6 +229,18 @@ def aggregate_results(results: list[dict], out: Path, reps: int = 2000) -> dict[
     (out / "sweep_results.json").write_text(json.dumps(data, indent=2) + "\n")
     (out / "report.md").write_text(report_markdown(data))
     return data
+
+
+def _singular_count(score: dict[str, Any]) -> int:
+    """Singularity terminations of a trial's score: its ``terminations`` counted over ``SINGULARITY_REASONS``.
+
+    Recounted from the reasons, so that a report of older trials follows the current list (Type I included).
+    """
+    from training.evaluate import SINGULARITY_REASONS
+
+    if "terminations" not in score:
+        return int(score["singularity_terminations"])
+    return int(sum(count for reason, count in score["terminations"].items() if reason in SINGULARITY_REASONS))
 
 
 def report_markdown(data: dict[str, Any]) -> str:
