@@ -1114,7 +1114,7 @@ def _encode_pose(c, x, o_obs, i, start, low, high):
     return start + 4
 
 
-@_jit
+@_jit_inline
 def _evaluate_row(
     c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason, i, w, o_eval, o_obs
 ):

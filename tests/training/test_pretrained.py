@@ -192,3 +192,52 @@ def test_other_shipped_3rpr_policies_keep_their_recorded_performance(run):
         env.close()
     assert metrics["success_rate"] >= record["success_rate"] - 0.1, metrics
     assert metrics["singularity_terminations"] <= record["singularity_terminations"] + 1, metrics
+
+
+#: The shipped policies of the crank- and slider-driven robots (issue 16), each with its regression.json.
+CRANK_RUNS = [
+    demo._pretrained(name)
+    for name in ("ppo-DeltaReach-v0", "ppo-DeltaTrack-v0", "ppo-Planar3RRRReach-v0", "ppo-Planar3PRRReach-v0")
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("run", CRANK_RUNS, ids=lambda r: r.name)
+def test_shipped_crank_policies_keep_their_recorded_performance(run):
+    """One shipped policy per new robot (Delta Reach and Track, 3-RRR, 3-PRR) reaches its recorded success."""
+    record = json.loads((run / "regression.json").read_text())
+    assert set(record) == set(REGRESSION_KEYS)
+    agent, config = load_run(run)
+    assert config["env_id"] == record["env_id"] == run.name.removeprefix("ppo-")
+    env = gym.make(record["env_id"])
+    targets = None if record["targets"] == "track" else record["targets"]
+    try:
+        metrics = aggregate(evaluate_agent(agent, env, record["episodes"], record["seed"], targets))
+    finally:
+        env.close()
+    assert record["success_rate"] >= 0.9
+    assert metrics["success_rate"] >= record["success_rate"] - 0.1, metrics
+    assert metrics["singularity_terminations"] <= record["singularity_terminations"] + 1, metrics
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["delta", "planar_3rrr", "planar_3prr"])
+def test_demo_reports_each_crank_robot(name, tmp_path):
+    """The main job's section of each new robot: its policy and resolved-rate on its targets, and a GIF."""
+    metrics = demo.run_family_demo(name, tmp_path, episodes=2, shield=None)
+    _title, ids, _runs = demo.FAMILY_DEMOS[name]
+    assert set(metrics) == {f"{agent} @ {t}" for agent in ("PPO policy", "resolved-rate") for t in ids}
+    text = (tmp_path / f"{name}.md").read_text()
+    assert all(env_id in text for env_id in ids.values())
+    with Image.open(tmp_path / f"{name}_policy.gif") as gif:
+        assert gif.format == "GIF" and gif.n_frames > 2
+
+
+@pytest.mark.slow
+def test_demo_reports_the_delta_on_the_adept_cycle(tmp_path):
+    """The Delta's Track section: its policy and resolved-rate on the adept cycle, RMS and max errors in mm."""
+    metrics = demo.run_track_demo(demo.FAMILY_TRACK_DEMOS["delta"], tmp_path, episodes=2, stem="track_delta")
+    assert set(metrics) == {"PPO policy @ track", "resolved-rate @ track"}
+    for m in metrics.values():
+        assert 0.0 < m["tracking"]["max_position_mm"]["mean"] < 50.0
+    assert "DeltaTrack-v0" in (tmp_path / "track_delta.md").read_text()
