@@ -256,11 +256,22 @@ class FamilyReference(NamedTuple):
         center: c, shape (N, m).
         amplitude: a, shape (N, m).
         phase: θ [rad], shape (N, m).
+        strokes: The actuator coordinates of c (closed-form inverse kinematics, ``family_kernels.strokes_batch``),
+            shape (N, n), or None: ``initial_state`` fills it. The observation's stroke errors read it while a
+            target is fixed, so that a crank's inverse kinematics is solved once per episode, not once per step.
     """
 
     center: np.ndarray
     amplitude: np.ndarray
     phase: np.ndarray
+    strokes: np.ndarray | None = None
+
+
+def with_strokes(params: FamilyParams, reference: FamilyReference) -> FamilyReference:
+    """``reference`` with its ``strokes`` (computed from its centres if they are missing)."""
+    if reference.strokes is not None:
+        return reference
+    return reference._replace(strokes=fk.strokes_batch(params.packed, np.ascontiguousarray(reference.center)))
 
 
 class FamilyState(NamedTuple):
@@ -374,6 +385,7 @@ def initial_state(params: FamilyParams, start: np.ndarray, reference: FamilyRefe
     """State of N robots at rest at ``start`` (shape (N, m)), strokes from the inverse kinematics."""
     start = _rows(start, params.robot.n_pose, "start")
     q, k, k1, det_sign, residual = fk.initial_batch(params.packed, start)
+    reference = with_strokes(params, reference)
     return FamilyState(q, start.copy(), np.zeros(len(start), dtype=np.int64), det_sign, k, k1, residual, reference)
 
 
@@ -422,7 +434,7 @@ def evaluate(
     """
     action = _rows(action, params.robot.n_actuators, "action")
     low, high = observation_bounds(params, with_velocity)
-    ref = state.reference
+    ref = with_strokes(params, state.reference)
     return fk.evaluate_batch(
         params.packed,
         low,
@@ -437,6 +449,7 @@ def evaluate(
         ref.center,
         ref.amplitude,
         ref.phase,
+        ref.strokes,
         action,
         np.asarray(reason, dtype=np.int64),
     )
@@ -515,7 +528,7 @@ def step(
             raise ValueError(f"action must have shape {state.q.shape}, got {action.shape}")
     if out is None:
         out = StepBuffers(params, n, with_velocity)
-    ref = state.reference
+    ref = with_strokes(params, state.reference)
     low, high = observation_bounds(params, with_velocity)
     bad = fk.step_batch(
         params.packed,
@@ -530,6 +543,7 @@ def step(
         ref.center,
         ref.amplitude,
         ref.phase,
+        ref.strokes,
         action,
         out.arrays,
     )
@@ -543,7 +557,8 @@ def step(
 
 def copy_state(state: FamilyState) -> FamilyState:
     """A deep copy of ``state`` (every array copied)."""
-    return FamilyState(*(a.copy() for a in state[:-1]), FamilyReference(*(a.copy() for a in state.reference)))
+    ref = FamilyReference(*(None if a is None else a.copy() for a in state.reference))
+    return FamilyState(*(a.copy() for a in state[:-1]), ref)
 
 
 def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:

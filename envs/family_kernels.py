@@ -29,7 +29,7 @@ import math
 import numba
 import numpy as np
 
-from envs import family_layout, family_planar, kernels, linalg_kernels
+from envs import family_layout, family_planar, family_three, kernels, linalg_kernels
 from envs.kernels import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
 from envs.linalg_kernels import (
     LANES,
@@ -59,6 +59,7 @@ __all__ = [
     "segment_batch",
     "singularity_batch",
     "step_batch",
+    "strokes_batch",
     "transition_batch",
 ]
 
@@ -115,7 +116,10 @@ from envs.family_layout import (
     PATH_VERTICES,
 )
 
-drop_stale_caches(__file__, [family_layout.__file__, family_planar.__file__, kernels.__file__, linalg_kernels.__file__])
+drop_stale_caches(
+    __file__,
+    [family_layout.__file__, family_planar.__file__, family_three.__file__, kernels.__file__, linalg_kernels.__file__],
+)
 
 # -- rows of the work array of one robot (each row holds up to 6 numbers) ------------------------------
 W_A = 0  # A = J_x / 2, n × m (rows 0..5)
@@ -163,6 +167,8 @@ E_FIXED = 14
 CHUNK = 64
 #: Candidates a sampler may reject before it reports failure.
 SAMPLER_TRIES = 2000
+#: Pairs from which the Reach sampler runs on every core (one generator per robot; each pair costs 10–70 µs).
+PARALLEL_MIN_SAMPLES = 8
 #: Waypoints tried per hard pair to certify a detour.
 WAYPOINT_TRIES = 64
 #: Most points checked along one segment.
@@ -445,26 +451,6 @@ def _work():
     return w
 
 
-@_jit
-def _anchor(c, i, qi):
-    """Leg i's anchor A_i(q_i), its derivative A_i′ (each 3 numbers), ℓ_i(q_i) and ‖(A_i′, ℓ_i′)‖."""
-    a = c[C_A + i]
-    cs, sn = math.cos(qi), math.sin(qi)
-    lam = c[C_LAM + i]
-    b0, b1, b2 = c[C_B + 3 * i], c[C_B + 3 * i + 1], c[C_B + 3 * i + 2]
-    u0, u1, u2 = c[C_U + 3 * i], c[C_U + 3 * i + 1], c[C_U + 3 * i + 2]
-    v0, v1, v2 = c[C_V + 3 * i], c[C_V + 3 * i + 1], c[C_V + 3 * i + 2]
-    e0, e1, e2 = c[C_E + 3 * i], c[C_E + 3 * i + 1], c[C_E + 3 * i + 2]
-    A0 = b0 + a * (cs * u0 + sn * v0) + qi * e0
-    A1 = b1 + a * (cs * u1 + sn * v1) + qi * e1
-    A2 = b2 + a * (cs * u2 + sn * v2) + qi * e2
-    D0 = a * (cs * v0 - sn * u0) + e0
-    D1 = a * (cs * v1 - sn * u1) + e1
-    D2 = a * (cs * v2 - sn * u2) + e2
-    speed = math.sqrt(D0 * D0 + D1 * D1 + D2 * D2 + lam)
-    return A0, A1, A2, D0, D1, D2, lam * qi + c[C_ELL + i], speed
-
-
 @_jit_inline
 def _rows_legs(c, q, x, w):
     """``_rows`` of a leg-actuated robot: the anchors are the B_i; ℓ_i = q_i and −(J_q)_ii / 2 = q_i."""
@@ -513,7 +499,7 @@ def _rows_actuated(c, q, x, w):
             D0, D1, D2 = w[W_CD, i], w[W_CD + 1, i], w[W_CD + 2, i]
             ell, speed = w[W_CELL, i], w[W_CSPEED, i]
         else:
-            A0, A1, A2, D0, D1, D2, ell, speed = _anchor(c, i, qi)
+            A0, A1, A2, D0, D1, D2, ell, speed = family_three.anchor(c, i, qi)
             w[W_CA, i], w[W_CA + 1, i], w[W_CA + 2, i] = A0, A1, A2
             w[W_CD, i], w[W_CD + 1, i], w[W_CD + 2, i] = D0, D1, D2
             w[W_CELL, i], w[W_CSPEED, i] = ell, speed
@@ -884,6 +870,12 @@ def _transition_block(
             )
             o_k1[i] = 1.0
         return
+    if c[C_N] == 3.0 and c[C_SPATIAL] == 0.0:  # cranks or sliders, planar or translational: in scalars
+        for i in range(start, start + count):
+            family_three.transition_row(
+                c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump
+            )
+        return
     if count == 1 or c[C_N] != 6.0:  # one robot (the single env; the plain Jacobi is cheaper) or m = 3
         for i in range(start, start + count):
             failed, out = _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
@@ -964,6 +956,23 @@ def transition_batch(c, q, x, det_sign, residual, action):
     o_reason = np.empty(n, dtype=np.int64)
     _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
     return o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump
+
+
+@_jit
+def _strokes_loop(c, x, out):
+    for i in range(x.shape[0]):
+        _leg_lengths(c, x[i], out[i])
+
+
+def strokes_batch(c, x):
+    """Actuator coordinates of N poses x (N, m) by the closed-form inverse kinematics (NaN where out of reach).
+
+    Leg lengths [m], crank angles [rad] or slider positions [m] on each actuator's chosen branch, shape (N, n): what
+    the observation's stroke errors compare q with (``FamilyReference.strokes`` keeps those of a fixed target).
+    """
+    out = np.empty(x.shape)
+    _strokes_loop(c, x, out)
+    return out
 
 
 @_jit
@@ -1116,7 +1125,26 @@ def _encode_pose(c, x, o_obs, i, start, low, high):
 
 @_jit_inline
 def _evaluate_row(
-    c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason, i, w, o_eval, o_obs
+    c,
+    low,
+    high,
+    with_velocity,
+    q,
+    x,
+    t,
+    k,
+    k1,
+    residual,
+    center,
+    amplitude,
+    phase,
+    center_strokes,
+    action,
+    reason,
+    i,
+    w,
+    o_eval,
+    o_obs,
 ):
     """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.family.evaluate``).
 
@@ -1198,8 +1226,15 @@ def _evaluate_row(
     for j in range(m):
         _clip32(o_obs, i, col + j, 2.0 * (q[i, j] - lo) / span - 1.0, low, high)
     col += m
-    target_q = w[W_SEG]
-    _leg_lengths(c, g, target_q)
+    fixed = c[C_PATH] == 0.0
+    for j in range(m):
+        if amplitude[i, j] != 0.0:
+            fixed = False
+    if fixed:  # the target is the reference's centre, whose actuator coordinates are kept with it
+        target_q = center_strokes[i]
+    else:
+        target_q = w[W_SEG]
+        _leg_lengths(c, g, target_q)
     for j in range(m):
         _clip32(o_obs, i, col + j, (target_q[j] - q[i, j]) / span, low, high)
     col += m
@@ -1212,7 +1247,24 @@ def _evaluate_row(
 
 @_jit
 def _evaluate_serial(
-    c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason, o_eval, o_obs
+    c,
+    low,
+    high,
+    with_velocity,
+    q,
+    x,
+    t,
+    k,
+    k1,
+    residual,
+    center,
+    amplitude,
+    phase,
+    center_strokes,
+    action,
+    reason,
+    o_eval,
+    o_obs,
 ):
     w = _work()
     for i in range(q.shape[0]):
@@ -1230,6 +1282,7 @@ def _evaluate_serial(
             center,
             amplitude,
             phase,
+            center_strokes,
             action,
             reason,
             i,
@@ -1239,7 +1292,9 @@ def _evaluate_serial(
         )
 
 
-def evaluate_batch(c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason):
+def evaluate_batch(
+    c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, center_strokes, action, reason
+):
     """Evaluation rows (``evaluation_rows``) and observations of N robots.
 
     Args:
@@ -1256,6 +1311,8 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, k1, residual, center
         center: Reference centres, shape (N, m).
         amplitude: Reference amplitudes, shape (N, m).
         phase: Reference phases [rad], shape (N, m).
+        center_strokes: Actuator coordinates of the centres (``strokes_batch``), shape (N, n); read for the
+            robots whose target is fixed (a = 0, C_PATH = 0) instead of solving the inverse kinematics again.
         action: Applied actions, shape (N, n).
         reason: Termination reason codes, shape (N,).
 
@@ -1266,7 +1323,24 @@ def evaluate_batch(c, low, high, with_velocity, q, x, t, k, k1, residual, center
     o_eval = np.empty((E_FIXED + 3 * m, n))
     o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
     _evaluate_serial(
-        c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, action, reason, o_eval, o_obs
+        c,
+        low,
+        high,
+        with_velocity,
+        q,
+        x,
+        t,
+        k,
+        k1,
+        residual,
+        center,
+        amplitude,
+        phase,
+        center_strokes,
+        action,
+        reason,
+        o_eval,
+        o_obs,
     )
     return o_eval, o_obs
 
@@ -1288,6 +1362,7 @@ def _step_block(
     center,
     amplitude,
     phase,
+    center_strokes,
     action,
     start,
     count,
@@ -1334,6 +1409,7 @@ def _step_block(
             center,
             amplitude,
             phase,
+            center_strokes,
             o_a,
             o_reason,
             i,
@@ -1353,7 +1429,24 @@ def _finite_actions(action):
 
 
 @_jit_inline
-def _step_range(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, span, out):
+def _step_range(
+    c,
+    low,
+    high,
+    with_velocity,
+    q,
+    x,
+    t,
+    det_sign,
+    residual,
+    center,
+    amplitude,
+    phase,
+    center_strokes,
+    action,
+    span,
+    out,
+):
     """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own."""
     w = _work()
     lanes = allocate_lanes()
@@ -1361,22 +1454,43 @@ def _step_range(c, low, high, with_velocity, q, x, t, det_sign, residual, center
     for start in range(begin, end, LANES):
         count = min(LANES, end - start)
         _step_block(
-            c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, start, count,
-            w, lanes, out,
+            c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action,
+            start, count, w, lanes, out,
         )  # fmt: skip
 
 
 @_jit
-def _step_serial(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out):
+def _step_serial(
+    c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action, out
+):
     if not _finite_actions(action):
         return True
     span = (0, q.shape[0])
-    _step_range(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, span, out)
+    _step_range(
+        c,
+        low,
+        high,
+        with_velocity,
+        q,
+        x,
+        t,
+        det_sign,
+        residual,
+        center,
+        amplitude,
+        phase,
+        center_strokes,
+        action,
+        span,
+        out,
+    )
     return False
 
 
 @_jit_parallel
-def _step_parallel(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out):
+def _step_parallel(
+    c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action, out
+):
     if not _finite_actions(action):
         return True
     n = q.shape[0]
@@ -1384,7 +1498,22 @@ def _step_parallel(c, low, high, with_velocity, q, x, t, det_sign, residual, cen
     for chunk in numba.prange(chunks):
         span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
         _step_range(
-            c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, span, out
+            c,
+            low,
+            high,
+            with_velocity,
+            q,
+            x,
+            t,
+            det_sign,
+            residual,
+            center,
+            amplitude,
+            phase,
+            center_strokes,
+            action,
+            span,
+            out,
         )
     return False
 
@@ -1410,10 +1539,14 @@ def allocate_step(n, m, obs_dim):
     )
 
 
-def step_batch(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out):
+def step_batch(
+    c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action, out
+):
     """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite."""
     kernel = _step_parallel if q.shape[0] >= PARALLEL_MIN_BATCH else _step_serial
-    return kernel(c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, action, out)
+    return kernel(
+        c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action, out
+    )
 
 
 # -- the safe set and the task sampler ------------------------------------------------------------------
@@ -1511,6 +1644,50 @@ def _draw_band(c, fn, st, w, strokes, low, high, out):
     return False
 
 
+@_jit_inline
+def _sample_reach_one(c, fn, st, hard, min_distance, w, strokes, start, target, waypoint, step):
+    """One certified pair from the stream (fn, st) into start, target, waypoint (see ``_sample_reach``); success."""
+    safe = c[C_SAFE]
+    band = hard and c[C_HARD_KIND] != 0.0
+    floor = 2.0 * c[C_HARD]
+    for _ in range(SAMPLER_TRIES):
+        if not _draw_safe(c, fn, st, w, strokes, start):
+            return False
+        if band:
+            if not _draw_band(c, fn, st, w, strokes, floor, safe, target):
+                return False
+        elif not _draw_safe(c, fn, st, w, strokes, target):
+            return False
+        _difference(c, target, start, step)
+        if not _metric(c, step) >= min_distance:
+            continue
+        if not hard:
+            if _segment_min_k(c, start, target, w, strokes, safe) >= safe:
+                return True
+        elif band:
+            if _segment_min_k(c, start, target, w, strokes, floor) >= floor:
+                return True
+        elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf) < safe:
+            for _ in range(WAYPOINT_TRIES):
+                if not _draw_safe(c, fn, st, w, strokes, waypoint):
+                    return False
+                if (
+                    _segment_min_k(c, start, waypoint, w, strokes, safe) >= safe
+                    and _segment_min_k(c, waypoint, target, w, strokes, safe) >= safe
+                ):
+                    return True
+    return False
+
+
+@_jit_inline
+def _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint):
+    band = hard and c[C_HARD_KIND] != 0.0
+    for j in range(int(c[C_N])):
+        o_start[i, j] = start[j]
+        o_target[i, j] = target[j]
+        o_waypoint[i, j] = waypoint[j] if hard and not band else target[j]
+
+
 @_jit
 def _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
     """Fill o_start, o_target, o_waypoint (M, m) with certified pairs; −1 on success, else the failing pair.
@@ -1521,53 +1698,40 @@ def _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint)
     start and a target in the ill-conditioned band 2 hard_threshold ≤ k < safe_threshold, joined by a
     geodesic that keeps k ≥ 2 hard_threshold.
     """
-    m = int(c[C_N])
     shared = streams.shape[0] == 1
     w = _work()
     strokes = np.empty(6)
     start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
-    safe = c[C_SAFE]
     for i in range(o_start.shape[0]):
         s = 0 if shared else i
-        fn, st = streams[s, 0], streams[s, 1]
-        done = False
-        band = hard and c[C_HARD_KIND] != 0.0
-        floor = 2.0 * c[C_HARD]
-        for _ in range(SAMPLER_TRIES):
-            if not _draw_safe(c, fn, st, w, strokes, start):
-                return i
-            if band:
-                if not _draw_band(c, fn, st, w, strokes, floor, safe, target):
-                    return i
-            elif not _draw_safe(c, fn, st, w, strokes, target):
-                return i
-            _difference(c, target, start, step)
-            if not _metric(c, step) >= min_distance:
-                continue
-            if not hard:
-                if _segment_min_k(c, start, target, w, strokes, safe) >= safe:
-                    done = True
-            elif band:
-                if _segment_min_k(c, start, target, w, strokes, floor) >= floor:
-                    done = True
-            elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf) < safe:
-                for _ in range(WAYPOINT_TRIES):
-                    if not _draw_safe(c, fn, st, w, strokes, waypoint):
-                        return i
-                    if (
-                        _segment_min_k(c, start, waypoint, w, strokes, safe) >= safe
-                        and _segment_min_k(c, waypoint, target, w, strokes, safe) >= safe
-                    ):
-                        done = True
-                        break
-            if done:
-                break
-        if not done:
+        if not _sample_reach_one(
+            c, streams[s, 0], streams[s, 1], hard, min_distance, w, strokes, start, target, waypoint, step
+        ):
             return i
-        for j in range(m):
-            o_start[i, j] = start[j]
-            o_target[i, j] = target[j]
-            o_waypoint[i, j] = waypoint[j] if hard and not band else target[j]
+        _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
+    return -1
+
+
+@_jit_parallel
+def _sample_reach_parallel(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
+    """``_sample_reach`` on every core, for one stream per robot (each robot's pair depends on its stream only).
+
+    Every robot draws its pair (the serial kernel stops at the first failure); returns the first failing pair.
+    """
+    n = o_start.shape[0]
+    ok = np.empty(n, dtype=np.bool_)
+    for i in numba.prange(n):
+        w = _work()
+        strokes = np.empty(6)
+        start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+        ok[i] = _sample_reach_one(
+            c, streams[i, 0], streams[i, 1], hard, min_distance, w, strokes, start, target, waypoint, step
+        )
+        if ok[i]:
+            _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
+    for i in range(n):
+        if not ok[i]:
+            return i
     return -1
 
 
@@ -1586,7 +1750,9 @@ def sample_reach_batch(c, streams, n, m, hard, min_distance):
         (starts (n, m), targets (n, m), waypoints (n, m): the detour's waypoint, or the target), or None.
     """
     o_start, o_target, o_waypoint = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
-    if _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint) >= 0:
+    parallel = streams.shape[0] > 1 and n >= PARALLEL_MIN_SAMPLES
+    kernel = _sample_reach_parallel if parallel else _sample_reach
+    if kernel(c, streams, hard, min_distance, o_start, o_target, o_waypoint) >= 0:
         return None
     return o_start, o_target, o_waypoint
 

@@ -150,7 +150,7 @@ def test_parallel_step_equals_serial_step_bit_for_bit(hexapod):
     action = np.random.default_rng(1).uniform(-1, 1, size=(n, 6))
     low, high = family.observation_bounds(hexapod, False)
     args = (hexapod.packed, low, high, False, state.q, state.x, state.t, state.det_sign, state.residual)
-    ref = (reference.center, reference.amplitude, reference.phase, action)
+    ref = (*state.reference, action)
     outs = [fk.allocate_step(n, 6, low.shape[0]) for _ in range(2)]
     assert not fk._step_parallel(*args, *ref, outs[0])
     assert not fk._step_serial(*args, *ref, outs[1])

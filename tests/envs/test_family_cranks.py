@@ -118,12 +118,51 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
     action = np.random.default_rng(1).uniform(-1, 1, size=(n, 3))
     low, high = family.observation_bounds(params, False)
     args = (params.packed, low, high, False, state.q, state.x, state.t, state.det_sign, state.residual)
-    ref = (reference.center, reference.amplitude, reference.phase, action)
+    ref = (*state.reference, action)
     outs = [fk.allocate_step(n, 3, low.shape[0]) for _ in range(2)]
     assert not fk._step_parallel(*args, *ref, outs[0])
     assert not fk._step_serial(*args, *ref, outs[1])
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("integrator", ["euler", "rk4"])
+@pytest.mark.parametrize("env_id", ["DeltaReach-v0", "Planar3RRRReach-v0", "Planar3PRRReach-v0"])
+def test_scalar_transition_equals_the_work_array_algorithm_bit_for_bit(env_id, integrator):
+    """``envs.family_three`` (3 × 3 in registers) gives exactly what the general work-array kernels give.
+
+    The general path (``_advance_spatial``, ``_singularity``, ``_actuator_condition``) is what any pose space
+    runs; the scalar path replaces it for three cranks or sliders. Full-speed random actions, so some robots
+    leave their bounds or meet a singularity and the failure branches are compared too.
+    """
+    env = gym.make(env_id, integrator=integrator).unwrapped
+    params = env.params
+    n = 300
+    start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(n)], {})
+    state = family.initial_state(params, start, reference)
+    c = params.packed
+    rng = np.random.default_rng(7)
+    q, x, residual = state.q, state.x, state.residual
+    reasons = []
+    for _ in range(40):
+        action = rng.uniform(-1.5, 1.5, size=(n, 3))
+        new = fk.transition_batch(c, q, x, state.det_sign, residual, action)
+        ref = [np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)]
+        o_q, o_x, o_res, o_a, o_qr, o_jump = ref
+        w = fk._work()
+        k, k1 = np.empty(n), np.empty(n)
+        for i in range(n):
+            fk._advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
+            k[i] = fk._singularity(c, o_q[i], w, fk.W_A)[0]
+            k1[i] = fk._actuator_condition(c, w)
+        for got, want in zip(
+            (new[0], new[1], new[2], new[3], new[4], new[5], new[6], new[8]),
+            (o_q, o_x, k, k1, o_res, o_a, o_qr, o_jump),
+        ):
+            np.testing.assert_array_equal(got, want)
+        reasons.append(new[7])
+        q, x, residual = new[0], new[1], new[4]
+    assert np.any(np.concatenate(reasons) != 0), "no robot met a termination: the failure branches went untested"
 
 
 def _safety(params, x):
@@ -248,7 +287,7 @@ def test_path_reference_rate_is_the_derivative_of_its_pose(delta_track):
     preset = {**family.ROBOT_PRESETS["delta_track"], "dt": fine}
     fine_params = family.build_family_params(preset.pop("robot"), **preset)
     t = np.arange(20 * steps + 1)
-    one = [np.repeat(r[:1], len(t), 0) for r in ref]
+    one = [np.repeat(r[:1], len(t), 0) for r in ref[:3]]  # centre, amplitude, phase
     pose, rate = fk.reference_batch(fine_params.packed, t, *one)
     numeric = (pose[2:] - pose[:-2]) / (2 * fine)
     np.testing.assert_allclose(rate[1:-1], numeric, atol=2e-3 * np.abs(rate).max())
@@ -265,7 +304,7 @@ def test_track_starts_on_the_cycle_and_the_whole_cycle_is_safe(delta_track):
         assert info["position_error"] == pytest.approx(0.0, abs=1e-12)
         ref = delta_track.state.reference
         t = np.arange(round(params.track_period / params.dt) + 1)
-        one = [np.repeat(r[:1], len(t), 0) for r in ref]
+        one = [np.repeat(r[:1], len(t), 0) for r in ref[:3]]  # centre, amplitude, phase
         pose, _ = fk.reference_batch(params.packed, t, *one)
         assert _safety(params, pose).min() >= params.safe_threshold * (1 - 1e-9)
 
@@ -288,3 +327,19 @@ def test_bad_paths_and_robot_names_are_refused(kwargs, match):
     robot = base.pop("robot")
     with pytest.raises(ValueError, match=match):
         family.build_family_params(robot, **base)
+
+
+@pytest.mark.parametrize("hard", [False, True])
+def test_parallel_reach_sampler_equals_the_serial_one(hard):
+    """One generator per robot: the multi-core sampler draws exactly the serial sampler's pairs."""
+    params = gym.make("Planar3RRRReach-v0").unwrapped.params
+    n = 3 * fk.PARALLEL_MIN_SAMPLES + 1
+    outs = []
+    for kernel in (fk._sample_reach, fk._sample_reach_parallel):
+        generators = [np.random.default_rng(100 + i) for i in range(n)]
+        streams = fk.random_streams(generators)
+        arrays = [np.empty((n, 3)) for _ in range(3)]
+        assert kernel(params.packed, streams, hard, params.min_distance, *arrays) == -1
+        outs.append(arrays + [np.array([g.random() for g in generators])])  # the generators advanced alike
+    for a, b in zip(*outs):
+        np.testing.assert_array_equal(a, b)

@@ -1,0 +1,290 @@
+"""The family core for three actuators of any kind on a planar or translational pose space, in scalars.
+
+A robot of the distance-constraint family with three actuators and a three-coordinate pose, (x, y, φ) (planar)
+or p = (x, y, z) (translational, R = I), has 3 × 3 algebra that fits in registers. ``envs.family_planar``
+writes out the planar robots driven by legs (the 3-RPR: A_i = B_i, ℓ_i = q_i); this module writes out the rest,
+the robots whose anchors move with their actuators (cranks and sliders: the Delta, the 3-RRR, the 3-PRR), with the
+anchor of each leg computed once per value of q (Newton's iterations move x at fixed q). It is the algorithm of
+``envs.family_kernels._advance_spatial`` and its evaluation of k and k_I, operation for operation (the same
+floating-point results), without the work arrays: ``envs.family_kernels`` steps every such robot through
+``transition_row``. The math, with d_i = p + R P_i − A_i(q_i):
+
+    Φ_i = d_iᵀ d_i − ℓ_i(q_i)²,   J_x = 2 A,   A_i = (d_ix, d_iy, (R P_i)_x d_iy − (R P_i)_y d_ix) (planar)
+                                                 or d_iᵀ (translational),
+    −(J_q)_ii / 2 = d_iᵀ A_i′(q_i) + ℓ_i ℓ_i′,   J_f = A⁻¹ diag(−J_q / 2).
+
+Every function reads the geometry and the settings from ``c``, the family's packed constants
+(``envs.family_layout``): A_i(q) = B_i + a_i (cos q u_i + sin q v_i) + q e_i and ℓ_i(q) = λ_i q + l_i.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from envs import family_layout, family_planar, linalg_kernels
+from envs.family_layout import (
+    C_A,
+    C_B,
+    C_DT,
+    C_E,
+    C_ELL,
+    C_HIGH,
+    C_LAM,
+    C_LC,
+    C_LEGS,
+    C_LMAX,
+    C_LMIN,
+    C_LOW,
+    C_MAX_SUBSTEP,
+    C_MAX_SUBSTEPS,
+    C_NEWTON_IT,
+    C_NEWTON_TOL,
+    C_P,
+    C_RATE,
+    C_RK4,
+    C_SCALE,
+    C_TRANSLATIONAL,
+    C_U,
+    C_V,
+)
+from envs.linalg_kernels import singular_value_ratio3, solve3
+from envs.numba_cache import drop_stale_caches
+
+__all__ = ["anchor", "anchors", "rows", "transition_row"]
+
+drop_stale_caches(__file__, [family_layout.__file__, family_planar.__file__, linalg_kernels.__file__])
+
+
+def _jit(fn):
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+
+
+def _jit_inline(fn):
+    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
+
+
+@_jit
+def anchor(c, i, qi):
+    """Leg i's anchor A_i(q_i), its derivative A_i′ (each 3 numbers), ℓ_i(q_i) and ‖(A_i′, ℓ_i′)‖."""
+    a = c[C_A + i]
+    cs, sn = math.cos(qi), math.sin(qi)
+    lam = c[C_LAM + i]
+    b0, b1, b2 = c[C_B + 3 * i], c[C_B + 3 * i + 1], c[C_B + 3 * i + 2]
+    u0, u1, u2 = c[C_U + 3 * i], c[C_U + 3 * i + 1], c[C_U + 3 * i + 2]
+    v0, v1, v2 = c[C_V + 3 * i], c[C_V + 3 * i + 1], c[C_V + 3 * i + 2]
+    e0, e1, e2 = c[C_E + 3 * i], c[C_E + 3 * i + 1], c[C_E + 3 * i + 2]
+    A0 = b0 + a * (cs * u0 + sn * v0) + qi * e0
+    A1 = b1 + a * (cs * u1 + sn * v1) + qi * e1
+    A2 = b2 + a * (cs * u2 + sn * v2) + qi * e2
+    D0 = a * (cs * v0 - sn * u0) + e0
+    D1 = a * (cs * v1 - sn * u1) + e1
+    D2 = a * (cs * v2 - sn * u2) + e2
+    speed = math.sqrt(D0 * D0 + D1 * D1 + D2 * D2 + lam)
+    return A0, A1, A2, D0, D1, D2, lam * qi + c[C_ELL + i], speed
+
+
+@_jit
+def anchors(c, q0, q1, q2):
+    """The three legs' ``anchor`` values at q = (q0, q1, q2): a tuple of three 8-tuples."""
+    return anchor(c, 0, q0), anchor(c, 1, q1), anchor(c, 2, q2)
+
+
+@_jit
+def _leg(c, i, translational, cs, sn, x0, x1, x2, an):
+    """(row of A, d_iᵀ d_i, d_iᵀ A_i′ + ℓ_i ℓ_i′) of leg i at the pose, from its ``anchor`` values ``an``."""
+    P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
+    A0, A1, A2, D0, D1, D2, ell, _speed = an
+    if translational:
+        # _frame: R = I, p = x (the products by 1 and 0 kept: the same results as the general formula).
+        rp0 = 1.0 * P0 + 0.0 * P1 + 0.0 * P2
+        rp1 = 0.0 * P0 + 1.0 * P1 + 0.0 * P2
+        rp2 = 0.0 * P0 + 0.0 * P1 + 1.0 * P2
+        d0 = x0 + rp0 - A0
+        d1 = x1 + rp1 - A1
+        d2 = x2 + rp2 - A2
+        r0, r1, r2 = d0, d1, d2
+    else:
+        rp0 = cs * P0 + -sn * P1 + 0.0 * P2
+        rp1 = sn * P0 + cs * P1 + 0.0 * P2
+        rp2 = 0.0 * P0 + 0.0 * P1 + 1.0 * P2
+        d0 = x0 + rp0 - A0
+        d1 = x1 + rp1 - A1
+        d2 = 0.0 + rp2 - A2
+        r0, r1, r2 = d0, d1, rp0 * d1 - rp1 * d0
+    sq = d0 * d0 + d1 * d1 + d2 * d2
+    dq = d0 * D0 + d1 * D1 + d2 * D2 + ell * c[C_LAM + i]
+    return r0, r1, r2, sq, dq
+
+
+@_jit
+def rows(c, anc, x0, x1, x2):
+    """Rows of A = J_x / 2 (9 numbers), d_iᵀ d_i (3) and −(J_q)_ii / 2 (3) at the pose, from ``anchors``."""
+    translational = c[C_TRANSLATIONAL] != 0.0
+    cs, sn = 1.0, 0.0
+    if not translational:
+        cs, sn = math.cos(x2), math.sin(x2)
+    a00, a01, a02, sq0, dq0 = _leg(c, 0, translational, cs, sn, x0, x1, x2, anc[0])
+    a10, a11, a12, sq1, dq1 = _leg(c, 1, translational, cs, sn, x0, x1, x2, anc[1])
+    a20, a21, a22, sq2, dq2 = _leg(c, 2, translational, cs, sn, x0, x1, x2, anc[2])
+    return a00, a01, a02, a10, a11, a12, a20, a21, a22, sq0, sq1, sq2, dq0, dq1, dq2
+
+
+@_jit
+def _rate(a, r0, r1, r2):
+    """ẋ = A⁻¹ ((−J_q / 2) q̇) from ``rows`` a; NaN where J_x is exactly singular."""
+    u0, u1, u2, _ = solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[12] * r0, a[13] * r1, a[14] * r2)
+    return u0, u1, u2
+
+
+@_jit
+def _residual(anc, a):
+    """max_i |d_iᵀ d_i − ℓ_i²| (NaN if any is NaN)."""
+    res = 0.0
+    for v in (a[9] - anc[0][6] * anc[0][6], a[10] - anc[1][6] * anc[1][6], a[11] - anc[2][6] * anc[2][6]):
+        v = abs(v)
+        if v != v:
+            return np.nan
+        res = max(res, v)
+    return res
+
+
+@_jit
+def _metric(c, translational, s0, s1, s2):
+    """‖(δp, ℓ_c δφ)‖ (planar) or ‖δp‖ (translational) of a step [m]."""
+    if translational:
+        return math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    lc = c[C_LC]
+    return math.sqrt(s0 * s0 + s1 * s1 + lc * lc * s2 * s2)
+
+
+@_jit
+def _newton(c, anc, x0, x1, x2, tolerance, max_iterations):
+    """Newton's method on Φ(q, x) = 0 at the q of ``anc`` from x: (x, residual, rows at x)."""
+    a = rows(c, anc, x0, x1, x2)
+    residual = _residual(anc, a)
+    for _ in range(max_iterations):
+        if not residual > tolerance:  # NaN stops too
+            break
+        f0 = 0.5 * (a[9] - anc[0][6] * anc[0][6])
+        f1 = 0.5 * (a[10] - anc[1][6] * anc[1][6])
+        f2 = 0.5 * (a[11] - anc[2][6] * anc[2][6])
+        d0, d1, d2, _ = solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], f0, f1, f2)
+        n0, n1, n2 = x0 + -1.0 * d0, x1 + -1.0 * d1, x2 + -1.0 * d2
+        if not (math.isfinite(n0) and math.isfinite(n1) and math.isfinite(n2)):
+            break
+        x0, x1, x2 = n0, n1, n2
+        a = rows(c, anc, x0, x1, x2)
+        residual = _residual(anc, a)
+    return x0, x1, x2, residual, a
+
+
+@_jit
+def singularity(c, anc, a):
+    """(k of J_i diag(pose_scale), sign(det J_x), k_I) from ``rows`` a and ``anchors`` anc."""
+    i0, i1, i2 = 1.0 / anc[0][6], 1.0 / anc[1][6], 1.0 / anc[2][6]
+    s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
+    k = singular_value_ratio3(
+        a[0] * i0 * s0,
+        a[1] * i0 * s1,
+        a[2] * i0 * s2,
+        a[3] * i1 * s0,
+        a[4] * i1 * s1,
+        a[5] * i1 * s2,
+        a[6] * i2 * s0,
+        a[7] * i2 * s1,
+        a[8] * i2 * s2,
+    )
+    det = a[0] * (a[4] * a[8] - a[5] * a[7]) + a[1] * (a[5] * a[6] - a[3] * a[8]) + a[2] * (a[3] * a[7] - a[4] * a[6])
+    sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
+    if c[C_LEGS] != 0.0:
+        return k, sign, 1.0
+    k1 = np.inf
+    for v in (
+        abs(a[12]) / (anc[0][6] * anc[0][7]),
+        abs(a[13]) / (anc[1][6] * anc[1][7]),
+        abs(a[14]) / (anc[2][6] * anc[2][7]),
+    ):
+        if v != v:
+            return k, sign, np.nan
+        k1 = min(k1, v)
+    return k, sign, k1
+
+
+@_jit_inline
+def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump):
+    """Advance robot i by one control period (``envs.family_kernels.transition_batch``); writes row i of the outputs."""
+    translational = c[C_TRANSLATIONAL] != 0.0
+    dt = c[C_DT]
+    lo, hi = c[C_LMIN], c[C_LMAX]
+    stroke = c[C_RATE] * dt
+    q0, q1, q2 = q[i, 0], q[i, 1], q[i, 2]
+    x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
+    a0 = min(max(action[i, 0], -1.0), 1.0)
+    a1 = min(max(action[i, 1], -1.0), 1.0)
+    a2 = min(max(action[i, 2], -1.0), 1.0)
+    n0 = min(max(q0 + a0 * stroke, lo), hi)
+    n1 = min(max(q1 + a1 * stroke, lo), hi)
+    n2 = min(max(q2 + a2 * stroke, lo), hi)
+    r0, r1, r2 = (n0 - q0) / dt, (n1 - q1) / dt, (n2 - q2) / dt
+    start_anc = anchors(c, q0, q1, q2)
+    start_rows = rows(c, start_anc, x0, x1, x2)
+    anc, a = start_anc, start_rows
+    v0, v1, v2 = _rate(a, r0, r1, r2)
+    steps = np.ceil(_metric(c, translational, v0, v1, v2) * dt / c[C_MAX_SUBSTEP])
+    cap = c[C_MAX_SUBSTEPS]
+    count = int(cap) if not math.isfinite(steps) else int(min(max(steps, 1.0), cap))
+    h = dt / count
+    rk4 = c[C_RK4] != 0.0
+    tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])
+    kq0, kq1, kq2, kx0, kx1, kx2 = q0, q1, q2, x0, x1, x2
+    res = residual[i]
+    jump = 0.0
+    failed = False
+    for s in range(count):
+        frac = (s + 1) / count
+        t0, t1, t2 = q0 + frac * (n0 - q0), q1 + frac * (n1 - q1), q2 + frac * (n2 - q2)
+        if s > 0:  # at the pose Newton's method just returned, whose rows it computed
+            v0, v1, v2 = _rate(a, r0, r1, r2)
+        if rk4:
+            hh = 0.5 * h
+            mid = anchors(c, kq0 + hh * r0, kq1 + hh * r1, kq2 + hh * r2)
+            b0, b1, b2 = _rate(rows(c, mid, kx0 + hh * v0, kx1 + hh * v1, kx2 + hh * v2), r0, r1, r2)
+            e0, e1, e2 = _rate(rows(c, mid, kx0 + hh * b0, kx1 + hh * b1, kx2 + hh * b2), r0, r1, r2)
+            end = anchors(c, kq0 + h * r0, kq1 + h * r1, kq2 + h * r2)
+            f0, f1, f2 = _rate(rows(c, end, kx0 + h * e0, kx1 + h * e1, kx2 + h * e2), r0, r1, r2)
+            g0 = (v0 + 2.0 * b0 + 2.0 * e0 + f0) / 6.0
+            g1 = (v1 + 2.0 * b1 + 2.0 * e1 + f1) / 6.0
+            g2 = (v2 + 2.0 * b2 + 2.0 * e2 + f2) / 6.0
+            p0, p1, p2 = kx0 + h * g0, kx1 + h * g1, kx2 + h * g2
+        else:
+            p0, p1, p2 = kx0 + h * v0, kx1 + h * v1, kx2 + h * v2
+        if not (math.isfinite(p0) and math.isfinite(p1) and math.isfinite(p2)):
+            failed = True
+            break
+        anc = anchors(c, t0, t1, t2)
+        y0, y1, y2, fres, a = _newton(c, anc, p0, p1, p2, tolerance, iterations)
+        if not fres <= tolerance:
+            failed = True
+            break
+        jump = max(jump, _metric(c, translational, y0 - p0, y1 - p1, y2 - p2))
+        kq0, kq1, kq2, kx0, kx1, kx2, res = t0, t1, t2, y0, y1, y2, fres
+    if failed:
+        kq0, kq1, kq2, kx0, kx1, kx2, res = q0, q1, q2, x0, x1, x2, residual[i]
+        anc, a = start_anc, start_rows
+    k_new, sign, k1 = singularity(c, anc, a)
+    out = False
+    for j, value in enumerate((kx0, kx1, kx2)):
+        if value < c[C_LOW + j] or value > c[C_HIGH + j]:
+            out = True
+    o_q[i, 0], o_q[i, 1], o_q[i, 2] = kq0, kq1, kq2
+    o_x[i, 0], o_x[i, 1], o_x[i, 2] = kx0, kx1, kx2
+    o_k[i] = k_new
+    o_k1[i] = k1
+    o_res[i] = res
+    o_a[i, 0], o_a[i, 1], o_a[i, 2] = a0, a1, a2
+    o_qr[i, 0], o_qr[i, 1], o_qr[i, 2] = r0, r1, r2
+    o_reason[i] = family_planar.termination_reason(c, failed, jump, sign, det_sign[i], k_new, out, k1)
+    o_jump[i] = jump
