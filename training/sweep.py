@@ -197,9 +197,12 @@ def aggregate_results(results: list[dict], out: Path, reps: int = 2000) -> dict[
                 ),
             }
             if all("tracking" in m["scores"][task] for m in members):  # Track envs: errors after settling
-                per_task[task]["tracking_rms_position_mm"] = float(
-                    np.mean([m["scores"][task]["tracking"]["rms_position_mm"]["mean"] for m in members])
-                )
+                rms = [m["scores"][task]["tracking"]["rms_position_mm"]["mean"] for m in members]
+                peak = [m["scores"][task]["tracking"]["max_position_mm"]["mean"] for m in members]
+                per_task[task]["tracking_rms_position_mm"] = float(np.mean(rms))
+                per_task[task]["tracking_rms_position_mm_std"] = float(np.std(rms))
+                per_task[task]["tracking_max_position_mm"] = float(np.mean(peak))
+                per_task[task]["tracking_max_position_mm_std"] = float(np.std(peak))
                 per_task[task]["tracking_rms_orientation_deg"] = float(
                     np.mean([m["scores"][task]["tracking"]["rms_orientation_deg"]["mean"] for m in members])
                 )
@@ -274,14 +277,22 @@ def report_markdown(data: dict[str, Any]) -> str:
     if tracked:
         lines += [
             "",
-            "Tracking (after a 1 s settling time; means over seeds of the per-seed means):",
+            "Tracking (after a 1 s settling time; the per-seed means over episodes, then mean ± std over seeds; "
+            "max: an episode's largest position error):",
             "",
-            "| algo @ env | task | RMS position error [mm] | RMS orientation error [°] | lag [s] |",
-            "|---|---|---|---|---|",
+            "| algo @ env | task | RMS position error [mm] | max position error [mm] | RMS orientation error [°] "
+            "| lag [s] |",
+            "|---|---|---|---|---|---|",
         ]
         for label, task, t in tracked:
+            peak = "–"
+            if "tracking_max_position_mm" in t:  # (sweeps reported before the column was added lack it)
+                peak = f"{t['tracking_max_position_mm']:.2f} ± {t['tracking_max_position_mm_std']:.2f}"
+            rms = f"{t['tracking_rms_position_mm']:.2f}"
+            if "tracking_rms_position_mm_std" in t:
+                rms += f" ± {t['tracking_rms_position_mm_std']:.2f}"
             lines.append(
-                f"| {label} | {task} | {t['tracking_rms_position_mm']:.2f} | {t['tracking_rms_orientation_deg']:.2f} "
+                f"| {label} | {task} | {rms} | {peak} | {t['tracking_rms_orientation_deg']:.2f} "
                 f"| {t['tracking_lag_s']:.2f} |"
             )
     lines += ["", "![performance profile](performance_profile.png)", ""]
