@@ -86,13 +86,13 @@ def anchor(c, i, qi):
     return A0, A1, A2, D0, D1, D2, lam * qi + c[C_ELL + i], speed
 
 
-@_jit
+@_jit_inline
 def anchors(c, q0, q1, q2):
     """The three legs' ``anchor`` values at q = (q0, q1, q2): a tuple of three 8-tuples."""
     return anchor(c, 0, q0), anchor(c, 1, q1), anchor(c, 2, q2)
 
 
-@_jit
+@_jit_inline
 def _leg(c, i, translational, cs, sn, x0, x1, x2, an):
     """(row of A, d_iᵀ d_i, d_iᵀ A_i′ + ℓ_i ℓ_i′) of leg i at the pose, from its ``anchor`` values ``an``."""
     P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
@@ -119,7 +119,7 @@ def _leg(c, i, translational, cs, sn, x0, x1, x2, an):
     return r0, r1, r2, sq, dq
 
 
-@_jit
+@_jit_inline
 def rows(c, anc, x0, x1, x2):
     """Rows of A = J_x / 2 (9 numbers), d_iᵀ d_i (3) and −(J_q)_ii / 2 (3) at the pose, from ``anchors``."""
     translational = c[C_TRANSLATIONAL] != 0.0
@@ -132,14 +132,14 @@ def rows(c, anc, x0, x1, x2):
     return a00, a01, a02, a10, a11, a12, a20, a21, a22, sq0, sq1, sq2, dq0, dq1, dq2
 
 
-@_jit
+@_jit_inline
 def _rate(a, r0, r1, r2):
     """ẋ = A⁻¹ ((−J_q / 2) q̇) from ``rows`` a; NaN where J_x is exactly singular."""
     u0, u1, u2, _ = solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[12] * r0, a[13] * r1, a[14] * r2)
     return u0, u1, u2
 
 
-@_jit
+@_jit_inline
 def _residual(anc, a):
     """max_i |d_iᵀ d_i − ℓ_i²| (NaN if any is NaN)."""
     res = 0.0
@@ -151,7 +151,7 @@ def _residual(anc, a):
     return res
 
 
-@_jit
+@_jit_inline
 def _metric(c, translational, s0, s1, s2):
     """‖(δp, ℓ_c δφ)‖ (planar) or ‖δp‖ (translational) of a step [m]."""
     if translational:
@@ -160,7 +160,7 @@ def _metric(c, translational, s0, s1, s2):
     return math.sqrt(s0 * s0 + s1 * s1 + lc * lc * s2 * s2)
 
 
-@_jit
+@_jit_inline
 def _newton(c, anc, x0, x1, x2, tolerance, max_iterations):
     """Newton's method on Φ(q, x) = 0 at the q of ``anc`` from x: (x, residual, rows at x)."""
     a = rows(c, anc, x0, x1, x2)
@@ -181,7 +181,7 @@ def _newton(c, anc, x0, x1, x2, tolerance, max_iterations):
     return x0, x1, x2, residual, a
 
 
-@_jit
+@_jit_inline
 def singularity(c, anc, a):
     """(k of J_i diag(pose_scale), sign(det J_x), k_I) from ``rows`` a and ``anchors`` anc."""
     i0, i1, i2 = 1.0 / anc[0][6], 1.0 / anc[1][6], 1.0 / anc[2][6]
@@ -213,7 +213,7 @@ def singularity(c, anc, a):
     return k, sign, k1
 
 
-@_jit_inline
+@_jit
 def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump):
     """Advance robot i by one control period (``envs.family_kernels.transition_batch``); writes row i of the outputs."""
     translational = c[C_TRANSLATIONAL] != 0.0
