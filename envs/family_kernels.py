@@ -35,7 +35,6 @@ from envs.linalg_kernels import (
     LANES,
     inverse_condition6,
     inverse_condition6_lanes,
-    singular_value_ratio3,
     solve3,
     solve6,
 )
@@ -652,26 +651,11 @@ def _singularity(c, q, w, src):
     """
     m = int(c[C_N])
     if m == 3:
-        a = w[src]
-        b = w[src + 1]
-        d = w[src + 2]
-        i0, i1, i2 = 1.0 / _link_length(c, q, w, 0), 1.0 / _link_length(c, q, w, 1), 1.0 / _link_length(c, q, w, 2)
-        s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
-        k = singular_value_ratio3(
-            a[0] * i0 * s0,
-            a[1] * i0 * s1,
-            a[2] * i0 * s2,
-            b[0] * i1 * s0,
-            b[1] * i1 * s1,
-            b[2] * i1 * s2,
-            d[0] * i2 * s0,
-            d[1] * i2 * s1,
-            d[2] * i2 * s2,
-        )
-        det = (
-            a[0] * (b[1] * d[2] - b[2] * d[1]) + a[1] * (b[2] * d[0] - b[0] * d[2]) + a[2] * (b[0] * d[1] - b[1] * d[0])
-        )
-        return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
+        a, b, d = w[src], w[src + 1], w[src + 2]
+        ell0, ell1, ell2 = _link_length(c, q, w, 0), _link_length(c, q, w, 1), _link_length(c, q, w, 2)
+        return family_three.link_condition3(
+            c, a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], ell0, ell1, ell2
+        )  # fmt: skip
     Ht = w[W_H : W_H + 6]  # column j of J_i diag(pose_scale) as row j
     for i in range(6):
         inv = 1.0 / _link_length(c, q, w, i)

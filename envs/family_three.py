@@ -53,7 +53,7 @@ from envs.family_layout import (
 from envs.linalg_kernels import singular_value_ratio3, solve3
 from envs.numba_cache import drop_stale_caches
 
-__all__ = ["anchor", "anchors", "rows", "transition_row"]
+__all__ = ["anchor", "anchors", "link_condition3", "rows", "transition_row"]
 
 drop_stale_caches(__file__, [family_layout.__file__, family_planar.__file__, linalg_kernels.__file__])
 
@@ -182,23 +182,33 @@ def _newton(c, anc, x0, x1, x2, tolerance, max_iterations):
 
 
 @_jit_inline
-def singularity(c, anc, a):
-    """(k of J_i diag(pose_scale), sign(det J_x), k_I) from ``rows`` a and ``anchors`` anc."""
-    i0, i1, i2 = 1.0 / anc[0][6], 1.0 / anc[1][6], 1.0 / anc[2][6]
+def link_condition3(c, a00, a01, a02, a10, a11, a12, a20, a21, a22, l0, l1, l2):
+    """(k, sign(det J_x)) of three legs from the rows a of A = J_x / 2 and the link lengths ℓ_i.
+
+    k = σ_min/σ_max of the link Jacobian diag(1/ℓ) A diag(pose_scale) (closed form), sign(det J_x) = sign(det A).
+    The three-leg case of every pose space (``envs.family_kernels._singularity`` calls it too).
+    """
+    i0, i1, i2 = 1.0 / l0, 1.0 / l1, 1.0 / l2
     s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
     k = singular_value_ratio3(
-        a[0] * i0 * s0,
-        a[1] * i0 * s1,
-        a[2] * i0 * s2,
-        a[3] * i1 * s0,
-        a[4] * i1 * s1,
-        a[5] * i1 * s2,
-        a[6] * i2 * s0,
-        a[7] * i2 * s1,
-        a[8] * i2 * s2,
+        a00 * i0 * s0,
+        a01 * i0 * s1,
+        a02 * i0 * s2,
+        a10 * i1 * s0,
+        a11 * i1 * s1,
+        a12 * i1 * s2,
+        a20 * i2 * s0,
+        a21 * i2 * s1,
+        a22 * i2 * s2,
     )
-    det = a[0] * (a[4] * a[8] - a[5] * a[7]) + a[1] * (a[5] * a[6] - a[3] * a[8]) + a[2] * (a[3] * a[7] - a[4] * a[6])
-    sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
+    det = a00 * (a11 * a22 - a12 * a21) + a01 * (a12 * a20 - a10 * a22) + a02 * (a10 * a21 - a11 * a20)
+    return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
+
+
+@_jit_inline
+def singularity(c, anc, a):
+    """(k of J_i diag(pose_scale), sign(det J_x), k_I) from ``rows`` a and ``anchors`` anc."""
+    k, sign = link_condition3(c, a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], anc[0][6], anc[1][6], anc[2][6])
     if c[C_LEGS] != 0.0:
         return k, sign, 1.0
     k1 = np.inf
