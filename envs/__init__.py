@@ -34,65 +34,34 @@ __all__ = [
     "SingularityShield",
 ]
 
-#: Every registered id, with its entry point, vector entry point, episode length and keyword arguments.
+_REACH = ("envs.family:FamilyReachEnv", "envs.family:FamilyReachVectorEnv")
+_TRACK = ("envs.family:FamilyTrackEnv", "envs.family:FamilyTrackVectorEnv")
+
+#: Every registered id: its env and vector env, episode length and keyword arguments. Every id runs the same
+#: env classes; a robot-named id is a preset (``envs.family.ROBOT_PRESETS``), a task kind is an option.
 _SPECS = {
-    "Planar3RPRReach-v0": ("envs.planar_3rpr:Planar3RPRReachEnv", "envs.vector:Planar3RPRReachVectorEnv", 200, {}),
-    "Planar3RPRReachHard-v0": (
-        "envs.planar_3rpr:Planar3RPRReachEnv",
-        "envs.vector:Planar3RPRReachVectorEnv",
-        200,
-        {"targets": "hard"},
-    ),
-    # Standard or hard targets, one of the two at random per episode (one policy for both kinds).
-    "Planar3RPRReachMixed-v0": (
-        "envs.planar_3rpr:Planar3RPRReachEnv",
-        "envs.vector:Planar3RPRReachVectorEnv",
-        200,
-        {"targets": "mixed"},
-    ),
-    "Planar3RPRTrack-v0": ("envs.planar_3rpr:Planar3RPRTrackEnv", "envs.vector:Planar3RPRTrackVectorEnv", 400, {}),
-    # The Stewart–Gough hexapod on the family core (``envs.family``; ``robot=`` takes any other member).
-    "StewartGoughReach-v0": ("envs.family:FamilyReachEnv", "envs.family:FamilyReachVectorEnv", 200, {}),
-    "StewartGoughReachHard-v0": (
-        "envs.family:FamilyReachEnv",
-        "envs.family:FamilyReachVectorEnv",
-        200,
-        {"targets": "hard", **ROBOT_PRESETS["stewart_gough_hard"]},
-    ),
-    "StewartGoughTrack-v0": ("envs.family:FamilyTrackEnv", "envs.family:FamilyTrackVectorEnv", 400, {}),
+    # The lesson's planar 3-RPR: tasks in the regions of its certified grid; hard targets behind the
+    # ill-conditioned zone; "mixed": standard or hard at random per episode (one policy for both kinds).
+    "Planar3RPRReach-v0": (*_REACH, 200, {"robot": "planar_3rpr"}),
+    "Planar3RPRReachHard-v0": (*_REACH, 200, {"robot": "planar_3rpr", "targets": "hard"}),
+    "Planar3RPRReachMixed-v0": (*_REACH, 200, {"robot": "planar_3rpr", "targets": "mixed"}),
+    "Planar3RPRTrack-v0": (*_TRACK, 400, {"robot": "planar_3rpr"}),
+    "StewartGoughReach-v0": (*_REACH, 200, {"robot": "stewart_gough"}),
+    "StewartGoughReachHard-v0": (*_REACH, 200, {"robot": "stewart_gough_hard", "targets": "hard"}),
+    "StewartGoughTrack-v0": (*_TRACK, 400, {"robot": "stewart_gough"}),
     # Crank- and slider-driven members (``kinematics.Delta``, ``Planar3RRR``, ``Planar3PRR``): Type I singularities too.
-    "DeltaReach-v0": ("envs.family:FamilyReachEnv", "envs.family:FamilyReachVectorEnv", 200, ROBOT_PRESETS["delta"]),
-    "DeltaReachHard-v0": (
-        "envs.family:FamilyReachEnv",
-        "envs.family:FamilyReachVectorEnv",
-        200,
-        {"targets": "hard", **ROBOT_PRESETS["delta"]},
-    ),
+    "DeltaReach-v0": (*_REACH, 200, {"robot": "delta"}),
+    "DeltaReachHard-v0": (*_REACH, 200, {"robot": "delta", "targets": "hard"}),
     # The adept cycle (25 mm up, 305 mm across, 25 mm down and back) every 4 s.
-    "DeltaTrack-v0": (
-        "envs.family:FamilyTrackEnv",
-        "envs.family:FamilyTrackVectorEnv",
-        400,
-        ROBOT_PRESETS["delta_track"],
-    ),
-    "Planar3RRRReach-v0": (
-        "envs.family:FamilyReachEnv",
-        "envs.family:FamilyReachVectorEnv",
-        200,
-        ROBOT_PRESETS["planar_3rrr"],
-    ),
-    "Planar3RRRReachHard-v0": (
-        "envs.family:FamilyReachEnv",
-        "envs.family:FamilyReachVectorEnv",
-        200,
-        {"targets": "hard", **ROBOT_PRESETS["planar_3rrr"]},
-    ),
-    "Planar3PRRReach-v0": (
-        "envs.family:FamilyReachEnv",
-        "envs.family:FamilyReachVectorEnv",
-        200,
-        ROBOT_PRESETS["planar_3prr"],
-    ),
+    "DeltaTrack-v0": (*_TRACK, 400, {"robot": "delta_track"}),
+    "Planar3RRRReach-v0": (*_REACH, 200, {"robot": "planar_3rrr"}),
+    "Planar3RRRReachHard-v0": (*_REACH, 200, {"robot": "planar_3rrr", "targets": "hard"}),
+    "Planar3PRRReach-v0": (*_REACH, 200, {"robot": "planar_3prr"}),
+    # Any robot of the family: ``robot=`` a preset name or a ``kinematics.DistanceConstraintMechanism`` (whose
+    # bounds, task box and strokes are derived from its size unless given); the default is the hexapod.
+    "ParallelRobotReach-v0": (*_REACH, 200, {}),
+    "ParallelRobotReachHard-v0": (*_REACH, 200, {"targets": "hard"}),
+    "ParallelRobotTrack-v0": (*_TRACK, 400, {}),
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)

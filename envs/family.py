@@ -25,7 +25,10 @@ from envs import family_kernels as fk
 from envs.core import TERMINATION_REASONS, NonFiniteActionError
 from envs.planar_3rpr import step_info as planar_step_info
 from envs.vector import Planar3RPRVectorEnv
-from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RRR, StewartGough
+from envs import workspace_kernels
+from envs.rendering import HumanWindow
+from envs.workspace import WorkspaceMap, WorkspaceSpec, certify_workspace
+from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
 
 __all__ = [
     "ADEPT_CYCLE",
@@ -53,7 +56,10 @@ REWARD_TERMS = (
     "reward_termination",
     "reward_actuator_singularity",
 )
-_TARGET_MODES = ("standard", "hard")
+_TARGET_MODES = ("standard", "hard", "mixed")
+_HARD_KINDS = ("detour", "ill_conditioned", "crossing")
+_TASK_REGIONS = ("box", "grid")
+_TRACK_SHAPES = ("sinusoid", "circle")
 _INTEGRATORS = ("euler", "rk4")
 TRAIL_LENGTH = 200
 
@@ -100,7 +106,18 @@ class FamilyParams:
         segment_spacing: Largest gap between checked points of a certified path [m].
         min_distance: Smallest ‖(δp, ℓ_c δθ)‖ between start and target [m].
         hard_kind: What makes a hard target: "detour" (the straight path dips below k_safe, a detour is
-            certified) or "ill_conditioned" (the target lies where 2 k_hard ≤ k < k_safe).
+            certified), "ill_conditioned" (the target lies where 2 k_hard ≤ k < k_safe) or "crossing" (the
+            straight line in pose space dips below k_hard; start and target in one region of the grid, which
+            certifies a detour; needs ``task_region="grid"``).
+        task_region: Where starts and targets are drawn: "box" (uniformly in the sampling box, paths certified
+            segment by segment) or "grid" (three pose coordinates only: in one connected safe region of a
+            certified grid over the pose bounds, ``envs.workspace``).
+        grid_cell: Grid spacing of ``task_region="grid"``, shape (3,) [m, rad].
+        track_shape: The Track reference: "sinusoid" (x*_j = c_j + a_j sin(ω t + θ_j), or the ``track_path``) or
+            "circle" (three pose coordinates, ``task_region="grid"``: a circle of radius r in the first two
+            coordinates, the third oscillating by ±a, all of one period in one safe region).
+        track_radius_range: (r_min, r_max) of a circle reference [m].
+        track_angle_range: (a_min, a_max) of a circle reference's third coordinate [rad, or m if translational].
     """
 
     robot: DistanceConstraintMechanism = field(default_factory=StewartGough)
@@ -137,6 +154,29 @@ class FamilyParams:
     segment_spacing: float = 0.01
     min_distance: float = 0.05
     hard_kind: str = "detour"
+    task_region: str = "box"
+    grid_cell: tuple[float, float, float] = (0.025, 0.025, 0.05)
+    track_shape: str = "sinusoid"
+    track_radius_range: tuple[float, float] = (0.05, 0.15)
+    track_angle_range: tuple[float, float] = (0.0, 0.4)
+
+    @functools.cached_property
+    def workspace(self) -> WorkspaceMap | None:
+        """The certified grid of ``task_region="grid"`` (cached per geometry and limits), else None."""
+        if self.task_region != "grid":
+            return None
+        return certify_workspace(
+            WorkspaceSpec(
+                robot=self.robot,
+                stroke_limits=self.stroke_limits,
+                pose_low=self.pose_low,
+                pose_high=self.pose_high,
+                safe_threshold=self.safe_threshold,
+                actuator_safe_threshold=self.actuator_safe_threshold,
+                stroke_margin=self.stroke_margin,
+                cell=self.grid_cell,
+            )
+        )
 
     @functools.cached_property
     def packed(self) -> np.ndarray:
@@ -161,6 +201,7 @@ class FamilyParams:
 
 #: The robots a family environment builds by name (``robot="delta"``), each with its default geometry.
 ROBOTS: dict[str, type[DistanceConstraintMechanism]] = {
+    "planar_3rpr": Planar3RPR,
     "stewart_gough": StewartGough,
     "delta": Delta,
     "planar_3rrr": Planar3RRR,
@@ -220,18 +261,52 @@ _PLANAR_3RRR: dict[str, Any] = {
     "stroke_margin": 0.05,
 }
 
+_PLANAR_3RPR: dict[str, Any] = {
+    # The lesson's 3-RPR (``kinematics.Planar3RPR()``): legs 0.3-1.0 m at 0.25 m/s, the pose within x -0.2-1.2 m,
+    # y -0.3-1.2 m, φ ±π/2. Tasks come from the certified grid (cells of 2.5 cm, 2.5 cm, 0.05 rad) inside those
+    # bounds less (5 cm, 5 cm, 0.1 rad): start and target in one safe region (k ≥ 0.15), at least 0.1 m apart.
+    # Hard targets: the straight line from the start crosses k < 0.03 (``hard_kind="crossing"``). Track: a
+    # circle of radius 5-15 cm with φ oscillating by up to ±0.4 rad, every 10 s.
+    "robot": "planar_3rpr",
+    "stroke_limits": (0.3, 1.0),
+    "max_rate": 0.25,
+    "pose_low": (-0.2, -0.3, -np.pi / 2),
+    "pose_high": (1.2, 1.2, np.pi / 2),
+    "sample_low": (-0.2 + 0.05, -0.3 + 0.05, -np.pi / 2 + 0.1),
+    "sample_high": (1.2 - 0.05, 1.2 - 0.05, np.pi / 2 - 0.1),
+    "safe_threshold": 0.15,
+    "success_position_tolerance": 0.02,
+    "success_orientation_tolerance": 0.1,
+    "min_distance": 0.1,
+    "task_region": "grid",
+    "hard_kind": "crossing",
+    "track_shape": "circle",
+    "track_period": 10.0,
+}
+
 #: Documented defaults of the robots with registered ids: constructor keyword arguments of the envs.
 ROBOT_PRESETS: dict[str, dict[str, Any]] = {
+    "planar_3rpr": _PLANAR_3RPR,
     # A symmetric 6-6 hexapod (``kinematics.StewartGough()``): base radius 0.5 m, platform radius 0.3 m, legs
     # 0.59 m at the home pose p = (0, 0, 0.5) m. Strokes 0.45-0.75 m at 0.1 m/s. Standard tasks keep to a box of
     # ±0.1 m, z 0.4-0.6 m, tilts ±0.2 rad and yaw ±0.5 rad, where k ≥ 0.2. Hard tasks widen the tilts to
     # ±0.35 rad and the yaw to ±1.3 rad, toward Fichter's singularity at yaw ±90°.
-    "stewart_gough": {},
+    "stewart_gough": {
+        "robot": "stewart_gough",
+        **{
+            name: FamilyParams.__dataclass_fields__[name].default
+            for name in ("stroke_limits", "pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude")
+        },
+    },
     # In this workspace no straight path between two safe poses dips below k_safe (0 of 10 000 pairs, even
     # with k_safe = 0.25: k is quasi-concave there), so hard targets are ill-conditioned ones instead: toward
     # Fichter's singularity, where 2 k_hard ≤ k < k_safe, reached from a safe start. Large yaws stretch the
     # legs, so this task's hexapod has longer strokes (0.40-0.85 m).
     "stewart_gough_hard": {
+        "robot": "stewart_gough",
+        "pose_low": FamilyParams.pose_low,
+        "pose_high": FamilyParams.pose_high,
+        "track_amplitude": FamilyParams.track_amplitude,
         "stroke_limits": (0.40, 0.85),
         "sample_low": (-0.12, -0.12, 0.38, -0.3, -0.3, -1.45),
         "sample_high": (0.12, 0.12, 0.62, 0.3, 0.3, 1.45),
@@ -349,6 +424,13 @@ def _track_speed_bounds(params: FamilyParams) -> np.ndarray:
     a_j ω for sinusoids; for a path, the peak rate of its cosine profile on each segment, π |a_j ΔW_j| / (2 D_k),
     with the first two coordinates' norm for both (any heading).
     """
+    if params.track_shape == "circle":
+        # |ṗ*| ≤ ω · (the largest span of the first two coordinates) / 2, the third ≤ ω · its span / 2: a bound
+        # every circle inside the pose bounds keeps.
+        omega = 2.0 * np.pi / params.track_period
+        span = np.array(params.pose_high) - np.array(params.pose_low)
+        v_max = omega * float(np.max(span[:2])) / 2.0
+        return np.array([v_max, v_max, omega * float(span[2]) / 2.0])
     amplitude = np.array(params.track_amplitude)
     if not params.track_path:
         return amplitude * 2.0 * np.pi / params.track_period
@@ -615,6 +697,50 @@ def _track_path(path: Any, times: Any, m: int) -> tuple[tuple[tuple[float, ...],
     return tuple(tuple(map(float, v)) for v in vertices), tuple(map(float, shares))
 
 
+def derived_defaults(robot: DistanceConstraintMechanism) -> dict[str, Any]:
+    """Bounds, task box, stroke limits and Track amplitudes of a robot, scaled by its size around its home pose.
+
+    The reach ρ is half the mean distance of the base anchors from their centroid. Pose bounds span ±ρ in
+    position (planar: φ ±0.6 rad; spatial: ±0.8 ρ in x, y, ±0.9 ρ in z, tilts ±0.6 rad and yaw ±1.9 rad) and the
+    task box 0.6 (spatial: 0.4) of that in position, tilts ±0.2 rad and yaw ±0.5 rad. Legs get strokes from
+    0.5 (spatial: 0.75) of the shortest to 1.6 (spatial: 1.3) of the longest leg at home; cranks ±1 rad and
+    sliders ±0.2 m around their values at home.
+
+    Args:
+        robot: The mechanism.
+
+    Returns:
+        Keyword arguments of ``FamilyParams`` (a caller's own values take precedence).
+    """
+    home = robot.home_pose()
+    reach = 0.5 * float(np.mean(np.linalg.norm(robot.base - robot.base.mean(axis=0), axis=1)))
+    space = robot.pose_space.name
+    if space == "spatial":
+        half = np.array([0.8 * reach, 0.8 * reach, 0.9 * reach, 0.6, 0.6, 1.9])
+        box = np.array([0.4 * reach, 0.4 * reach, 0.4 * reach, 0.2, 0.2, 0.5])
+        amplitude = (0.2 * reach, 0.0, 0.16 * reach, 0.0, 0.1, 0.0)
+        leg_band = (0.75, 1.3)
+    else:
+        half = np.array([reach, reach, 0.6 if space == "planar" else reach])
+        box = 0.6 * half
+        amplitude = (0.3 * reach, 0.3 * reach, 0.2)
+        leg_band = (0.5, 1.6)
+    at_home = robot.inverse_kinematics(home)
+    if all(kind == "leg" for kind in robot.actuator_kinds):
+        strokes = (leg_band[0] * float(at_home.min()), leg_band[1] * float(at_home.max()))
+    else:  # cranks [rad] or sliders [m]: a band around the home pose's values
+        band = 1.0 if "crank" in robot.actuator_kinds else 0.2
+        strokes = (float(at_home.min()) - band, float(at_home.max()) + band)
+    return {
+        "pose_low": tuple(home - half),
+        "pose_high": tuple(home + half),
+        "sample_low": tuple(home - box),
+        "sample_high": tuple(home + box),
+        "track_amplitude": amplitude,
+        "stroke_limits": strokes,
+    }
+
+
 def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwargs: Any) -> FamilyParams:
     """Validate constructor arguments into ``FamilyParams``; a robot without bounds gets ones around its home pose.
 
@@ -631,31 +757,25 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         ValueError: On an argument out of its range, naming the expected and the actual value.
     """
     if robot is None:
-        robot = StewartGough()
+        robot = "stewart_gough"
     if isinstance(robot, str):
+        if robot in ROBOT_PRESETS:  # a preset: its documented settings, under the caller's own
+            preset = dict(ROBOT_PRESETS[robot])
+            name = preset.pop("robot")
+            kwargs = {**preset, **kwargs}
+            robot = name
         if robot not in ROBOTS:
-            raise ValueError(f"robot must be a DistanceConstraintMechanism or one of {sorted(ROBOTS)}, got {robot!r}")
+            raise ValueError(
+                f"robot must be a DistanceConstraintMechanism or one of {sorted(set(ROBOTS) | set(ROBOT_PRESETS))}, "
+                f"got {robot!r}"
+            )
         robot = ROBOTS[robot]()
     if not isinstance(robot, DistanceConstraintMechanism):
         raise TypeError(f"robot must be a kinematics.DistanceConstraintMechanism, got {type(robot).__name__}")
     m = robot.n_pose
     defaults = FamilyParams.__dataclass_fields__
-    if m != 6 and robot is not None:
-        # Bounds of the spatial defaults do not fit: derive them from the robot's home pose.
-        home = robot.home_pose()
-        reach = 0.5 * float(np.mean(np.linalg.norm(robot.base - robot.base.mean(axis=0), axis=1)))
-        half = np.array([reach, reach, 0.6 if robot.pose_space.name == "planar" else reach])
-        kwargs.setdefault("pose_low", tuple(home - half))
-        kwargs.setdefault("pose_high", tuple(home + half))
-        kwargs.setdefault("sample_low", tuple(home - 0.6 * half))
-        kwargs.setdefault("sample_high", tuple(home + 0.6 * half))
-        kwargs.setdefault("track_amplitude", (0.3 * reach, 0.3 * reach, 0.2))
-        at_home = robot.inverse_kinematics(home)
-        if all(kind == "leg" for kind in robot.actuator_kinds):
-            kwargs.setdefault("stroke_limits", (0.5 * float(at_home.min()), 1.6 * float(at_home.max())))
-        else:  # cranks [rad] or sliders [m]: a band around the home pose's values
-            band = 1.0 if "crank" in robot.actuator_kinds else 0.2
-            kwargs.setdefault("stroke_limits", (float(at_home.min()) - band, float(at_home.max()) + band))
+    for name, value in derived_defaults(robot).items():
+        kwargs.setdefault(name, value)
     unknown = set(kwargs) - set(defaults)
     if unknown:
         raise TypeError(f"unknown argument(s) {sorted(unknown)}")
@@ -683,9 +803,24 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     values["track_path"], values["track_path_times"] = _track_path(
         kwargs.get("track_path", ()), kwargs.get("track_path_times", ()), m
     )
-    hard_kind = kwargs.get("hard_kind", "detour")
-    if hard_kind not in ("detour", "ill_conditioned"):
-        raise ValueError(f"hard_kind must be 'detour' or 'ill_conditioned', got {hard_kind!r}")
+    options = {}
+    for name, valid in (("hard_kind", _HARD_KINDS), ("task_region", _TASK_REGIONS), ("track_shape", _TRACK_SHAPES)):
+        options[name] = kwargs.get(name, defaults[name].default)
+        if options[name] not in valid:
+            raise ValueError(f"{name} must be one of {valid}, got {options[name]!r}")
+    if options["task_region"] == "grid" and m != 3:
+        raise ValueError(f"task_region='grid' needs a robot with 3 pose coordinates, got {m} ({robot.pose_space.name})")
+    if options["hard_kind"] == "crossing" and options["task_region"] != "grid":
+        raise ValueError(f"hard_kind='crossing' needs task_region='grid', got {options['task_region']!r}")
+    if options["track_shape"] == "circle" and (options["task_region"] != "grid" or values["track_path"]):
+        raise ValueError("track_shape='circle' needs task_region='grid' and no track_path")
+    values["grid_cell"] = _vector("grid_cell", kwargs.get("grid_cell", defaults["grid_cell"].default), 3)
+    if not all(v > 0 for v in values["grid_cell"]):
+        raise ValueError(f"grid_cell must be 3 positive spacings, got {values['grid_cell']}")
+    for name in ("track_radius_range", "track_angle_range"):
+        values[name] = _vector(name, kwargs.get(name, defaults[name].default), 2)
+        if not 0 <= values[name][0] <= values[name][1]:
+            raise ValueError(f"{name} must satisfy 0 ≤ low ≤ high, got {values[name]}")
     integrator = kwargs.get("integrator", "euler")
     if integrator not in _INTEGRATORS:
         raise ValueError(f"integrator must be one of {_INTEGRATORS}, got {integrator!r}")
@@ -739,7 +874,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         robot=robot,
         stroke_limits=(lo, hi),
         integrator=integrator,
-        hard_kind=hard_kind,
+        **options,
         safe_threshold=safe,
         hard_threshold=hard,
         actuator_hard_threshold=hard1,
@@ -777,7 +912,7 @@ _TYPE_I_INFO = ("reward_actuator_singularity", "actuator_condition_number", "cos
 class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
     """Shared machinery of the single-robot family environments; see ``FamilyReachEnv`` for the documentation."""
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 20}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
     with_velocity = False
     reset_options: tuple[str, ...] = ()
 
@@ -800,6 +935,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._reward_row = rows["reward"]
         self._info_rows = tuple((name, rows[name]) for name in _INFO_SCALARS)
         self._pose_rows, self._target_rows = rows["pose"], rows["target"]
+        self._window: HumanWindow | None = None
 
     #: The pure functions of this env's physics (the shield and the HER view call them).
     physics = None  # set below to this module
@@ -823,6 +959,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         evaluation, observations = evaluate(
             self.params, self._state, np.zeros((1, n)), np.zeros(1, dtype=np.int64), self.with_velocity
         )
+        if self.render_mode == "human":
+            self.render()
         return observations[0], self._info(evaluation[:, 0], 0)
 
     def step(self, action: Any):
@@ -850,15 +988,33 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         info = self._info(row, reason)
         if self.render_mode is not None:
             self._trail.append(self.params.robot.pose_space.position(info["pose"]).copy())
+        if self.render_mode == "human":
+            self.render()
         return observations[0].copy(), float(row[self._reward_row]), self._terminated, False, info
 
     def render(self):
-        """An RGB frame (``rgb_array``, headless); None without a render mode."""
+        """An RGB frame (``rgb_array``, headless), or a window update (``human``); None without a render mode."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
             return None
         if self._state is None:
             raise gym.error.ResetNeeded("Cannot call render() before reset()")
+        frame = self._frame()
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._window is None:
+            self._window = HumanWindow(self.metadata["render_fps"])
+        self._window.show(frame)
+        return None
+
+    def close(self) -> None:
+        """Close the window of ``human`` rendering, if open."""
+        if self._window is not None:
+            self._window.close()
+            self._window = None
+        super().close()
+
+    def _frame(self) -> np.ndarray:
         from envs.rendering_family import render_family_frame
 
         evaluation, _ = evaluate(
@@ -1023,7 +1179,7 @@ class FamilyReachEnv(FamilyEnvBase):
     * v0: Initial version.
     """
 
-    reset_options = ("targets",)
+    reset_options = ("targets", "start", "target")
     target_modes = _TARGET_MODES
 
     def __init__(
@@ -1037,18 +1193,72 @@ class FamilyReachEnv(FamilyEnvBase):
     def sample_tasks(
         self, generators: Sequence[np.random.Generator], options: dict[str, Any]
     ) -> tuple[np.ndarray, FamilyReference]:
-        """Certified start/target pairs (standard or hard), one per generator."""
+        """Certified start/target pairs, one per generator (see the class docstring, Starting State).
+
+        "mixed" draws each episode's kind first (hard with probability 1/2, from its own generator).
+        """
         mode = options.get("targets", self.targets)
         if mode not in _TARGET_MODES:
             raise ValueError(f"options['targets'] must be one of {_TARGET_MODES}, got {mode!r}")
-        n, m = len(generators), self.params.robot.n_pose
-        found = fk.sample_reach_batch(
-            self.params.packed, fk.random_streams(generators), n, m, mode == "hard", self.params.min_distance
-        )
-        if found is None:
-            raise RuntimeError(f"no certified {mode} task found in the task box after {fk.SAMPLER_TRIES} tries")
-        start, target, self.last_waypoints = found
-        return start, FamilyReference(target, np.zeros((n, m)), np.zeros((n, m)))
+        params = self.params
+        n, m = len(generators), params.robot.n_pose
+        start = self._fixed_pose("start", options["start"]) if "start" in options else None
+        target = self._fixed_pose("target", options["target"]) if "target" in options else None
+        if start is not None and target is not None:
+            if params.workspace is not None and params.workspace.component_of(start) != params.workspace.component_of(
+                target
+            ):
+                raise ValueError(
+                    f"start {start.tolist()} and target {target.tolist()} lie in different safe regions "
+                    "(different working modes): no singularity-free path joins them"
+                )
+            self.last_waypoints = np.tile(target, (n, 1))
+            return np.tile(start, (n, 1)), FamilyReference(np.tile(target, (n, 1)), np.zeros((n, m)), np.zeros((n, m)))
+        hard = np.array([g.random() < 0.5 for g in generators]) if mode == "mixed" else np.full(n, mode == "hard")
+        starts, targets, waypoints = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+        for kind in (False, True):
+            rows = np.flatnonzero(hard == kind)
+            if rows.size == 0:
+                continue
+            streams = fk.random_streams([generators[i] for i in rows])
+            if params.workspace is not None:
+                fixed_kind, fixed = (1, start) if start is not None else ((2, target) if target is not None else (0, None))
+                found = workspace_kernels.sample_reach_batch(
+                    params.packed, params.workspace.packed, streams, rows.size, kind, params.min_distance, fixed_kind, fixed
+                )
+                if found is not None:
+                    found = (*found, found[1])
+            elif start is not None or target is not None:
+                raise ValueError("reset options 'start' and 'target' alone need task_region='grid'; give both")
+            else:
+                found = fk.sample_reach_batch(params.packed, streams, rows.size, m, kind, params.min_distance)
+            if found is None:
+                what = "hard" if kind else "standard"
+                if start is not None or target is not None:
+                    raise ValueError(f"no {what} task exists for the given pose")
+                raise RuntimeError(f"no certified {what} task found in the task box after {fk.SAMPLER_TRIES} tries")
+            starts[rows], targets[rows], waypoints[rows] = found
+        self.last_waypoints = waypoints
+        return starts, FamilyReference(targets, np.zeros((n, m)), np.zeros((n, m)))
+
+    def _fixed_pose(self, name: str, value: Any) -> np.ndarray:
+        """A start or target pose given in ``reset`` options, checked to be finite and safe."""
+        m = self.params.robot.n_pose
+        try:
+            pose = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"options[{name!r}] must be a pose of {m} numbers, got {value!r}") from exc
+        if pose.shape != (m,) or not np.isfinite(pose).all():
+            raise ValueError(f"options[{name!r}] must be {m} finite numbers, got {value!r}")
+        safe = fk.safe_batch(self.params.packed, pose[None])[0]
+        if safe and self.params.workspace is not None:
+            safe = bool(np.isin(self.params.workspace.component_of(pose), self.params.workspace.component_ids))
+        if not safe:
+            raise ValueError(
+                f"options[{name!r}] = {pose.tolist()} is not in the certified safe set (the task box, strokes "
+                f"within the limits less {self.params.stroke_margin}, k ≥ {self.params.safe_threshold})"
+            )
+        return pose
 
 
 class FamilyTrackEnv(FamilyEnvBase):
@@ -1094,9 +1304,19 @@ class FamilyTrackEnv(FamilyEnvBase):
     ) -> tuple[np.ndarray, FamilyReference]:
         """References whose whole period is safe, one per generator; the start is the reference at t = 0."""
         n, m = len(generators), self.params.robot.n_pose
-        found = fk.sample_track_batch(
-            self.params.packed, fk.random_streams(generators), n, m, self.params.track_amplitude, 64
-        )
+        streams = fk.random_streams(generators)
+        if self.params.track_shape == "circle":
+            found = workspace_kernels.sample_circle_batch(
+                self.params.packed,
+                self.params.workspace.packed,
+                streams,
+                n,
+                self.params.track_radius_range,
+                self.params.track_angle_range,
+                int(np.ceil(self.params.track_period / self.params.dt)),
+            )
+        else:
+            found = fk.sample_track_batch(self.params.packed, streams, n, m, self.params.track_amplitude, 64)
         if found is None:
             raise RuntimeError(f"no safe reference found in the task box after {fk.SAMPLER_TRIES} tries")
         center, amplitude, phase = found

@@ -29,8 +29,8 @@ import math
 import numba
 import numpy as np
 
-from envs import family_layout, family_planar, family_three, kernels, linalg_kernels
-from envs.kernels import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
+from envs import family_layout, family_planar, family_three, linalg_kernels, numba_setup
+from envs.numba_setup import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
 from envs.linalg_kernels import (
     LANES,
     inverse_condition6,
@@ -117,7 +117,7 @@ from envs.family_layout import (
 
 drop_stale_caches(
     __file__,
-    [family_layout.__file__, family_planar.__file__, family_three.__file__, kernels.__file__, linalg_kernels.__file__],
+    [family_layout.__file__, family_planar.__file__, family_three.__file__, numba_setup.__file__, linalg_kernels.__file__],
 )
 
 # -- rows of the work array of one robot (each row holds up to 6 numbers) ------------------------------

@@ -1,11 +1,12 @@
-"""Certified workspace of a planar parallel robot: a conditioning grid and its connected safe regions.
+"""Certified workspace of a robot with three pose coordinates: a conditioning grid and its connected safe regions.
 
-A pose is *safe* when every stroke lies inside its limits with a margin and the homogeneous inverse
-condition number is at least the safe threshold. The safe set is sampled on a regular grid over the
-pose bounds; face-adjacent safe nodes are joined, and the connected components of that graph are the
-regions within which a start and a target may be paired: every component has a single sign of
-det J_x (one working mode), and neighbouring nodes lie a fraction of a cell apart, so a path along safe
-nodes never meets a Type II singularity (checked by ``tests/envs/test_workspace.py``).
+A pose is *safe* when every actuator coordinate lies inside its limits with a margin and the homogeneous
+inverse condition number k is at least the safe threshold (for cranks and sliders, the actuator condition
+number k_I also at least its own: safety = min(k, k_I · k_safe / k_I,safe) ≥ k_safe). The safe set is sampled
+on a regular grid over the pose bounds; face-adjacent safe nodes are joined, and the connected components of
+that graph are the regions within which a start and a target may be paired (``task_region="grid"`` of the
+family environments): every component has a single sign of det J_x (one working mode), and neighbouring nodes
+lie a fraction of a cell apart, so a path along safe nodes never meets a singularity.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from envs.kernels import pack_workspace
-from kinematics import Planar3RPR
+from envs.workspace_kernels import pack_workspace
+from kinematics import DistanceConstraintMechanism
 from kinematics.linalg import determinant
 
 __all__ = ["WorkspaceMap", "WorkspaceSpec", "certify_workspace"]
@@ -28,24 +29,25 @@ class WorkspaceSpec:
     """What a workspace certification depends on (hashable, so results are cached per geometry).
 
     Attributes:
-        robot: The mechanism.
-        stroke_limits: (L_min, L_max) [m].
-        pose_low: Lower pose bounds (x [m], y [m], φ [rad]).
-        pose_high: Upper pose bounds (x [m], y [m], φ [rad]).
-        safe_threshold: Inverse condition number a safe pose must reach.
-        stroke_margin: Distance [m] a safe pose keeps from both stroke limits.
-        bounds_margin: Distance (Δx [m], Δy [m], Δφ [rad]) a sampled pose keeps from the pose bounds.
-        cell: Grid spacing (Δx [m], Δy [m], Δφ [rad]).
+        robot: The mechanism (three pose coordinates: planar (x, y, φ) or translational (x, y, z)).
+        stroke_limits: (q_min, q_max) of every actuator [m, or rad for cranks].
+        pose_low: Lower pose bounds, shape (3,) [m, rad].
+        pose_high: Upper pose bounds, shape (3,) [m, rad].
+        safe_threshold: k_safe, the inverse condition number a safe pose must reach.
+        actuator_safe_threshold: k_I,safe, the actuator condition number a safe pose of cranks and sliders
+            must reach (unused for legs).
+        stroke_margin: Distance a safe pose keeps from both stroke limits [m, rad].
+        cell: Grid spacing, shape (3,) [m, rad].
         min_component_fraction: Components smaller than this share of safe nodes are not sampled.
     """
 
-    robot: Planar3RPR
+    robot: DistanceConstraintMechanism
     stroke_limits: tuple[float, float]
     pose_low: tuple[float, float, float]
     pose_high: tuple[float, float, float]
     safe_threshold: float
+    actuator_safe_threshold: float = 0.1
     stroke_margin: float = 0.02
-    bounds_margin: tuple[float, float, float] = (0.05, 0.05, 0.1)
     cell: tuple[float, float, float] = (0.025, 0.025, 0.05)
     min_component_fraction: float = 0.02
 
@@ -56,8 +58,9 @@ class WorkspaceMap:
 
     Attributes:
         spec: What it was computed from.
-        axes: Grid coordinates along x [m], y [m], φ [rad]; shapes (n_x,), (n_y,), (n_φ,).
-        inverse_condition: Homogeneous inverse condition number at every node, shape (n_x, n_y, n_φ).
+        axes: Grid coordinates along each pose coordinate; shapes (n_x,), (n_y,), (n_φ,).
+        inverse_condition: The safety measure at every node (k; for cranks and sliders min(k, k_I k_safe /
+            k_I,safe)), shape (n_x, n_y, n_φ).
         reachable: Strokes within limits (with margin) at every node, shape (n_x, n_y, n_φ).
         labels: Component id of every safe node (0 for unsafe ones), shape (n_x, n_y, n_φ).
         det_sign: sign(det J_x) at every node, shape (n_x, n_y, n_φ).
@@ -81,7 +84,7 @@ class WorkspaceMap:
 
     @functools.cached_property
     def packed(self) -> tuple[np.ndarray, ...]:
-        """The grid as the compiled sampling kernels read it (``envs.kernels.pack_workspace``)."""
+        """The grid as the compiled sampling kernels read it (``envs.workspace_kernels.pack_workspace``)."""
         return pack_workspace(self)
 
     @functools.cached_property
@@ -94,7 +97,7 @@ class WorkspaceMap:
         """Index of the grid node nearest to each pose (clipped to the grid).
 
         Args:
-            x: Poses (x [m], y [m], φ [rad]), shape (..., 3).
+            x: Poses, shape (..., 3).
 
         Returns:
             Three integer arrays of shape (...), one per axis.
@@ -110,7 +113,7 @@ class WorkspaceMap:
         """Component id of the node nearest to each pose (0: not in a safe region).
 
         Args:
-            x: Poses (x [m], y [m], φ [rad]), shape (..., 3).
+            x: Poses, shape (..., 3).
 
         Returns:
             Integer ids, shape (...).
@@ -137,11 +140,19 @@ def certify_workspace(spec: WorkspaceSpec) -> WorkspaceMap:
         for lo, hi, step in zip(spec.pose_low, spec.pose_high, spec.cell)
     )
     nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    if robot.n_pose != 3:
+        raise ValueError(f"a certified grid needs a robot with 3 pose coordinates, got {robot.n_pose}")
     q = robot.inverse_kinematics(nodes, validate=False)
     lo, hi = spec.stroke_limits
-    reachable = (q.min(axis=-1) >= lo + spec.stroke_margin) & (q.max(axis=-1) <= hi - spec.stroke_margin)
-    q_safe = np.maximum(q, 1e-9)  # a zero-length leg (Type I) is never reachable; keep J_q regular
+    with np.errstate(invalid="ignore"):  # NaN where a crank or slider cannot reach: never reachable
+        reachable = (q.min(axis=-1) >= lo + spec.stroke_margin) & (q.max(axis=-1) <= hi - spec.stroke_margin)
+    legs = all(kind == "leg" for kind in robot.actuator_kinds)
+    # A zero-length leg (Type I) or an unreachable crank is never safe; keep J_q regular and finite there.
+    q_safe = np.maximum(q, 1e-9) if legs else np.where(reachable[..., None], q, robot.inverse_kinematics(robot.home_pose()))
     inverse_condition = robot.inverse_condition_number(q_safe, nodes, validate=False)
+    if not legs:
+        k_I = robot.actuator_condition_number(q_safe, nodes, validate=False)
+        inverse_condition = np.minimum(inverse_condition, k_I * spec.safe_threshold / spec.actuator_safe_threshold)
     _, J_x = robot.jacobians(q_safe, nodes, validate=False)
     det_sign = np.sign(determinant(J_x)).astype(np.int8)
     safe = reachable & (inverse_condition >= spec.safe_threshold)
@@ -150,8 +161,8 @@ def certify_workspace(spec: WorkspaceSpec) -> WorkspaceMap:
     keep = np.flatnonzero(sizes >= spec.min_component_fraction * max(int(safe.sum()), 1)) + 1
     if keep.size == 0:
         raise ValueError(
-            "no safe region to sample from: no pose within the bounds keeps every stroke in "
-            f"{spec.stroke_limits} m and an inverse condition number ≥ {spec.safe_threshold}"
+            "no safe region to sample from: no pose within the bounds keeps every actuator in "
+            f"{spec.stroke_limits} and an inverse condition number ≥ {spec.safe_threshold}"
         )
     weights = sizes[keep - 1] / sizes[keep - 1].sum()
     for arr in (inverse_condition, reachable, labels, det_sign, keep, weights, *axes):
