@@ -29,7 +29,7 @@ import numpy as np
 from gymnasium.utils import seeding
 
 import envs
-from envs import kernels
+from envs import numba_setup
 
 SIZES = (1, 64, 1024, 16384)
 SYNC_MAX_N = 1024
@@ -163,8 +163,8 @@ def main(argv: list[str] | None = None) -> None:
     print(f"machine: {processor}, cpu_count {os.cpu_count()} (usable {affinity}), {platform.system()}")
     print(f"python {sys.version.split()[0]}, numpy {np.__version__}, gymnasium {gym.__version__}")
     print(
-        f"numba {numba.__version__}, threading layer {kernels.THREADING_LAYER} ({numba.get_num_threads()} threads"
-        f" from N = {kernels.PARALLEL_MIN_BATCH})"
+        f"numba {numba.__version__}, threading layer {numba_setup.THREADING_LAYER} ({numba.get_num_threads()} threads"
+        f" from N = {numba_setup.PARALLEL_MIN_BATCH})"
     )
     print(f"rounds: {args.rounds} (alternating order), median reported; warm-up {WARM_UP_STEPS} steps")
     print()

@@ -2,40 +2,30 @@
 
 from gymnasium.envs.registration import register, registry
 
-from envs.family import (
-    ROBOT_PRESETS,
-    FamilyReachEnv,
-    FamilyReachVectorEnv,
-    FamilyTrackEnv,
-    FamilyTrackVectorEnv,
-)
+from envs.family import ROBOT_PRESETS, FamilyParams, FamilyReachEnv, FamilyTrackEnv
 from envs.goal import GoalReachWrapper
-from envs.planar_3rpr import Planar3RPRReachEnv, Planar3RPRTrackEnv
 from envs.planner import PlannerResidualWrapper, PlannerWaypointWrapper
 from envs.shield import SingularityShield
-from envs.vector import Planar3RPRReachVectorEnv, Planar3RPRTrackVectorEnv, Planar3RPRVectorEnv
+from envs.vector import FamilyReachVectorEnv, FamilyTrackVectorEnv, FamilyVectorEnv
 
 __all__ = [
     "ENV_IDS",
-    "FAMILY_IDS",
     "PLANAR_3RPR_IDS",
+    "ROBOT_PRESETS",
+    "FamilyParams",
     "FamilyReachEnv",
     "FamilyReachVectorEnv",
     "FamilyTrackEnv",
     "FamilyTrackVectorEnv",
+    "FamilyVectorEnv",
     "GoalReachWrapper",
-    "Planar3RPRReachEnv",
-    "Planar3RPRReachVectorEnv",
-    "Planar3RPRTrackEnv",
-    "Planar3RPRTrackVectorEnv",
-    "Planar3RPRVectorEnv",
     "PlannerResidualWrapper",
     "PlannerWaypointWrapper",
     "SingularityShield",
 ]
 
-_REACH = ("envs.family:FamilyReachEnv", "envs.family:FamilyReachVectorEnv")
-_TRACK = ("envs.family:FamilyTrackEnv", "envs.family:FamilyTrackVectorEnv")
+_REACH = ("envs.family:FamilyReachEnv", "envs.vector:FamilyReachVectorEnv")
+_TRACK = ("envs.family:FamilyTrackEnv", "envs.vector:FamilyTrackVectorEnv")
 
 #: Every registered id: its env and vector env, episode length and keyword arguments. Every id runs the same
 #: env classes; a robot-named id is a preset (``envs.family.ROBOT_PRESETS``), a task kind is an option.
@@ -58,16 +48,16 @@ _SPECS = {
     "Planar3RRRReachHard-v0": (*_REACH, 200, {"robot": "planar_3rrr", "targets": "hard"}),
     "Planar3PRRReach-v0": (*_REACH, 200, {"robot": "planar_3prr"}),
     # Any robot of the family: ``robot=`` a preset name or a ``kinematics.DistanceConstraintMechanism`` (whose
-    # bounds, task box and strokes are derived from its size unless given); the default is the hexapod.
+    # bounds, task box and strokes are derived from its size unless given). The default robot is the hexapod;
+    # for hard (detour) targets, whose hexapod workspace has none, the 3-RRR.
     "ParallelRobotReach-v0": (*_REACH, 200, {}),
-    "ParallelRobotReachHard-v0": (*_REACH, 200, {"targets": "hard"}),
+    "ParallelRobotReachHard-v0": (*_REACH, 200, {"targets": "hard", "robot": "planar_3rrr"}),
     "ParallelRobotTrack-v0": (*_TRACK, 400, {}),
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)
-#: The planar 3-RPR ids (their own compiled kernels, ``envs.core``) and the ids on the family core (``envs.family``).
+#: The ids of the lesson's planar 3-RPR (the robot the shipped residual and planner policies use).
 PLANAR_3RPR_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.startswith("Planar3RPR"))
-FAMILY_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i not in PLANAR_3RPR_IDS)
 
 for _env_id, (_entry_point, _vector_entry_point, _steps, _kwargs) in _SPECS.items():
     if _env_id not in registry:

@@ -1,6 +1,7 @@
 """Classical controllers: resolved-rate, singularity-aware resolved-rate and the planner (NumPy only).
 
-They read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, n).
+They read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, n), for
+any robot of the family (the planner: planar robots with a certified grid).
 They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here. They
 live in ``envs`` (NumPy only, no SB3) because ``envs.PlannerResidualWrapper`` builds on the planner
 controller; the evaluation finds them by name through ``training.controllers``.
@@ -12,12 +13,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from envs.core import EnvParams, wrap_angle
+from envs.family import FamilyParams, wrap_angle
+from envs.family_kernels import observation_layout
 
 __all__ = [
     "CONTROLLERS",
-    "FAMILY_CONTROLLERS",
-    "FamilyResolvedRateController",
     "PlannerController",
     "ResolvedRateController",
     "SingularityAwareController",
@@ -25,62 +25,74 @@ __all__ = [
 ]
 
 
-def decode_observation(params: EnvParams, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pose, target pose and target velocity from observations (layout of ``envs.core.observation``).
+def decode_observation(params: FamilyParams, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pose, exact error and target velocity from observations (the layout of ``envs.family``'s docstring).
 
     Args:
         params: Environment constants.
-        obs: Observations, shape (N, 18) or (N, 21).
+        obs: Observations, shape (N, D).
 
     Returns:
-        (pose (N, 3), target (N, 3), target velocity (N, 3), zeros for Reach) [m, m, rad] and per second.
+        (pose (N, m); error (N, m): (p* − p, δθ) with δθ the rotation vector of R* Rᵀ in {B}, planar
+        (x* − x, y* − y, wrap(φ* − φ)), translational p* − p; target velocity (N, m), zeros for Reach).
     """
+    from scipy.spatial.transform import Rotation
+
+    robot = params.robot
+    layout = observation_layout(robot.pose_space.name, robot.n_actuators, True)
     obs = np.asarray(obs, dtype=np.float64)
-    pose = np.stack([obs[:, 0], obs[:, 1], np.arctan2(obs[:, 3], obs[:, 2])], axis=-1)
-    target = np.stack([obs[:, 4], obs[:, 5], np.arctan2(obs[:, 7], obs[:, 6])], axis=-1)
-    # The error block is exact (not recomputed from clipped poses), so prefer it for the target.
-    target = pose + np.concatenate([obs[:, 8:10], obs[:, 10:11]], axis=-1)
-    velocity = obs[:, 18:21] if obs.shape[1] >= 21 else np.zeros_like(pose)
-    return pose, target, velocity
+    code = obs[:, layout["pose"]]
+    space = robot.pose_space.name
+    if space == "spatial":
+        quat = code[:, [4, 5, 6, 3]]  # SciPy's (x, y, z, w)
+        pose = np.concatenate([code[:, :3], Rotation.from_quat(quat).as_rotvec()], axis=-1)
+    elif space == "translational":
+        pose = code.copy()
+    else:
+        pose = np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
+    error = obs[:, layout["error"]]
+    velocity_slice = layout["target_velocity"]
+    velocity = obs[:, velocity_slice] if obs.shape[1] >= velocity_slice.stop else np.zeros_like(pose)
+    return pose, error, velocity
 
 
 class ResolvedRateController:
-    """q̇ = J_i(x) v, v = ẋ* + K (x* − x): straight toward the target in pose space, within the bounds.
+    """q̇ = J_i(x) v, v = ẋ* + K e: a straight geodesic toward the target, for any robot of the family.
 
-    The platform speed ‖(v_x, v_y, ℓ_c v_φ)‖ is capped at ``max_speed``, and when a stroke rate would
-    exceed ``max_rate`` the whole q̇ is scaled down (not clipped per leg), so the commanded platform
-    velocity keeps its direction.
+    e is the exact twist error of the observation (``decode_observation``); the feedback K e is capped at
+    ``max_speed`` in (δp, ℓ_c δθ) (the reference's own rate ẋ* is fed forward uncapped). An actuator at a hard
+    stop is not driven into it (the platform velocity is projected, in (p, ℓ_c θ), off that actuator's row of
+    J_i), and q̇ is scaled down as a whole when an actuator would exceed ``max_rate``, so the platform keeps its
+    direction. J_i comes from the kinematics library.
 
     Args:
-        params: Environment constants (robot, max_rate).
+        params: Environment constants (``envs.family.FamilyParams``).
         gain: K [1/s].
-        max_speed: Cap on the scaled platform speed [m/s].
+        max_speed: Cap on the scaled feedback speed [m/s].
     """
 
     name = "resolved-rate"
 
-    def __init__(self, params: EnvParams, gain: float = 2.0, max_speed: float = 0.25) -> None:
+    def __init__(self, params: FamilyParams, gain: float = 2.0, max_speed: float = 0.25) -> None:
         self.params = params
         self.gain = float(gain)
         self.max_speed = float(max_speed)
 
-    def desired_velocity(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Pose velocity the controller asks for, shape (N, 3) [m/s, m/s, rad/s]."""
-        error = target - pose
-        error[:, 2] = wrap_angle(error[:, 2])
-        return velocity + self.gain * error
+    def desired_velocity(self, pose: np.ndarray, error: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Pose velocity the controller asks for, shape (N, m): ẋ* + K e with K e capped."""
+        return velocity + self._cap(self.gain * error)
 
     def _cap(self, v: np.ndarray) -> np.ndarray:
         speed = np.linalg.norm(v * self.params.pose_metric, axis=-1, keepdims=True)
         return v / np.maximum(speed / self.max_speed, 1.0)
 
     def _respect_stroke_limits(self, q: np.ndarray, J_i: np.ndarray, x_dot: np.ndarray) -> np.ndarray:
-        """q̇ = J_i ẋ, with ẋ projected (in z = (x, y, ℓ_c φ)) so no leg at a hard stop is driven into it."""
+        """q̇ = J_i ẋ, with ẋ projected (in (p, ℓ_c θ)) so that no actuator at a hard stop is driven into it."""
         lo, hi = self.params.stroke_limits
         scale = self.params.pose_metric
         vz = x_dot * scale
         rows = J_i / scale  # q̇_i = rows_i · v_z
-        for i in range(3):
+        for i in range(q.shape[-1]):
             rate = np.sum(rows[:, i] * vz, axis=-1)
             blocked = ((q[:, i] <= lo + 1e-3) & (rate < 0)) | ((q[:, i] >= hi - 1e-3) & (rate > 0))
             r = rows[:, i]
@@ -88,21 +100,14 @@ class ResolvedRateController:
         return np.einsum("nij,nj->ni", J_i, vz / scale)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Actions for a batch of observations.
-
-        Args:
-            obs: Observations, shape (N, D).
-
-        Returns:
-            Normalised stroke rates in [−1, 1], shape (N, 3), float32.
-        """
+        """Normalised actuator rates in [−1, 1] for a batch of observations (N, D): shape (N, n), float32."""
         return self.act(*decode_observation(self.params, obs))
 
-    def act(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Actions toward ``target`` from ``pose`` with feed-forward ``velocity`` (each (N, 3)): (N, 3) float32."""
+    def act(self, pose: np.ndarray, error: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Actions from ``pose`` along the twist error ``error`` with feed-forward ``velocity`` (each (N, m))."""
         robot = self.params.robot
         q = robot.inverse_kinematics(pose, validate=False)
-        x_dot = self._cap(self.desired_velocity(pose, target, velocity))
+        x_dot = self.desired_velocity(pose, error, velocity)
         J_i = robot.inverse_jacobian(q, pose, validate=False)
         q_dot = self._respect_stroke_limits(q, J_i, x_dot)
         a = q_dot / self.params.max_rate
@@ -113,7 +118,7 @@ class ResolvedRateController:
 class SingularityAwareController(ResolvedRateController):
     """Resolved-rate with a damped detour around the ill-conditioned zone.
 
-    In the scaled pose space z = (x, y, ℓ_c φ), where the inverse condition number k falls below
+    In the scaled pose space z = (p, ℓ_c θ), where the inverse condition number k falls below
     ``margin`` · k_safe the component of the desired velocity that would lower k is removed (the robot
     slides along the level set of k) and a push up the gradient of k is added, growing as k falls:
 
@@ -137,7 +142,7 @@ class SingularityAwareController(ResolvedRateController):
 
     def __init__(
         self,
-        params: EnvParams,
+        params: FamilyParams,
         gain: float = 2.0,
         max_speed: float = 0.25,
         margin: float = 2.0,
@@ -151,12 +156,14 @@ class SingularityAwareController(ResolvedRateController):
 
     def _k(self, pose: np.ndarray) -> np.ndarray:
         robot = self.params.robot
-        q = np.maximum(robot.inverse_kinematics(pose, validate=False), 1e-9)
+        q = robot.inverse_kinematics(pose, validate=False)
+        if all(kind == "leg" for kind in robot.actuator_kinds):
+            q = np.maximum(q, 1e-9)
         return robot.inverse_condition_number(q, pose, validate=False)
 
-    def desired_velocity(self, pose: np.ndarray, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Resolved-rate velocity with the detour term, shape (N, 3)."""
-        v = self._cap(super().desired_velocity(pose, target, velocity))
+    def desired_velocity(self, pose: np.ndarray, error: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Resolved-rate velocity with the detour term, shape (N, m)."""
+        v = self._cap(super().desired_velocity(pose, error, velocity))
         scale = self.params.pose_metric
         k = self._k(pose)
         k_m = self.margin * self.params.safe_threshold
@@ -165,8 +172,8 @@ class SingularityAwareController(ResolvedRateController):
             return v
         p = pose[near]
         grad = np.empty_like(p)
-        for j in range(3):
-            dz = np.zeros(3)
+        for j in range(p.shape[-1]):
+            dz = np.zeros(p.shape[-1])
             dz[j] = self.step / scale[j]
             grad[:, j] = (self._k(p + dz) - self._k(p - dz)) / (2.0 * self.step)
         n = grad / np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-12)
@@ -180,67 +187,6 @@ class SingularityAwareController(ResolvedRateController):
         return v
 
 
-class FamilyResolvedRateController:
-    """Resolved-rate control of any robot of the distance-constraint family (``envs.family``): q̇ = J_i v.
-
-    v = ẋ* + K e, with e = (p* − p, δθ) the exact twist error of the observation (δθ the rotation vector of
-    R* Rᵀ in {B}; planar: (x* − x, y* − y, wrap(φ* − φ)); translational: p* − p), the feedback K e capped at
-    ``max_speed`` in (δp, ℓ_c δθ) (the reference's own rate ẋ* is fed forward uncapped); q̇ is
-    scaled down as a whole when a leg would exceed ``max_rate``, so the platform keeps its direction: a
-    straight geodesic toward the target. The pose and strokes come from the observation, J_i from the
-    kinematics library.
-
-    Args:
-        params: Environment constants (``envs.family.FamilyParams``).
-        gain: K [1/s].
-        max_speed: Cap on the scaled feedback speed [m/s].
-    """
-
-    name = "resolved-rate"
-
-    def __init__(self, params, gain: float = 2.0, max_speed: float = 0.25) -> None:
-        from envs.family_kernels import observation_layout
-
-        self.params = params
-        self.gain = float(gain)
-        self.max_speed = float(max_speed)
-        robot = params.robot
-        self._layout = observation_layout(robot.pose_space.name, robot.n_actuators, True)
-        self._metric = np.where(robot.pose_scale < 1.0, 1.0 / robot.pose_scale, 1.0)
-
-    def decode(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(pose (N, m), twist error (N, m), target velocity (N, m), zeros for Reach) from observations."""
-        from scipy.spatial.transform import Rotation
-
-        obs = np.asarray(obs, dtype=np.float64)
-        code = obs[:, self._layout["pose"]]
-        space = self.params.robot.pose_space.name
-        if space == "spatial":
-            quat = code[:, [4, 5, 6, 3]]  # SciPy's (x, y, z, w)
-            pose = np.concatenate([code[:, :3], Rotation.from_quat(quat).as_rotvec()], axis=-1)
-        elif space == "translational":
-            pose = code.copy()
-        else:
-            pose = np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
-        error = obs[:, self._layout["error"]]
-        velocity_slice = self._layout["target_velocity"]
-        velocity = obs[:, velocity_slice] if obs.shape[1] >= velocity_slice.stop else np.zeros_like(pose)
-        return pose, error, velocity
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Normalised stroke rates in [−1, 1] for a batch of observations, shape (N, n), float32."""
-        pose, error, velocity = self.decode(obs)
-        feedback = self.gain * error
-        speed = np.linalg.norm(feedback * self._metric, axis=-1, keepdims=True)
-        v = velocity + feedback / np.maximum(speed / self.max_speed, 1.0)
-        robot = self.params.robot
-        q = robot.inverse_kinematics(pose, validate=False)
-        q_dot = np.einsum("nij,nj->ni", robot.inverse_jacobian(q, pose, validate=False), v)
-        a = q_dot / self.params.max_rate
-        a /= np.maximum(np.max(np.abs(a), axis=-1, keepdims=True), 1.0)
-        return a.astype(np.float32)
-
-
 class PlannerController(ResolvedRateController):
     """Follow a planned safe path (``envs.planner``) with resolved-rate control: the ceiling on hard targets.
 
@@ -251,7 +197,7 @@ class PlannerController(ResolvedRateController):
     target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
 
     Args:
-        params: Environment constants of a planar 3-RPR environment.
+        params: Environment constants of a planar robot with ``task_region="grid"``.
         gain: K [1/s].
         max_speed: Cap on the scaled platform speed [m/s].
         lookahead: Distance of the carrot ahead of the closest point of the path, in z [m].
@@ -261,7 +207,7 @@ class PlannerController(ResolvedRateController):
     name = "planner"
 
     def __init__(
-        self, params: EnvParams, gain: float = 2.0, max_speed: float = 0.25, lookahead: float = 0.1, follower=None
+        self, params: FamilyParams, gain: float = 2.0, max_speed: float = 0.25, lookahead: float = 0.1, follower=None
     ) -> None:
         from envs.planner import PathFollower
 
@@ -275,16 +221,17 @@ class PlannerController(ResolvedRateController):
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Actions for a batch of observations (row i is followed along its own plan), shape (N, 3), float32."""
-        pose, target, velocity = decode_observation(self.params, obs)
+        pose, error, velocity = decode_observation(self.params, obs)
+        target = pose + error
         carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
-        return self.act(pose, carrot, velocity)
+        toward = carrot - pose
+        toward[:, 2] = wrap_angle(toward[:, 2])
+        return self.act(pose, toward, velocity)
 
     def episode_metrics(self) -> dict[str, float] | None:
         """The last plan's figures (path found, planned / straight length, min k, planning time), or None."""
         return self.follower.last_plan_metrics()
 
 
-#: Controllers by command-line name.
+#: Controllers by command-line name (the planner needs a planar robot with a certified grid).
 CONTROLLERS = {cls.name: cls for cls in (ResolvedRateController, SingularityAwareController, PlannerController)}
-#: Controllers for the robots of ``envs.family`` (by command-line name).
-FAMILY_CONTROLLERS = {cls.name: cls for cls in (FamilyResolvedRateController,)}

@@ -22,9 +22,6 @@ import numpy as np
 from gymnasium import spaces
 
 from envs import family_kernels as fk
-from envs.core import TERMINATION_REASONS, NonFiniteActionError
-from envs.planar_3rpr import step_info as planar_step_info
-from envs.vector import Planar3RPRVectorEnv
 from envs import workspace_kernels
 from envs.rendering import HumanWindow
 from envs.workspace import WorkspaceMap, WorkspaceSpec, certify_workspace
@@ -40,14 +37,51 @@ __all__ = [
     "FamilyReference",
     "FamilyState",
     "FamilyTrackEnv",
-    "FamilyVectorEnv",
+    "NonFiniteActionError",
+    "TERMINATION_REASONS",
     "evaluate",
     "initial_state",
     "observation_bounds",
     "reward_terms",
     "step",
+    "step_info",
     "transition",
+    "wrap_angle",
 ]
+
+#: Termination reason codes (index) and names; 0 means the episode goes on.
+TERMINATION_REASONS = (
+    "",
+    "newton_failed",
+    "assembly_mode_change",
+    "singularity_crossed",
+    "singular",
+    "out_of_bounds",
+    "actuator_singular",
+)
+NEWTON_FAILED, ASSEMBLY_MODE_CHANGE, SINGULARITY_CROSSED, SINGULAR, OUT_OF_BOUNDS, ACTUATOR_SINGULAR = range(1, 7)
+_REASON_NAMES = np.asarray(TERMINATION_REASONS, dtype=object)
+
+
+class NonFiniteActionError(ValueError):
+    """An action with a NaN or an infinity; ``rows`` holds the indices of the robots that got one."""
+
+    def __init__(self, message: str, rows: np.ndarray) -> None:
+        super().__init__(message)
+        self.rows = rows
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Wrap angles to [−π, π).
+
+    Args:
+        angle: Angles [rad], any shape.
+
+    Returns:
+        Wrapped angles [rad], same shape.
+    """
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
 
 REWARD_TERMS = (
     "reward_tracking",
@@ -177,6 +211,11 @@ class FamilyParams:
                 cell=self.grid_cell,
             )
         )
+
+    @property
+    def pose_metric(self) -> np.ndarray:
+        """1 for positions, ℓ_c for angles: multiplies a pose difference into metres, (δp, ℓ_c δθ), shape (m,)."""
+        return 1.0 / self.robot.pose_scale
 
     @functools.cached_property
     def packed(self) -> np.ndarray:
@@ -374,12 +413,12 @@ class FamilyState(NamedTuple):
 
 
 class FamilyOutcome(NamedTuple):
-    """What a transition reports besides the new state (see ``envs.core.StepOutcome``).
+    """What a transition reports besides the new state.
 
     Attributes:
         action: The applied (clipped) action, shape (N, n).
         q_rate: Achieved stroke rates [m/s], shape (N, n).
-        reason: Termination reason codes (``envs.core.TERMINATION_REASONS``), shape (N,).
+        reason: Termination reason codes (``TERMINATION_REASONS``), shape (N,).
         jump: Largest prediction–correction gap ‖(δp, ℓ_c δθ)‖ [m], shape (N,).
     """
 
@@ -472,7 +511,7 @@ def initial_state(params: FamilyParams, start: np.ndarray, reference: FamilyRefe
 
 
 def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> tuple[FamilyState, FamilyOutcome]:
-    """Advance N robots by one control period (the algorithm of ``envs.core.transition``, on the family).
+    """Advance N robots by one control period: predict, correct, measure, terminate.
 
     Strokes advance by the clipped action · max_rate · dt, clamped to the hard stops; the step is split into
     substeps of at most ``max_substep`` of predicted motion; each predicts the pose with the twist
@@ -649,9 +688,14 @@ def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) 
     The 3-RPR's ``step_info`` over this core's row layout (``params.evaluation_rows``), with the Type I
     terms after it.
     """
-    info = planar_step_info(None, evaluation, reason, params.evaluation_rows)
     rows = params.evaluation_rows
-    for name in ("reward_actuator_singularity", "actuator_condition_number", "cost_actuator_singularity"):
+    info = {name: evaluation[rows[name]].copy() for name in _INFO_SCALARS[:8]}
+    info["is_success"] = evaluation[rows["is_success"]] != 0.0
+    info["cost"] = evaluation[rows["cost"]].copy()
+    info["termination_reason"] = _REASON_NAMES[reason]
+    info["pose"] = evaluation[rows["pose"]].T.copy()
+    info["target"] = evaluation[rows["target"]].T.copy()
+    for name in _TYPE_I_INFO:
         info[name] = evaluation[rows[name]].copy()
     return info
 
@@ -937,9 +981,6 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._pose_rows, self._target_rows = rows["pose"], rows["target"]
         self._window: HumanWindow | None = None
 
-    #: The pure functions of this env's physics (the shield and the HER view call them).
-    physics = None  # set below to this module
-
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start a new episode (see the class docstring, Starting State)."""
         super().reset(seed=seed)
@@ -1034,6 +1075,11 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             step=int(self._state.t[0]),
             q=self._state.q[0],
         )
+
+    @property
+    def workspace(self) -> WorkspaceMap | None:
+        """The certified grid tasks are drawn from (``task_region="grid"``), else None."""
+        return self.params.workspace
 
     @property
     def state(self) -> FamilyState | None:
@@ -1326,89 +1372,3 @@ class FamilyTrackEnv(FamilyEnvBase):
 
 FamilyReachEnv.__doc__ = FamilyReachEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)
 FamilyTrackEnv.__doc__ = FamilyTrackEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)
-
-
-class FamilyVectorEnv(Planar3RPRVectorEnv):
-    """N robots of the family in one batch: the native vector form of ``FamilyReachEnv`` / ``FamilyTrackEnv``.
-
-    The vector semantics (seeding, ``reset_mask``, the three autoreset modes of Gymnasium 1.x, the vector info
-    layout, ``get_attr`` / ``set_attr``) are those of ``envs.vector.Planar3RPRVectorEnv``, whose machinery this
-    class reuses; only the physics differs: ``envs.family.step`` / ``evaluate`` / ``initial_state`` (one
-    compiled pass over the robots, on every core for large N) and each sub-environment's task drawn by the
-    single env's compiled sampler. Sub-environment i of ``reset(seed=s)`` is the single env reset with s + i.
-
-    Args:
-        num_envs: Number of robots N.
-        max_episode_steps: Truncation length (default: the registered one of the class).
-        autoreset_mode: ``AutoresetMode`` (NEXT_STEP by default, SAME_STEP for SB3, DISABLED).
-        render_mode: "rgb_array" or None.
-        **kwargs: The single env's arguments.
-    """
-
-    single_env_class: ClassVar[type[FamilyEnvBase] | None] = None
-    _physics = None  # set below to this module
-
-    @property
-    def _reward_row(self) -> int:
-        return self.params.evaluation_rows["reward"]
-
-    def _new_buffers(self) -> StepBuffers:
-        return StepBuffers(self.params, self.num_envs, self.with_velocity)
-
-    def _initial_state(self, start: np.ndarray, reference: FamilyReference) -> FamilyState:
-        return initial_state(self.params, start, reference)
-
-    def _step_info(self, state: FamilyState, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
-        return step_info(self.params, evaluation, reason)
-
-    def _trail_point(self, i: int) -> np.ndarray:
-        return self.params.robot.pose_space.position(self._state.x[i]).copy()
-
-    def _frames(self) -> tuple[np.ndarray, ...]:
-        from envs.rendering_family import render_family_frame
-
-        state = self._state
-        evaluation, _ = evaluate(
-            self.params, state, np.zeros_like(state.q), np.zeros(self.num_envs, dtype=np.int64), False
-        )
-        target = evaluation[self.params.evaluation_rows["target"]].T
-        return tuple(
-            render_family_frame(
-                self.params.robot,
-                state.x[i],
-                target[i],
-                float(state.inverse_condition[i]),
-                safe_threshold=self.params.safe_threshold,
-                hard_threshold=self.params.hard_threshold,
-                view_low=self.params.pose_low,
-                view_high=self.params.pose_high,
-                trail=list(self._trails[i]),
-                step=int(state.t[i]),
-                q=state.q[i],
-            )
-            for i in range(self.num_envs)
-        )
-
-
-class FamilyReachVectorEnv(FamilyVectorEnv):
-    """N robots of ``FamilyReachEnv`` (``StewartGoughReach-v0``, ``StewartGoughReachHard-v0``) in one batch."""
-
-    single_env_class = FamilyReachEnv
-    default_max_episode_steps = 200
-
-
-class FamilyTrackVectorEnv(FamilyVectorEnv):
-    """N robots of ``FamilyTrackEnv`` (``StewartGoughTrack-v0``) in one batch."""
-
-    single_env_class = FamilyTrackEnv
-    default_max_episode_steps = 400
-
-
-def _module():
-    import sys
-
-    return sys.modules[__name__]
-
-
-FamilyEnvBase.physics = _module()
-FamilyVectorEnv._physics = _module()

@@ -17,6 +17,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from envs.family import reward_terms
 from envs.family_kernels import observation_layout
 
 __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]
@@ -53,7 +54,7 @@ class GoalReachWrapper(gym.Wrapper):
     Rewards, terminations and infos are the wrapped environment's.
 
     Args:
-        env: A Reach environment (``gym.make("Planar3RPRReach-v0")`` or ``...ReachHard-v0``), possibly wrapped.
+        env: A Reach environment (any Reach id of ``envs``), possibly wrapped.
     """
 
     def __init__(self, env: gym.Env) -> None:
@@ -63,7 +64,6 @@ class GoalReachWrapper(gym.Wrapper):
         if "targets" not in getattr(type(base), "reset_options", ()) or not hasattr(base, "params"):
             raise TypeError(f"GoalReachWrapper needs a Reach environment of envs, got {type(base).__name__}")
         self.params = base.params
-        self._physics = base.physics
         self._n = base.action_space.shape[0]
         self._index = goal_free_index(self.params.robot.pose_space.name, self._n)
         flat = env.observation_space
@@ -127,7 +127,7 @@ class GoalReachWrapper(gym.Wrapper):
         k = np.array([i["inverse_condition_number"] for i in infos], dtype=np.float64)
         action = np.array([i["reward_action"] for i in infos], dtype=np.float64)
         termination = np.array([i["reward_termination"] for i in infos], dtype=np.float64)
-        terms = self._physics.reward_terms(
+        terms = reward_terms(
             self.params, achieved, desired, k, np.zeros((n, self._n)), np.zeros(n, dtype=np.int64)
         )
         reward = terms["reward_tracking"] + terms["reward_singularity"] + action + termination

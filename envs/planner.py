@@ -1,4 +1,4 @@
-"""The planner baseline of the planar 3-RPR: a shortest safe path through the certified workspace, then followed.
+"""The planner baseline of planar robots: a shortest safe path through the certified grid, then followed.
 
 The planner knows the geometry and may be slow; it is the ceiling the learned policies are measured against
 on hard targets, and it answers how many hard tasks can be done at all.
@@ -41,8 +41,7 @@ from gymnasium import spaces
 from scipy import sparse
 from scipy.sparse import csgraph
 
-from envs.core import EnvParams, wrap_angle
-from envs.planar_3rpr import workspace_for
+from envs.family import FamilyParams, wrap_angle
 from envs.workspace import WorkspaceMap, WorkspaceSpec, certify_workspace
 
 __all__ = ["PathFollower", "Plan", "PlannerResidualWrapper", "PlannerWaypointWrapper", "SafeGraph", "safe_graph"]
@@ -222,20 +221,29 @@ def _cached_graph(spec: WorkspaceSpec) -> SafeGraph:
     return SafeGraph(certify_workspace(spec))
 
 
-def safe_graph(params: EnvParams) -> SafeGraph:
-    """The certified graph of an environment's workspace with the default settings (built once per geometry)."""
-    return _cached_graph(workspace_for(params).spec)
+def safe_graph(params: FamilyParams) -> SafeGraph:
+    """The certified graph of an environment's grid with the default settings (built once per geometry).
+
+    Raises:
+        ValueError: If the environment has no certified grid (a planar robot with ``task_region="grid"``).
+    """
+    if params.workspace is None or params.robot.pose_space.name != "planar":
+        raise ValueError(
+            "the planner needs a planar robot with task_region='grid', got "
+            f"{params.robot.pose_space.name} with task_region={params.task_region!r}"
+        )
+    return _cached_graph(params.workspace.spec)
 
 
 class PathFollower:
     """Plans per row of a batch and the carrot each row steers toward (see the module docstring).
 
     Args:
-        params: Environment constants of a planar 3-RPR environment.
+        params: Environment constants of a planar robot with ``task_region="grid"``.
         lookahead: Distance of the carrot ahead of the closest point of the path, in z [m].
     """
 
-    def __init__(self, params: EnvParams, lookahead: float = 0.1) -> None:
+    def __init__(self, params: FamilyParams, lookahead: float = 0.1) -> None:
         if not (np.isfinite(lookahead) and lookahead > 0.0):
             raise ValueError(f"lookahead must be a positive distance [m], got {lookahead!r}")
         self.params = params
@@ -313,12 +321,9 @@ class _PlannerWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def _setup(self, env: gym.Env, lookahead: float, extra_low: np.ndarray, extra_high: np.ndarray) -> None:
         gym.Wrapper.__init__(self, env)
         base = env.unwrapped
-        if "targets" not in getattr(type(base), "reset_options", ()) or not isinstance(
-            getattr(base, "params", None), EnvParams
-        ):
-            raise TypeError(
-                f"{type(self).__name__} wraps the planar 3-RPR Reach environments, got {type(base).__name__}"
-            )
+        params = getattr(base, "params", None)
+        if "targets" not in getattr(type(base), "reset_options", ()) or not isinstance(params, FamilyParams):
+            raise TypeError(f"{type(self).__name__} wraps the Reach environments of envs, got {type(base).__name__}")
         from envs.family_kernels import observation_layout
 
         self.follower = PathFollower(base.params, lookahead)
@@ -349,7 +354,7 @@ class _PlannerWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 class PlannerWaypointWrapper(_PlannerWrapper):
     """Show a policy the planner's next waypoint: the observation gains the carrot's offset from the pose.
 
-    The flat observation of a planar 3-RPR Reach environment gets three more entries, the carrot of
+    The flat observation of a planar Reach environment with a certified grid gets three more entries, the carrot of
     ``PathFollower`` minus the pose, (Δx [m], Δy [m], Δφ [rad]) (Δφ wrapped to (−π, π]; each clipped to the
     error block's bounds), float32. Where the straight line to the target is safe, or once the carrot has
     reached the end of the path, this is the target error again; on a detour it points along the safe
@@ -358,7 +363,7 @@ class PlannerWaypointWrapper(_PlannerWrapper):
     the planner knows where a safe path runs, the policy learns to drive along it.
 
     Args:
-        env: A planar 3-RPR Reach environment (``gym.make("Planar3RPRReach-v0")`` and its variants).
+        env: A planar Reach environment with a certified grid (``gym.make("Planar3RPRReach-v0")`` and its variants).
         lookahead: Distance of the carrot ahead of the path's closest point, in z = (x, y, ℓ_c φ) [m].
     """
 
@@ -383,14 +388,14 @@ class PlannerResidualWrapper(_PlannerWrapper):
     The environment receives a = clip(a_p + ``scale`` · a_π, −1, 1), where a_p is the action of
     ``envs.controllers.PlannerController`` (resolved-rate toward the carrot of a certified safe path, from the
     true pose ``info["pose"]``) and a_π ∈ [−1, 1]³ the policy's. A policy that outputs zero is the planner
-    controller; training learns what to change. The observation of a planar 3-RPR Reach environment gains six
+    controller; training learns what to change. The observation of a planar Reach environment gains six
     entries, float32: the carrot's offset from the pose (Δx [m], Δy [m], Δφ [rad], as in
     ``PlannerWaypointWrapper``) and a_p (normalised stroke rates, in [−1, 1]). Rewards, terminations and infos
     are the wrapped environment's, and ``info["planner_action"]`` holds a_p of the step's action. A
     ``SingularityShield`` inside this wrapper filters the summed action.
 
     Args:
-        env: A planar 3-RPR Reach environment (``gym.make("Planar3RPRReach-v0")`` and its variants).
+        env: A planar Reach environment with a certified grid (``gym.make("Planar3RPRReach-v0")`` and its variants).
         scale: Weight of the policy's action, in (0, 2]: 0.5 lets it move any leg by half its rate range.
         lookahead: Distance of the carrot ahead of the path's closest point, in z = (x, y, ℓ_c φ) [m].
     """

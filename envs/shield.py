@@ -22,6 +22,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from envs.family import transition
+
 __all__ = ["SHIELD_SCALES", "SingularityShield"]
 
 #: Action scales tried in order; the last (zero) is always safe.
@@ -71,7 +73,7 @@ class SingularityShield(gym.Wrapper):
         proposed = np.clip(proposed, -1.0, 1.0)
         k_now = float(state.inverse_condition[0])
         for scale in SHIELD_SCALES[:-1]:
-            new_state, outcome = base.physics.transition(base.params, state, proposed[None] * scale)
+            new_state, outcome = transition(base.params, state, proposed[None] * scale)
             if outcome.reason[0] == 0 and float(new_state.inverse_condition[0]) >= min(self.k_guard, k_now):
                 return (proposed * scale).astype(np.float32), scale
         return np.zeros(n, dtype=np.float32), 0.0

@@ -1,4 +1,4 @@
-"""Native vector environments: N planar 3-RPR robots stepped at once by the single env's batched functions."""
+"""Native vector environments: N robots of the family stepped at once by the single env's batched functions."""
 
 from __future__ import annotations
 
@@ -12,19 +12,21 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs import core
-from envs.core import State
-from envs.planar_3rpr import (
+from envs import family
+from envs.family import (
     TRAIL_LENGTH,
-    Planar3RPREnvBase,
-    Planar3RPRReachEnv,
-    Planar3RPRTrackEnv,
+    FamilyEnvBase,
+    FamilyReachEnv,
+    FamilyState,
+    FamilyTrackEnv,
+    NonFiniteActionError,
+    StepBuffers,
+    evaluate,
     initial_state,
     step_info,
 )
-from envs.rendering import render_frame
 
-__all__ = ["Planar3RPRReachVectorEnv", "Planar3RPRTrackVectorEnv", "Planar3RPRVectorEnv"]
+__all__ = ["FamilyReachVectorEnv", "FamilyTrackVectorEnv", "FamilyVectorEnv"]
 
 
 def _positive_int(name: str, value: Any) -> int:
@@ -35,29 +37,28 @@ def _positive_int(name: str, value: Any) -> int:
     return int(value)
 
 
-def _take(state: State, rows: np.ndarray) -> State:
+def _take(state: FamilyState, rows: np.ndarray) -> FamilyState:
     """The rows ``rows`` of a batched state (copies); works for any state NamedTuple ending with its reference."""
     reference = type(state.reference)(*(field[rows] for field in state.reference))
     return type(state)(*(field[rows] for field in state[:-1]), reference)
 
 
-def _put(state: State, rows: np.ndarray, values: State) -> None:
+def _put(state: FamilyState, rows: np.ndarray, values: FamilyState) -> None:
     """Write ``values`` (len(rows) robots) into the rows ``rows`` of ``state``, in place."""
     for field, value in zip((*state[:-1], *state.reference), (*values[:-1], *values.reference)):
         field[rows] = value
 
 
-class Planar3RPRVectorEnv(VectorEnv):
-    """N planar 3-RPR robots in one batch: the native vector form of a single environment.
+class FamilyVectorEnv(VectorEnv):
+    """N robots of the family in one batch: the native vector form of a single environment.
 
     ## Description
-    Every sub-environment is exactly the single environment of the same id (`Planar3RPRReach-v0`,
-    `Planar3RPRReachHard-v0` or `Planar3RPRTrack-v0`, see their docstrings); this class holds the
-    state of the N robots as arrays with a leading dimension N and advances them with the very
-    functions the single environment calls with N = 1 (`core.step` and `core.evaluate`, whose compiled
-    kernels do the dynamics, reward and observation robot by robot, on every core for large N;
-    `planar_3rpr.initial_state`, `planar_3rpr.step_info`, and the single environment's own task
-    sampling). Nothing of the dynamics, reward, sampling or info is copied here, so the two cannot
+    Every sub-environment is exactly the single environment of the same id (``envs.family.FamilyReachEnv`` or
+    ``FamilyTrackEnv`` with that id's preset, see their docstrings); this class holds the state of the N robots
+    as arrays with a leading dimension N and advances them with the very functions the single environment
+    calls with N = 1 (``envs.family.step`` and ``evaluate``, whose compiled kernels do the dynamics, reward and
+    observation robot by robot, on every core for large N; ``initial_state``, ``step_info``, and the single
+    environment's own task sampling). Nothing of the dynamics, reward, sampling or info is copied here, so the two cannot
     drift apart: sub-environment i of `reset(seed=s)` behaves exactly as `gym.make(id)` reset with
     seed s + i, to the last bit.
 
@@ -65,12 +66,12 @@ class Planar3RPRVectorEnv(VectorEnv):
     robots that start one (each draws its task from its own generator, as the single env does).
 
     ## Action Space
-    `Box(-1, 1, (N, 3), float32)`: row i is the action of sub-environment i (stroke rates
-    q̇_j / max_rate). `single_action_space` is the single env's `Box(-1, 1, (3,), float32)`.
+    `Box(-1, 1, (N, n), float32)`: row i is the action of sub-environment i (actuator rates
+    q̇_j / max_rate). `single_action_space` is the single env's `Box(-1, 1, (n,), float32)`.
 
     ## Observation Space
-    `Box(low, high, (N, 18), float32)` (Reach) or `(N, 21)` (Track): row i is the single env's
-    observation; `single_observation_space` is the single env's.
+    `Box(low, high, (N, D), float32)`: row i is the single env's observation; `single_observation_space` is
+    the single env's.
 
     ## Rewards
     Row i is the single env's reward; every reward term is in the infos and the reward is their sum.
@@ -111,13 +112,10 @@ class Planar3RPRVectorEnv(VectorEnv):
     | `**kwargs` | | | every argument of the single env, with its defaults and checks |
 
     ## Memory
-    Memory grows linearly with N. Measured with NumPy 2.4 on x86-64 (`benchmarks.bench_vector_env`
-    prints these figures; `tests/envs/test_vector.py` checks the first): the state arrays hold
-    128 bytes per robot (q, x, t, det sign, k, residual: 80 B; the reference: 48 B), the kept
-    observations 72 (Reach) or 84 (Track) bytes, and each sub-environment's `np.random.Generator`
-    about 860 bytes, plus two sets of step outputs reused in turn (2 × 368 bytes per robot for
-    Reach). One step at N = 16384 then allocates a tracemalloc peak of about 250 bytes per robot (Reach),
-    of which about 225 stay alive as the returned observations, rewards and infos.
+    Memory grows linearly with N (`benchmarks.bench_vector_env` prints the figures): the state arrays (q, x,
+    t, det sign, k, k_I, residual and the reference: centre, amplitude, phase, target strokes), the kept
+    observations, each sub-environment's `np.random.Generator` (about 860 bytes), and two sets of step
+    outputs reused in turn.
 
     ## Version History
     * v0: Initial version.
@@ -129,7 +127,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
     #: The single environment this class vectorises (set by the concrete classes).
-    single_env_class: ClassVar[type[Planar3RPREnvBase] | None] = None
+    single_env_class: ClassVar[type[FamilyEnvBase] | None] = None
     #: Truncation length of the registered ids of this class.
     default_max_episode_steps: ClassVar[int] = 200
 
@@ -144,7 +142,7 @@ class Planar3RPRVectorEnv(VectorEnv):
     ) -> None:
         cls = type(self).single_env_class
         if cls is None:
-            raise TypeError("Planar3RPRVectorEnv is abstract; use Planar3RPRReachVectorEnv or Planar3RPRTrackVectorEnv")
+            raise TypeError("FamilyVectorEnv is abstract; use FamilyReachVectorEnv or FamilyTrackVectorEnv")
         self.num_envs = _positive_int("num_envs", num_envs)
         if max_episode_steps is None:
             max_episode_steps = type(self).default_max_episode_steps
@@ -159,7 +157,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
-        # One single env validates the keyword arguments (build_params, same errors) and draws the tasks
+        # One single env validates the keyword arguments (build_family_params, same errors) and draws the tasks
         # of every sub-environment, each with that sub-environment's generator.
         self._sampler = cls(render_mode=None, **kwargs)
         self.params = self._sampler.params
@@ -178,7 +176,7 @@ class Planar3RPRVectorEnv(VectorEnv):
 
         self._generators: list[np.random.Generator | None] = [None] * self.num_envs
         self._seeds: list[int | None] = [None] * self.num_envs
-        self._state: State | None = None
+        self._state: FamilyState | None = None
         self._observations: np.ndarray | None = None
         # Two sets of step outputs, used in turn (a step never writes over the state it starts from),
         # so that stepping allocates no large arrays.
@@ -260,10 +258,8 @@ class Planar3RPRVectorEnv(VectorEnv):
             )
         out = self._buffers[self._next]  # not the one holding self._state
         try:
-            state, outcome, evaluation, observations = self._physics.step(
-                self.params, self._state, a, self.with_velocity, out
-            )
-        except core.NonFiniteActionError as exc:  # checked inside the compiled pass; no robot has moved
+            state, outcome, evaluation, observations = family.step(self.params, self._state, a, self.with_velocity, out)
+        except NonFiniteActionError as exc:  # checked inside the compiled pass; no robot has moved
             bad = exc.rows
             raise ValueError(
                 f"actions must be finite; sub-environment(s) {bad[:10].tolist()} got e.g. {a[bad[0]].tolist()}"
@@ -310,7 +306,7 @@ class Planar3RPRVectorEnv(VectorEnv):
         """The frames of the N sub-environments (``rgb_array``); None without a render mode.
 
         Returns:
-            A tuple of N uint8 arrays of shape (480, 480, 3), as the single env's ``render()``.
+            A tuple of N uint8 arrays, as the single env's ``render()``.
         """
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
@@ -319,39 +315,43 @@ class Planar3RPRVectorEnv(VectorEnv):
             raise gym.error.ResetNeeded("Cannot call render() before reset()")
         return self._frames()
 
-    # -- what depends on the physics (the planar 3-RPR's ``envs.core`` here; ``envs.family`` overrides) ------
-
-    #: The module of pure batched functions the step calls.
-    _physics = core
-
     @property
     def _reward_row(self) -> int:
-        return core.EVALUATION_ROWS["reward"]
+        return self.params.evaluation_rows["reward"]
 
-    def _new_buffers(self) -> Any:
-        return core.StepBuffers(self.num_envs, self.with_velocity)
+    def _new_buffers(self) -> StepBuffers:
+        return StepBuffers(self.params, self.num_envs, self.with_velocity)
 
-    def _initial_state(self, start: np.ndarray, reference: Any) -> State:
+    def _initial_state(self, start: np.ndarray, reference: family.FamilyReference) -> FamilyState:
         return initial_state(self.params, start, reference)
 
-    def _step_info(self, state: State, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
-        return step_info(state, evaluation, reason)
+    def _step_info(self, state: FamilyState, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
+        return step_info(self.params, evaluation, reason)
 
     def _trail_point(self, i: int) -> np.ndarray:
-        return self._state.x[i, :2].copy()
+        return self.params.robot.pose_space.position(self._state.x[i]).copy()
 
     def _frames(self) -> tuple[np.ndarray, ...]:
+        from envs.rendering_family import render_family_frame
+
         state = self._state
-        target, _ = core.reference_pose(self.params, state.reference, state.t)
+        evaluation, _ = evaluate(
+            self.params, state, np.zeros_like(state.q), np.zeros(self.num_envs, dtype=np.int64), False
+        )
+        target = evaluation[self.params.evaluation_rows["target"]].T
         return tuple(
-            render_frame(
-                self.params,
-                state.q[i],
+            render_family_frame(
+                self.params.robot,
                 state.x[i],
                 target[i],
                 float(state.inverse_condition[i]),
+                safe_threshold=self.params.safe_threshold,
+                hard_threshold=self.params.hard_threshold,
+                view_low=self.params.pose_low,
+                view_high=self.params.pose_high,
                 trail=list(self._trails[i]),
                 step=int(state.t[i]),
+                q=state.q[i],
             )
             for i in range(self.num_envs)
         )
@@ -363,13 +363,13 @@ class Planar3RPRVectorEnv(VectorEnv):
     # -- attributes -------------------------------------------------------------------------------
 
     @property
-    def state(self) -> State | None:
+    def state(self) -> FamilyState | None:
         """A copy of the batched state of the N robots, or None before the first reset.
 
         The environment reuses its own arrays from step to step; the copy is yours to keep.
         """
         state = self._state
-        return None if state is None else core.copy_state(state)
+        return None if state is None else family.copy_state(state)
 
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:
@@ -454,13 +454,13 @@ class Planar3RPRVectorEnv(VectorEnv):
     # -- helpers ----------------------------------------------------------------------------------
 
     def _evaluate(
-        self, state: State, action: np.ndarray, reason: np.ndarray
+        self, state: FamilyState, action: np.ndarray, reason: np.ndarray
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Observations and per-robot info arrays (fresh, writable) of a batched state."""
-        evaluation, observations = self._physics.evaluate(self.params, state, action, reason, self.with_velocity)
+        evaluation, observations = evaluate(self.params, state, action, reason, self.with_velocity)
         return observations, self._step_info(state, evaluation, reason)
 
-    def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> State:
+    def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> FamilyState:
         """Draw a task for each sub-environment of ``rows`` with its own generator; their state at t = 0.
 
         One compiled call for all of them (``sample_tasks``), each drawing from its own generator.
@@ -549,21 +549,15 @@ class Planar3RPRVectorEnv(VectorEnv):
         return a  # finiteness is checked inside the compiled step
 
 
-class Planar3RPRReachVectorEnv(Planar3RPRVectorEnv):
-    """N robots of `Planar3RPRReach-v0` / `Planar3RPRReachHard-v0` (``targets="hard"``) in one batch.
+class FamilyReachVectorEnv(FamilyVectorEnv):
+    """N robots of ``FamilyReachEnv`` (every Reach id) in one batch; see ``FamilyVectorEnv``."""
 
-    See ``Planar3RPRVectorEnv`` for the vector semantics and ``Planar3RPRReachEnv`` for the task.
-    """
-
-    single_env_class = Planar3RPRReachEnv
+    single_env_class = FamilyReachEnv
     default_max_episode_steps = 200
 
 
-class Planar3RPRTrackVectorEnv(Planar3RPRVectorEnv):
-    """N robots of `Planar3RPRTrack-v0` in one batch.
+class FamilyTrackVectorEnv(FamilyVectorEnv):
+    """N robots of ``FamilyTrackEnv`` (every Track id) in one batch; see ``FamilyVectorEnv``."""
 
-    See ``Planar3RPRVectorEnv`` for the vector semantics and ``Planar3RPRTrackEnv`` for the task.
-    """
-
-    single_env_class = Planar3RPRTrackEnv
+    single_env_class = FamilyTrackEnv
     default_max_episode_steps = 400

@@ -28,9 +28,9 @@ import numpy as np
 import yaml
 
 import envs
-from envs.core import TERMINATION_REASONS
+from envs.family import TERMINATION_REASONS
 from training.config import ConfigError, algorithm_class, resolve_env_wrapper
-from training.controllers import CONTROLLERS, FAMILY_CONTROLLERS
+from training.controllers import CONTROLLERS
 
 __all__ = [
     "EpisodeRecord",
@@ -180,13 +180,13 @@ def load_controller(name: str, env: gym.Env) -> Agent:
     Raises:
         EvaluationError: For an unknown name, listing the valid ones.
     """
-    from envs.family import FamilyParams
-
     params = env.unwrapped.params
-    table = FAMILY_CONTROLLERS if isinstance(params, FamilyParams) else CONTROLLERS
-    if name not in table:
-        raise EvaluationError(f"unknown controller {name!r}; valid choices: {sorted(table)}")
-    return table[name](params)
+    if name not in CONTROLLERS:
+        raise EvaluationError(f"unknown controller {name!r}; valid choices: {sorted(CONTROLLERS)}")
+    try:
+        return CONTROLLERS[name](params)
+    except ValueError as exc:  # the planner on a robot without a certified grid
+        raise EvaluationError(f"controller {name!r} cannot drive {env.spec.id if env.spec else 'this env'}: {exc}") from exc
 
 
 class _ZooLoader(yaml.SafeLoader):

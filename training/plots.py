@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from PIL import Image
 
-from envs.core import EnvParams
+from envs.family import FamilyParams
 from envs.workspace import WorkspaceMap
 
 if TYPE_CHECKING:
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 __all__ = ["condition_figure", "save_gif", "trajectories_figure"]
 
 
-def _condition_slice(params: EnvParams, workspace: WorkspaceMap, phi: float) -> tuple[np.ndarray, np.ndarray]:
+def _condition_slice(params: FamilyParams, workspace: WorkspaceMap, phi: float) -> tuple[np.ndarray, np.ndarray]:
     """Inverse condition number over (x, y) at orientation φ, NaN where a stroke limit is violated."""
     xs, ys, _ = workspace.axes
     X, Y = np.meshgrid(xs, ys, indexing="ij")
@@ -36,7 +36,7 @@ def _condition_slice(params: EnvParams, workspace: WorkspaceMap, phi: float) -> 
 
 def trajectories_figure(
     runs: dict[str, list[EpisodeRecord]],
-    params: EnvParams,
+    params: FamilyParams,
     workspace: WorkspaceMap,
     path: Path,
     episodes: int = 4,
@@ -102,7 +102,7 @@ def trajectories_figure(
     return path
 
 
-def condition_figure(runs: dict[str, list[EpisodeRecord]], params: EnvParams, path: Path, episodes: int = 20) -> Path:
+def condition_figure(runs: dict[str, list[EpisodeRecord]], params: FamilyParams, path: Path, episodes: int = 20) -> Path:
     """Inverse condition number over time for each agent, with the safe and hard thresholds.
 
     Args:

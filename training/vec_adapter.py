@@ -12,7 +12,7 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 import envs  # noqa: F401  (registers the ids)
-from envs.vector import Planar3RPRVectorEnv
+from envs.vector import FamilyVectorEnv
 
 __all__ = ["NativeVecEnvAdapter"]
 
@@ -47,7 +47,7 @@ def _split_infos(infos: dict[str, Any], n: int, rows: Sequence[int] | np.ndarray
 
 
 class NativeVecEnvAdapter(VecEnv):
-    """SB3's ``VecEnv`` contract over a native ``Planar3RPRVectorEnv`` (no Python loop over robots per step).
+    """SB3's ``VecEnv`` contract over a native ``FamilyVectorEnv`` (no Python loop over robots per step).
 
     SB3 expects the reset of an ended environment within the step that ends it, so the native env
     runs in ``AutoresetMode.SAME_STEP``. ``step_wait`` returns (obs (N, obs_dim) float32, rewards
@@ -67,9 +67,9 @@ class NativeVecEnvAdapter(VecEnv):
         venv: A native vector env in ``SAME_STEP`` autoreset mode (see ``from_id``).
     """
 
-    def __init__(self, venv: Planar3RPRVectorEnv) -> None:
-        if not isinstance(venv, Planar3RPRVectorEnv):
-            raise TypeError(f"venv must be a Planar3RPRVectorEnv, got {type(venv).__name__}")
+    def __init__(self, venv: FamilyVectorEnv) -> None:
+        if not isinstance(venv, FamilyVectorEnv):
+            raise TypeError(f"venv must be a FamilyVectorEnv, got {type(venv).__name__}")
         if venv.metadata.get("autoreset_mode") is not AutoresetMode.SAME_STEP:
             raise ValueError(
                 "the native vector env must use autoreset_mode=AutoresetMode.SAME_STEP for SB3, "
