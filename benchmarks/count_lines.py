@@ -30,21 +30,13 @@ CORE = [
     "envs/family_kernels.py",
     "envs/family_planar.py",
     "envs/linalg_kernels.py",
+    "envs/family_three.py",
     "envs/family.py",
-    "envs/rendering_family.py",
-]
-
-
-#: The 3-RPR ids' own environment code, beside the family core: their observation and reward layout, the
-#: circle of Track, the tasks of the certified grid, the planner (their step is the family core's).
-PLANAR_3RPR_ENVS = [
-    "envs/core.py",
-    "envs/kernels.py",
-    "envs/planar_3rpr.py",
     "envs/vector.py",
     "envs/workspace.py",
-    "envs/tasks.py",
+    "envs/workspace_kernels.py",
     "envs/rendering.py",
+    "envs/rendering_family.py",
 ]
 
 
@@ -75,11 +67,6 @@ def main() -> int:
         print(f"| {name} | {len(files)} | {sum(code_lines(ROOT / f) for f in files)} |")
     total = sum(code_lines(ROOT / f) for f in CORE)
     print(f"| generic family core ({', '.join(CORE)}) | {len(CORE)} | {total} |")
-    own = sum(code_lines(ROOT / f) for f in PLANAR_3RPR_ENVS)
-    print(
-        f"| the 3-RPR ids' own environment code, not yet on the family's envs ({', '.join(PLANAR_3RPR_ENVS)}) "
-        f"| {len(PLANAR_3RPR_ENVS)} | {own} |"
-    )
     return 0
 
 

@@ -32,13 +32,13 @@ __all__ = [
     "REWARD_TERMS",
     "ROBOTS",
     "ROBOT_PRESETS",
+    "TERMINATION_REASONS",
     "FamilyParams",
     "FamilyReachEnv",
     "FamilyReference",
     "FamilyState",
     "FamilyTrackEnv",
     "NonFiniteActionError",
-    "TERMINATION_REASONS",
     "evaluate",
     "initial_state",
     "observation_bounds",
@@ -1108,8 +1108,8 @@ _ARGUMENTS_DOC = """
     ## Arguments
     | Parameter | Type | Default | Description |
     |-----------|------|---------|-------------|
-    | `render_mode` | str or None | `None` | "rgb_array" (headless) |
-    | `robot` | mechanism, str or None | `None` | the robot or a name of `ROBOTS`; None: `StewartGough()` |
+    | `render_mode` | str or None | `None` | "rgb_array" (headless) or "human" (a window) |
+    | `robot` | mechanism, str or None | `None` | a mechanism, a preset or robot name; None: "stewart_gough" |
     | `stroke_limits` | (float, float) | `(0.45, 0.75)` | actuator limits: leg lengths [m], crank angles [rad] |
     | `dt` | float | `0.05` | control period [s] |
     | `max_rate` | float | `0.1` | stroke rate of a unit action [m/s] |
@@ -1134,10 +1134,17 @@ _ARGUMENTS_DOC = """
     | `track_amplitude` | sequence of m floats | `(0.05, 0.0, 0.04, 0.0, 0.1, 0.0)` | largest amplitudes [m, rad] |
     | `track_path` | sequence of m-tuples | `()` | vertices of a polyline Track reference (units of the amplitudes) |
     | `track_path_times` | sequence of floats | `()` | share of the period of each segment of the path |
-    | `hard_kind` | str | `"detour"` | "detour" or "ill_conditioned" hard targets |
+    | `hard_kind` | str | `"detour"` | "detour", "ill_conditioned" or "crossing" (grid only) hard targets |
+    | `task_region` | str | `"box"` | "box" (the sampling box) or "grid" (regions of a certified grid; m = 3) |
+    | `grid_cell` | (float, float, float) | `(0.025, 0.025, 0.05)` | spacing of the certified grid [m, rad] |
+    | `track_shape` | str | `"sinusoid"` | "sinusoid" (or the `track_path`) or "circle" (grid only) |
+    | `track_radius_range` | (float, float) | `(0.05, 0.15)` | radius of a circle reference [m] |
+    | `track_angle_range` | (float, float) | `(0.0, 0.4)` | amplitude of a circle's third coordinate [rad] |
     | `**kwargs` | | | any other field of `FamilyParams` (Newton, substeps, margins) |
 
-    A robot that is not spatial gets bounds, strokes and amplitudes around its `home_pose()` unless given.
+    `robot` may name a preset of `ROBOT_PRESETS` (its settings apply under the caller's own); a mechanism gets
+    bounds, task box, strokes and amplitudes scaled by its size around its `home_pose()` (`derived_defaults`)
+    unless given.
 """
 
 
@@ -1209,7 +1216,11 @@ class FamilyReachEnv(FamilyEnvBase):
     2 `hard_threshold` ≤ k < `safe_threshold` (toward Fichter's singularity; for the Delta, at the outer, lower edge
     of its workspace), on a geodesic from a safe start that keeps k ≥ 2 `hard_threshold`. For cranks and sliders
     "safe" and the path's k are min(k, k_I k_safe / k_I,safe), both kinds of singularity (the band is on k).
-    `reset(options={"targets": "hard"})` switches for one episode.
+    With `task_region="grid"` (the 3-RPR ids), start and target are instead drawn in one connected safe region
+    of the certified grid (``envs.workspace``), at least `min_distance` apart; its hard targets
+    (`hard_kind="crossing"`) are those whose straight line from the start dips below `hard_threshold`, while the
+    region certifies a detour. `reset(options={"targets": "hard"})` switches for one episode; with the grid,
+    `options` may also give a `"start"` and/or a `"target"` pose (safe, in one region).
 
     ## Episode End
     Termination (penalty P), first applicable: `newton_failed`, `assembly_mode_change` (prediction and
@@ -1219,7 +1230,7 @@ class FamilyReachEnv(FamilyEnvBase):
     `info["is_success"]`: position error ≤ `success_position_tolerance` and orientation error ≤
     `success_orientation_tolerance`.
     {arguments}
-    | `targets` | str | `"standard"` | "standard" or "hard" targets |
+    | `targets` | str | `"standard"` | "standard", "hard" or "mixed" (hard with probability 1/2 per episode) |
 
     ## Version History
     * v0: Initial version.
@@ -1268,9 +1279,18 @@ class FamilyReachEnv(FamilyEnvBase):
                 continue
             streams = fk.random_streams([generators[i] for i in rows])
             if params.workspace is not None:
-                fixed_kind, fixed = (1, start) if start is not None else ((2, target) if target is not None else (0, None))
+                fixed_kind, fixed = (
+                    (1, start) if start is not None else ((2, target) if target is not None else (0, None))
+                )
                 found = workspace_kernels.sample_reach_batch(
-                    params.packed, params.workspace.packed, streams, rows.size, kind, params.min_distance, fixed_kind, fixed
+                    params.packed,
+                    params.workspace.packed,
+                    streams,
+                    rows.size,
+                    kind,
+                    params.min_distance,
+                    fixed_kind,
+                    fixed,
                 )
                 if found is not None:
                     found = (*found, found[1])

@@ -30,7 +30,6 @@ import numba
 import numpy as np
 
 from envs import family_layout, family_planar, family_three, linalg_kernels, numba_setup
-from envs.numba_setup import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
 from envs.linalg_kernels import (
     LANES,
     inverse_condition6,
@@ -39,6 +38,7 @@ from envs.linalg_kernels import (
     solve6,
 )
 from envs.numba_cache import drop_stale_caches
+from envs.numba_setup import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
 
 __all__ = [
     "C_SIZE",
@@ -117,7 +117,13 @@ from envs.family_layout import (
 
 drop_stale_caches(
     __file__,
-    [family_layout.__file__, family_planar.__file__, family_three.__file__, numba_setup.__file__, linalg_kernels.__file__],
+    [
+        family_layout.__file__,
+        family_planar.__file__,
+        family_three.__file__,
+        numba_setup.__file__,
+        linalg_kernels.__file__,
+    ],
 )
 
 # -- rows of the work array of one robot (each row holds up to 6 numbers) ------------------------------
@@ -182,7 +188,7 @@ def _jit(fn):
 
 def _jit_inline(fn):
     # Inlined into its callers at Numba's IR level, so a per-robot call does not pass its many array
-    # arguments field by field (as ``envs.kernels``).
+    # arguments field by field.
     return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
 
 

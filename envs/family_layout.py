@@ -1,8 +1,8 @@
 """Offsets into the packed constants of the distance-constraint family (``envs.family_kernels.pack_family``).
 
-Shared by the family's kernels (``envs.family_kernels``, any pose space over work arrays; ``envs.family_planar``,
-the planar pose space in scalars) and the 3-RPR environments' kernels (``envs.kernels``), which carry a copy of
-the vector for the step they take from the family core.
+Shared by the family's kernels: ``envs.family_kernels`` (any pose space over work arrays), ``envs.family_planar``
+(the planar pose space in scalars), ``envs.family_three`` (three actuators in registers) and
+``envs.workspace_kernels`` (tasks on a certified grid).
 """
 
 from __future__ import annotations
@@ -61,6 +61,6 @@ C_PATH_T = 224  # the fraction of the period at which segment k → k + 1 (mod K
 C_SIZE = 232
 PATH_VERTICES = 8  # most vertices of a polyline path
 
-# Termination reason codes (the order of ``envs.core.TERMINATION_REASONS``).
+# Termination reason codes (the order of ``envs.family.TERMINATION_REASONS``).
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
 _ACTUATOR_SINGULAR = 6  # a Type I singularity (J_q singular): a crank's link in line with its arm

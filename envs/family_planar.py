@@ -4,9 +4,8 @@ A planar robot of the distance-constraint family has three legs and the pose (x,
 explains the family and its packed constants, ``envs.family_layout`` their offsets). Its 3 × 3 algebra fits in
 registers, so here it is written out for one robot in scalars, with closed forms (the adjugate for the systems,
 the trigonometric solution of the cubic for k; ``envs.linalg_kernels``), where the spatial pose space goes
-through 6 × 6 work arrays. ``envs.family_kernels`` steps every planar robot through ``transition_row``, and the
-3-RPR environments' kernels (``envs.kernels``) take their step from here too, so a planar robot's dynamics exist
-once. The math, with d_i = p + R(φ) P_i − B_i (a leg: A_i = B_i, ℓ_i = q_i):
+through 6 × 6 work arrays. ``envs.family_kernels`` steps every planar leg robot through ``transition_row``, so a
+planar robot's dynamics exist once. The math, with d_i = p + R(φ) P_i − B_i (a leg: A_i = B_i, ℓ_i = q_i):
 
     Φ_i = d_iᵀ d_i − q_i²,   J_x = 2 A,   A_i = (d_ix, d_iy, d_iy (R P_i)_x − d_ix (R P_i)_y),
     J_q = −2 diag(q),        J_f = A⁻¹ diag(q),   J_i = diag(1/q) A.
@@ -89,7 +88,7 @@ def _jit(fn):
 
 
 def _jit_inline(fn):
-    # Inlined into its callers at Numba's IR level (as ``envs.kernels``' per-robot helpers).
+    # Inlined into its callers at Numba's IR level: per-robot helpers take many array arguments.
     return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
 
 
@@ -365,7 +364,7 @@ def clip32(o_obs, i, j, value, low, high):
 def observation_row(c, low, high, with_velocity, q, x, k, g0, g1, g2, v0, v1, v2, i, o_obs):
     """Row i of the observation, clipped to [low, high], float32.
 
-    The planar layout of ``envs.core.observation`` and ``envs.family_kernels.observation_layout``.
+    The planar layout of ``envs.family_kernels.observation_layout``.
     """
     x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
     lo, hi = c[C_LMIN], c[C_LMAX]

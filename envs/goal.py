@@ -127,9 +127,7 @@ class GoalReachWrapper(gym.Wrapper):
         k = np.array([i["inverse_condition_number"] for i in infos], dtype=np.float64)
         action = np.array([i["reward_action"] for i in infos], dtype=np.float64)
         termination = np.array([i["reward_termination"] for i in infos], dtype=np.float64)
-        terms = reward_terms(
-            self.params, achieved, desired, k, np.zeros((n, self._n)), np.zeros(n, dtype=np.int64)
-        )
+        terms = reward_terms(self.params, achieved, desired, k, np.zeros((n, self._n)), np.zeros(n, dtype=np.int64))
         reward = terms["reward_tracking"] + terms["reward_singularity"] + action + termination
         if "reward_actuator_singularity" in infos[0]:  # the family's Type I term (0 for legs), goal-free
             reward = reward + np.array([i["reward_actuator_singularity"] for i in infos], dtype=np.float64)

@@ -1,16 +1,12 @@
-"""Headless rendering of a planar 3-RPR robot to an RGB array (Pillow), and a window for "human" mode."""
+"""Colours of the headless frames (``envs.rendering_family``) and the window of "human" rendering."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
-from PIL import Image, ImageDraw, ImageFont
 
-from envs.core import EnvParams
-
-__all__ = ["HumanWindow", "condition_color", "leg_color", "render_frame"]
+__all__ = ["HumanWindow", "leg_color"]
 
 _BACKGROUND = (250, 250, 247)
 _BASE = (90, 90, 90)
@@ -40,87 +36,6 @@ def leg_color(k: float, safe_threshold: float, hard_threshold: float) -> tuple[i
     s = min(max((k - hard_threshold) / (safe_threshold - hard_threshold), 0.0), 1.0)
     red, green = (215, 40, 40), (40, 160, 70)
     return tuple(int(round(r + s * (g - r))) for r, g in zip(red, green))
-
-
-def condition_color(k: float, params: EnvParams) -> tuple[int, int, int]:
-    """Leg colour for an inverse condition number with the thresholds of ``params`` (see ``leg_color``).
-
-    Args:
-        k: Homogeneous inverse condition number in [0, 1].
-        params: Environment constants (safe and hard thresholds).
-
-    Returns:
-        An RGB triple.
-    """
-    return leg_color(k, params.safe_threshold, params.hard_threshold)
-
-
-class _View:
-    """World [m] to pixel mapping of a square frame covering the pose bounds."""
-
-    def __init__(self, params: EnvParams, size: int) -> None:
-        lo, hi = np.array(params.pose_low[:2]), np.array(params.pose_high[:2])
-        center, half = (lo + hi) / 2.0, float(np.max(hi - lo)) / 2.0 * 1.05
-        self.origin = center - half
-        self.scale = size / (2.0 * half)
-        self.size = size
-
-    def __call__(self, p: np.ndarray) -> list[tuple[float, float]]:
-        pix = (np.atleast_2d(p) - self.origin) * self.scale
-        return [(float(u), float(self.size - v)) for u, v in pix]
-
-
-def render_frame(
-    params: EnvParams,
-    q: np.ndarray,
-    x: np.ndarray,
-    target: np.ndarray,
-    inverse_condition: float,
-    trail: Sequence[np.ndarray] = (),
-    step: int | None = None,
-    size: int = 480,
-) -> np.ndarray:
-    """Draw the base, the legs coloured by conditioning, the platform, the target and a trail.
-
-    Args:
-        params: Environment constants (robot geometry, bounds, thresholds).
-        q: Strokes [m], shape (3,) (shown as text).
-        x: Platform pose (x [m], y [m], φ [rad]), shape (3,).
-        target: Target pose, shape (3,).
-        inverse_condition: Current homogeneous inverse condition number.
-        trail: Past platform positions (x, y) [m], oldest first.
-        step: Step index to print, if given.
-        size: Side of the square image [px].
-
-    Returns:
-        The frame, uint8 of shape (size, size, 3).
-    """
-    robot = params.robot
-    view = _View(params, size)
-    image = Image.new("RGB", (size, size), _BACKGROUND)
-    draw = ImageDraw.Draw(image)
-    base = view(robot.base)
-    draw.polygon(base, outline=_BASE, width=2)
-    target_points = view(robot.platform_points_in_base(target, validate=False))
-    draw.polygon(target_points, outline=_TARGET, width=2)
-    cx, cy = view(target[:2])[0]
-    draw.line([(cx - 6, cy), (cx + 6, cy)], fill=_TARGET, width=2)
-    draw.line([(cx, cy - 6), (cx, cy + 6)], fill=_TARGET, width=2)
-    if len(trail) > 1:
-        draw.line(view(np.asarray(trail)), fill=_TRAIL, width=2)
-    platform = view(robot.platform_points_in_base(x, validate=False))
-    leg_color = condition_color(inverse_condition, params)
-    for b, p in zip(base, platform):
-        draw.line([b, p], fill=leg_color, width=4)
-    draw.polygon(platform, fill=_PLATFORM, outline=_PLATFORM)
-    for b in base:
-        draw.ellipse([b[0] - 5, b[1] - 5, b[0] + 5, b[1] + 5], fill=_BASE)
-    font = ImageFont.load_default()
-    lines = [f"k = {inverse_condition:.3f}", "L = " + ", ".join(f"{v:.3f}" for v in np.asarray(q))]
-    if step is not None:
-        lines.insert(0, f"step {step}")
-    draw.multiline_text((8, 8), "\n".join(lines), fill=_TEXT, font=font)
-    return np.asarray(image, dtype=np.uint8)
 
 
 class HumanWindow:

@@ -58,8 +58,8 @@ class FamilyVectorEnv(VectorEnv):
     as arrays with a leading dimension N and advances them with the very functions the single environment
     calls with N = 1 (``envs.family.step`` and ``evaluate``, whose compiled kernels do the dynamics, reward and
     observation robot by robot, on every core for large N; ``initial_state``, ``step_info``, and the single
-    environment's own task sampling). Nothing of the dynamics, reward, sampling or info is copied here, so the two cannot
-    drift apart: sub-environment i of `reset(seed=s)` behaves exactly as `gym.make(id)` reset with
+    environment's own task sampling). Nothing of the dynamics, reward, sampling or info is copied here, so the
+    two cannot drift apart: sub-environment i of `reset(seed=s)` behaves exactly as `gym.make(id)` reset with
     seed s + i, to the last bit.
 
     The step is one compiled pass over the robots; only starting new episodes loops in Python over the

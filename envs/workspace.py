@@ -148,7 +148,9 @@ def certify_workspace(spec: WorkspaceSpec) -> WorkspaceMap:
         reachable = (q.min(axis=-1) >= lo + spec.stroke_margin) & (q.max(axis=-1) <= hi - spec.stroke_margin)
     legs = all(kind == "leg" for kind in robot.actuator_kinds)
     # A zero-length leg (Type I) or an unreachable crank is never safe; keep J_q regular and finite there.
-    q_safe = np.maximum(q, 1e-9) if legs else np.where(reachable[..., None], q, robot.inverse_kinematics(robot.home_pose()))
+    q_safe = (
+        np.maximum(q, 1e-9) if legs else np.where(reachable[..., None], q, robot.inverse_kinematics(robot.home_pose()))
+    )
     inverse_condition = robot.inverse_condition_number(q_safe, nodes, validate=False)
     if not legs:
         k_I = robot.actuator_condition_number(q_safe, nodes, validate=False)

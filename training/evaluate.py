@@ -186,7 +186,9 @@ def load_controller(name: str, env: gym.Env) -> Agent:
     try:
         return CONTROLLERS[name](params)
     except ValueError as exc:  # the planner on a robot without a certified grid
-        raise EvaluationError(f"controller {name!r} cannot drive {env.spec.id if env.spec else 'this env'}: {exc}") from exc
+        raise EvaluationError(
+            f"controller {name!r} cannot drive {env.spec.id if env.spec else 'this env'}: {exc}"
+        ) from exc
 
 
 class _ZooLoader(yaml.SafeLoader):

@@ -102,7 +102,9 @@ def trajectories_figure(
     return path
 
 
-def condition_figure(runs: dict[str, list[EpisodeRecord]], params: FamilyParams, path: Path, episodes: int = 20) -> Path:
+def condition_figure(
+    runs: dict[str, list[EpisodeRecord]], params: FamilyParams, path: Path, episodes: int = 20
+) -> Path:
     """Inverse condition number over time for each agent, with the safe and hard thresholds.
 
     Args:
