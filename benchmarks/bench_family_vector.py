@@ -26,7 +26,7 @@ import numpy as np
 
 import envs
 from benchmarks.bench_vector_env import NATIVE_BUDGET, SYNC_BUDGET, WARM_UP_STEPS, SteppedVectorEnv, steps_for
-from envs import numba_setup
+from envs.kernels import setup as numba_setup
 
 HEXAPOD = "StewartGoughReach-v0"
 PLANAR = "Planar3RPRReach-v0"

@@ -29,7 +29,7 @@ import numpy as np
 from gymnasium.utils import seeding
 
 import envs
-from envs import numba_setup
+from envs.kernels import setup as numba_setup
 
 SIZES = (1, 64, 1024, 16384)
 SYNC_MAX_N = 1024

@@ -2,11 +2,11 @@
 
 from gymnasium.envs.registration import register, registry
 
-from envs.family import ROBOT_PRESETS, FamilyParams, FamilyReachEnv, FamilyTrackEnv
-from envs.goal import GoalReachWrapper
-from envs.planner import PlannerResidualWrapper, PlannerWaypointWrapper
-from envs.shield import SingularityShield
+from envs.env import FamilyReachEnv, FamilyTrackEnv
+from envs.params import FamilyParams
+from envs.presets import ROBOT_PRESETS
 from envs.vector import FamilyReachVectorEnv, FamilyTrackVectorEnv, FamilyVectorEnv
+from envs.wrappers import GoalReachWrapper, PlannerResidualWrapper, PlannerWaypointWrapper, SingularityShield
 
 __all__ = [
     "ENV_IDS",
@@ -24,11 +24,11 @@ __all__ = [
     "SingularityShield",
 ]
 
-_REACH = ("envs.family:FamilyReachEnv", "envs.vector:FamilyReachVectorEnv")
-_TRACK = ("envs.family:FamilyTrackEnv", "envs.vector:FamilyTrackVectorEnv")
+_REACH = ("envs.env:FamilyReachEnv", "envs.vector:FamilyReachVectorEnv")
+_TRACK = ("envs.env:FamilyTrackEnv", "envs.vector:FamilyTrackVectorEnv")
 
 #: Every registered id: its env and vector env, episode length and keyword arguments. Every id runs the same
-#: env classes; a robot-named id is a preset (``envs.family.ROBOT_PRESETS``), a task kind is an option.
+#: env classes; a robot-named id is a preset (``envs.presets.ROBOT_PRESETS``), a task kind is an option.
 _SPECS = {
     # The lesson's planar 3-RPR: tasks in the regions of its certified grid; hard targets behind the
     # ill-conditioned zone; "mixed": standard or hard at random per episode (one policy for both kinds).

@@ -13,8 +13,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from envs.family import FamilyParams, wrap_angle
-from envs.family_kernels import observation_layout
+from envs.kernels.generic import observation_layout
+from envs.params import FamilyParams
+from envs.physics import wrap_angle
+from envs.planner import PathFollower
 
 __all__ = [
     "CONTROLLERS",
@@ -209,8 +211,6 @@ class PlannerController(ResolvedRateController):
     def __init__(
         self, params: FamilyParams, gain: float = 2.0, max_speed: float = 0.25, lookahead: float = 0.1, follower=None
     ) -> None:
-        from envs.planner import PathFollower
-
         super().__init__(params, gain, max_speed)
         self.follower = PathFollower(params, lookahead) if follower is None else follower
 

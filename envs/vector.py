@@ -12,19 +12,9 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs import family
-from envs.family import (
-    TRAIL_LENGTH,
-    FamilyEnvBase,
-    FamilyReachEnv,
-    FamilyState,
-    FamilyTrackEnv,
-    NonFiniteActionError,
-    StepBuffers,
-    evaluate,
-    initial_state,
-    step_info,
-)
+from envs import physics
+from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv
+from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate, initial_state, step_info
 
 __all__ = ["FamilyReachVectorEnv", "FamilyTrackVectorEnv", "FamilyVectorEnv"]
 
@@ -53,10 +43,10 @@ class FamilyVectorEnv(VectorEnv):
     """N robots of the family in one batch: the native vector form of a single environment.
 
     ## Description
-    Every sub-environment is exactly the single environment of the same id (``envs.family.FamilyReachEnv`` or
+    Every sub-environment is exactly the single environment of the same id (``envs.env.FamilyReachEnv`` or
     ``FamilyTrackEnv`` with that id's preset, see their docstrings); this class holds the state of the N robots
     as arrays with a leading dimension N and advances them with the very functions the single environment
-    calls with N = 1 (``envs.family.step`` and ``evaluate``, whose compiled kernels do the dynamics, reward and
+    calls with N = 1 (``envs.physics.step`` and ``evaluate``, whose compiled kernels do the dynamics, reward and
     observation robot by robot, on every core for large N; ``initial_state``, ``step_info``, and the single
     environment's own task sampling). Nothing of the dynamics, reward, sampling or info is copied here, so the
     two cannot drift apart: sub-environment i of `reset(seed=s)` behaves exactly as `gym.make(id)` reset with
@@ -258,7 +248,9 @@ class FamilyVectorEnv(VectorEnv):
             )
         out = self._buffers[self._next]  # not the one holding self._state
         try:
-            state, outcome, evaluation, observations = family.step(self.params, self._state, a, self.with_velocity, out)
+            state, outcome, evaluation, observations = physics.step(
+                self.params, self._state, a, self.with_velocity, out
+            )
         except NonFiniteActionError as exc:  # checked inside the compiled pass; no robot has moved
             bad = exc.rows
             raise ValueError(
@@ -322,7 +314,7 @@ class FamilyVectorEnv(VectorEnv):
     def _new_buffers(self) -> StepBuffers:
         return StepBuffers(self.params, self.num_envs, self.with_velocity)
 
-    def _initial_state(self, start: np.ndarray, reference: family.FamilyReference) -> FamilyState:
+    def _initial_state(self, start: np.ndarray, reference: physics.FamilyReference) -> FamilyState:
         return initial_state(self.params, start, reference)
 
     def _step_info(self, state: FamilyState, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
@@ -332,7 +324,7 @@ class FamilyVectorEnv(VectorEnv):
         return self.params.robot.pose_space.position(self._state.x[i]).copy()
 
     def _frames(self) -> tuple[np.ndarray, ...]:
-        from envs.rendering_family import render_family_frame
+        from envs.rendering import render_family_frame
 
         state = self._state
         evaluation, _ = evaluate(
@@ -369,7 +361,7 @@ class FamilyVectorEnv(VectorEnv):
         The environment reuses its own arrays from step to step; the copy is yours to keep.
         """
         state = self._state
-        return None if state is None else family.copy_state(state)
+        return None if state is None else physics.copy_state(state)
 
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:

@@ -28,7 +28,7 @@ import numpy as np
 import yaml
 
 import envs
-from envs.family import TERMINATION_REASONS
+from envs.physics import TERMINATION_REASONS
 from training.config import ConfigError, algorithm_class, resolve_env_wrapper
 from training.controllers import CONTROLLERS
 

@@ -12,8 +12,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from PIL import Image
 
-from envs.family import FamilyParams
-from envs.workspace import WorkspaceMap
+from envs.params import FamilyParams
+from envs.tasks.grid import WorkspaceMap
 
 if TYPE_CHECKING:
     from training.evaluate import EpisodeRecord

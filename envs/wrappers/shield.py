@@ -22,7 +22,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.family import transition
+from envs.physics import transition
 
 __all__ = ["SHIELD_SCALES", "SingularityShield"]
 

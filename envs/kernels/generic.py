@@ -12,14 +12,14 @@ With d_i = p + R P_i − B_i (leg kind: A_i = B_i, ℓ_i = q_i), the kernels use
     J_q = −2 diag(q),        J_f = −J_x⁻¹ J_q = A⁻¹ diag(q),   J_i = diag(1/q) A,
 
 as ``kinematics.DistanceConstraintMechanism`` (the NumPy reference they are tested against). Systems are
-solved and conditioned by ``envs.linalg_kernels`` (closed forms for m = 3; pivoted elimination and a one-sided
+solved and conditioned by ``envs.kernels.linalg`` (closed forms for m = 3; pivoted elimination and a one-sided
 Jacobi SVD for m = 6), accurate near singular matrices. A spatial
 pose stores the rotation vector r; every update of it goes through unit quaternions (R ← exp([δθ]×) R), so
 the integrator and Newton's method work on the rotation group, never on Euler angles.
 
 Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
 chunk, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD behind their k runs
-on the whole block at once (vectorised across robots, ``envs.linalg_kernels.inverse_condition6_lanes``).
+on the whole block at once (vectorised across robots, ``envs.kernels.linalg.inverse_condition6_lanes``).
 """
 
 from __future__ import annotations
@@ -29,16 +29,16 @@ import math
 import numba
 import numpy as np
 
-from envs import family_layout, family_planar, family_three, linalg_kernels, numba_setup
-from envs.linalg_kernels import (
+from envs.kernels import layout, linalg, planar, setup, three
+from envs.kernels.cache import drop_stale_caches
+from envs.kernels.linalg import (
     LANES,
     inverse_condition6,
     inverse_condition6_lanes,
     solve3,
     solve6,
 )
-from envs.numba_cache import drop_stale_caches
-from envs.numba_setup import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
+from envs.kernels.setup import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
 
 __all__ = [
     "C_SIZE",
@@ -62,7 +62,7 @@ __all__ = [
     "transition_batch",
 ]
 
-from envs.family_layout import (
+from envs.kernels.layout import (
     C_A,
     C_B,
     C_BRANCH,
@@ -118,11 +118,11 @@ from envs.family_layout import (
 drop_stale_caches(
     __file__,
     [
-        family_layout.__file__,
-        family_planar.__file__,
-        family_three.__file__,
-        numba_setup.__file__,
-        linalg_kernels.__file__,
+        layout.__file__,
+        planar.__file__,
+        three.__file__,
+        setup.__file__,
+        linalg.__file__,
     ],
 )
 
@@ -504,7 +504,7 @@ def _rows_actuated(c, q, x, w):
             D0, D1, D2 = w[W_CD, i], w[W_CD + 1, i], w[W_CD + 2, i]
             ell, speed = w[W_CELL, i], w[W_CSPEED, i]
         else:
-            A0, A1, A2, D0, D1, D2, ell, speed = family_three.anchor(c, i, qi)
+            A0, A1, A2, D0, D1, D2, ell, speed = three.anchor(c, i, qi)
             w[W_CA, i], w[W_CA + 1, i], w[W_CA + 2, i] = A0, A1, A2
             w[W_CD, i], w[W_CD + 1, i], w[W_CD + 2, i] = D0, D1, D2
             w[W_CELL, i], w[W_CSPEED, i] = ell, speed
@@ -659,7 +659,7 @@ def _singularity(c, q, w, src):
     if m == 3:
         a, b, d = w[src], w[src + 1], w[src + 2]
         ell0, ell1, ell2 = _link_length(c, q, w, 0), _link_length(c, q, w, 1), _link_length(c, q, w, 2)
-        return family_three.link_condition3(
+        return three.link_condition3(
             c, a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], ell0, ell1, ell2
         )  # fmt: skip
     Ht = w[W_H : W_H + 6]  # column j of J_i diag(pose_scale) as row j
@@ -849,20 +849,20 @@ def _transition_block(
     """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
 
     The algorithm of ``envs.family.transition``. A planar robot takes the scalar path of
-    ``envs.family_planar`` (its 3 × 3 algebra in registers). Spatial robots are moved one by one, then the
+    ``envs.kernels.planar`` (its 3 × 3 algebra in registers). Spatial robots are moved one by one, then the
     k of all of them comes from one ``inverse_condition6_lanes`` call over the block (vectorised across
     robots, each robot's k bit for bit what it would be alone), then their termination reasons.
     """
     if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
         for i in range(start, start + count):
-            family_planar.transition_row(
+            planar.transition_row(
                 c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
             )
             o_k1[i] = 1.0
         return
     if c[C_N] == 3.0 and c[C_SPATIAL] == 0.0:  # cranks or sliders, planar or translational: in scalars
         for i in range(start, start + count):
-            family_three.transition_row(
+            three.transition_row(
                 c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump
             )
         return
@@ -873,7 +873,7 @@ def _transition_block(
             k1 = _actuator_condition(c, w)
             o_k[i] = k
             o_k1[i] = k1
-            o_reason[i] = family_planar.termination_reason(c, failed, o_jump[i], sign, det_sign[i], k, out, k1)
+            o_reason[i] = planar.termination_reason(c, failed, o_jump[i], sign, det_sign[i], k, out, k1)
         return
     H, lane = lanes
     for r in range(count):
@@ -891,7 +891,7 @@ def _transition_block(
         k = lane[L_K, r]
         o_k[i] = k
         o_k1[i] = lane[L_K1, r]
-        o_reason[i] = family_planar.termination_reason(
+        o_reason[i] = planar.termination_reason(
             c, failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out, lane[L_K1, r]
         )
 
@@ -1138,7 +1138,7 @@ def _evaluate_row(
 ):
     """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.family.evaluate``).
 
-    A planar robot's terms and observation are ``envs.family_planar``'s (those of the 3-RPR environments).
+    A planar robot's terms and observation are ``envs.kernels.planar``'s (those of the 3-RPR environments).
     """
     m = int(c[C_N])
     g, vel, diff = w[W_TGT], w[W_VEL], w[W_DIFF]
@@ -1146,7 +1146,7 @@ def _evaluate_row(
     xi = x[i]
     if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
         a0, a1, a2 = action[i, 0], action[i, 1], action[i, 2]
-        tr, si, ac, te, ep, eo = family_planar.reward_terms(
+        tr, si, ac, te, ep, eo = planar.reward_terms(
             c, xi[0], xi[1], xi[2], g[0], g[1], g[2], k[i], a0, a1, a2, reason[i]
         )
         o_eval[E_TRACKING, i], o_eval[E_SINGULARITY, i], o_eval[E_ACTION, i], o_eval[E_TERMINATION, i] = tr, si, ac, te
@@ -1155,7 +1155,7 @@ def _evaluate_row(
         o_eval[E_K1, i] = k1[i]
         o_eval[E_COST1, i] = 0.0
         o_eval[E_POSITION_ERROR, i], o_eval[E_ORIENTATION_ERROR, i] = ep, eo
-        success = reason[i] == 0 and family_planar.is_success(c, ep, eo)
+        success = reason[i] == 0 and planar.is_success(c, ep, eo)
         o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
         o_eval[E_COST, i] = 1.0 if k[i] < c[C_SAFE] else 0.0
         o_eval[E_K, i] = k[i]
@@ -1164,9 +1164,7 @@ def _evaluate_row(
             o_eval[E_FIXED + j, i] = g[j]
             o_eval[E_FIXED + 3 + j, i] = vel[j]
             o_eval[E_FIXED + 6 + j, i] = xi[j]
-        family_planar.observation_row(
-            c, low, high, with_velocity, q, x, k, g[0], g[1], g[2], vel[0], vel[1], vel[2], i, o_obs
-        )
+        planar.observation_row(c, low, high, with_velocity, q, x, k, g[0], g[1], g[2], vel[0], vel[1], vel[2], i, o_obs)
         return
     position_error, orientation_error = _errors(c, xi, g, diff)
     ki = k[i]

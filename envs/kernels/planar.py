@@ -1,10 +1,10 @@
 """The family core on the planar pose space, in scalars: the step of every planar robot of the family.
 
-A planar robot of the distance-constraint family has three legs and the pose (x, y, φ) (``envs.family_kernels``
-explains the family and its packed constants, ``envs.family_layout`` their offsets). Its 3 × 3 algebra fits in
+A planar robot of the distance-constraint family has three legs and the pose (x, y, φ) (``envs.kernels.generic``
+explains the family and its packed constants, ``envs.kernels.layout`` their offsets). Its 3 × 3 algebra fits in
 registers, so here it is written out for one robot in scalars, with closed forms (the adjugate for the systems,
-the trigonometric solution of the cubic for k; ``envs.linalg_kernels``), where the spatial pose space goes
-through 6 × 6 work arrays. ``envs.family_kernels`` steps every planar leg robot through ``transition_row``, so a
+the trigonometric solution of the cubic for k; ``envs.kernels.linalg``), where the spatial pose space goes
+through 6 × 6 work arrays. ``envs.kernels.generic`` steps every planar leg robot through ``transition_row``, so a
 planar robot's dynamics exist once. The math, with d_i = p + R(φ) P_i − B_i (a leg: A_i = B_i, ℓ_i = q_i):
 
     Φ_i = d_iᵀ d_i − q_i²,   J_x = 2 A,   A_i = (d_ix, d_iy, d_iy (R P_i)_x − d_ix (R P_i)_y),
@@ -21,8 +21,9 @@ import math
 import numba
 import numpy as np
 
-from envs import family_layout, linalg_kernels
-from envs.family_layout import (
+from envs.kernels import layout, linalg
+from envs.kernels.cache import drop_stale_caches
+from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
     _NEWTON_FAILED,
@@ -56,8 +57,7 @@ from envs.family_layout import (
     C_WP,
     C_WS,
 )
-from envs.linalg_kernels import singular_value_ratio3, solve3
-from envs.numba_cache import drop_stale_caches
+from envs.kernels.linalg import singular_value_ratio3, solve3
 
 __all__ = [
     "clip32",
@@ -80,7 +80,7 @@ __all__ = [
 
 _TWO_PI = 2.0 * math.pi
 
-drop_stale_caches(__file__, [family_layout.__file__, linalg_kernels.__file__])
+drop_stale_caches(__file__, [layout.__file__, linalg.__file__])
 
 
 def _jit(fn):
@@ -248,7 +248,7 @@ def termination_reason(c, failed, jump, sign, mode, k, out, k1):
 
 @_jit_inline
 def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
-    """Advance robot i by one control period (``envs.family_kernels.transition_batch``); writes row i of the outputs."""
+    """Advance robot i by one control period (``generic.transition_batch``); writes row i of the outputs."""
     dt = c[C_DT]
     lo, hi = c[C_LMIN], c[C_LMAX]
     lc = c[C_LC]
@@ -364,7 +364,7 @@ def clip32(o_obs, i, j, value, low, high):
 def observation_row(c, low, high, with_velocity, q, x, k, g0, g1, g2, v0, v1, v2, i, o_obs):
     """Row i of the observation, clipped to [low, high], float32.
 
-    The planar layout of ``envs.family_kernels.observation_layout``.
+    The planar layout of ``envs.kernels.generic.observation_layout``.
     """
     x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
     lo, hi = c[C_LMIN], c[C_LMAX]

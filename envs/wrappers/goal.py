@@ -17,8 +17,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.family import reward_terms
-from envs.family_kernels import observation_layout
+from envs.kernels.generic import observation_layout
+from envs.physics import reward_terms
 
 __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]
 
@@ -26,7 +26,7 @@ __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]
 def goal_free_index(pose_space: str, n: int) -> np.ndarray:
     """Entries of the flat observation that do not depend on the goal: pose code, normalised strokes and k.
 
-    The layout is ``envs.family_kernels.observation_layout``, which the 3-RPR's ``core.observation`` shares.
+    The layout is ``envs.kernels.generic.observation_layout``, which the 3-RPR's ``core.observation`` shares.
 
     Args:
         pose_space: "planar", "spatial" or "translational".

@@ -1,12 +1,12 @@
 """The family core for three actuators of any kind on a planar or translational pose space, in scalars.
 
 A robot of the distance-constraint family with three actuators and a three-coordinate pose, (x, y, φ) (planar)
-or p = (x, y, z) (translational, R = I), has 3 × 3 algebra that fits in registers. ``envs.family_planar``
+or p = (x, y, z) (translational, R = I), has 3 × 3 algebra that fits in registers. ``envs.kernels.planar``
 writes out the planar robots driven by legs (the 3-RPR: A_i = B_i, ℓ_i = q_i); this module writes out the rest,
 the robots whose anchors move with their actuators (cranks and sliders: the Delta, the 3-RRR, the 3-PRR), with the
 anchor of each leg computed once per value of q (Newton's iterations move x at fixed q). It is the algorithm of
-``envs.family_kernels._advance_spatial`` and its evaluation of k and k_I, operation for operation (the same
-floating-point results), without the work arrays: ``envs.family_kernels`` steps every such robot through
+``envs.kernels.generic._advance_spatial`` and its evaluation of k and k_I, operation for operation (the same
+floating-point results), without the work arrays: ``envs.kernels.generic`` steps every such robot through
 ``transition_row``. The math, with d_i = p + R P_i − A_i(q_i):
 
     Φ_i = d_iᵀ d_i − ℓ_i(q_i)²,   J_x = 2 A,   A_i = (d_ix, d_iy, (R P_i)_x d_iy − (R P_i)_y d_ix) (planar)
@@ -14,7 +14,7 @@ floating-point results), without the work arrays: ``envs.family_kernels`` steps 
     −(J_q)_ii / 2 = d_iᵀ A_i′(q_i) + ℓ_i ℓ_i′,   J_f = A⁻¹ diag(−J_q / 2).
 
 Every function reads the geometry and the settings from ``c``, the family's packed constants
-(``envs.family_layout``): A_i(q) = B_i + a_i (cos q u_i + sin q v_i) + q e_i and ℓ_i(q) = λ_i q + l_i.
+(``envs.kernels.layout``): A_i(q) = B_i + a_i (cos q u_i + sin q v_i) + q e_i and ℓ_i(q) = λ_i q + l_i.
 """
 
 from __future__ import annotations
@@ -24,8 +24,9 @@ import math
 import numba
 import numpy as np
 
-from envs import family_layout, family_planar, linalg_kernels
-from envs.family_layout import (
+from envs.kernels import layout, linalg, planar
+from envs.kernels.cache import drop_stale_caches
+from envs.kernels.layout import (
     C_A,
     C_B,
     C_DT,
@@ -50,12 +51,11 @@ from envs.family_layout import (
     C_U,
     C_V,
 )
-from envs.linalg_kernels import singular_value_ratio3, solve3
-from envs.numba_cache import drop_stale_caches
+from envs.kernels.linalg import singular_value_ratio3, solve3
 
 __all__ = ["anchor", "anchors", "link_condition3", "rows", "transition_row"]
 
-drop_stale_caches(__file__, [family_layout.__file__, family_planar.__file__, linalg_kernels.__file__])
+drop_stale_caches(__file__, [layout.__file__, planar.__file__, linalg.__file__])
 
 
 def _jit(fn):
@@ -186,7 +186,7 @@ def link_condition3(c, a00, a01, a02, a10, a11, a12, a20, a21, a22, l0, l1, l2):
     """(k, sign(det J_x)) of three legs from the rows a of A = J_x / 2 and the link lengths ℓ_i.
 
     k = σ_min/σ_max of the link Jacobian diag(1/ℓ) A diag(pose_scale) (closed form), sign(det J_x) = sign(det A).
-    The three-leg case of every pose space (``envs.family_kernels._singularity`` calls it too).
+    The three-leg case of every pose space (``envs.kernels.generic._singularity`` calls it too).
     """
     i0, i1, i2 = 1.0 / l0, 1.0 / l1, 1.0 / l2
     s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
@@ -225,7 +225,7 @@ def singularity(c, anc, a):
 
 @_jit
 def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump):
-    """Advance robot i by one control period (``envs.family_kernels.transition_batch``); writes row i of the outputs."""
+    """Advance robot i by one control period (``generic.transition_batch``); writes row i of the outputs."""
     translational = c[C_TRANSLATIONAL] != 0.0
     dt = c[C_DT]
     lo, hi = c[C_LMIN], c[C_LMAX]
@@ -296,5 +296,5 @@ def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_k1, 
     o_res[i] = res
     o_a[i, 0], o_a[i, 1], o_a[i, 2] = a0, a1, a2
     o_qr[i, 0], o_qr[i, 1], o_qr[i, 2] = r0, r1, r2
-    o_reason[i] = family_planar.termination_reason(c, failed, jump, sign, det_sign[i], k_new, out, k1)
+    o_reason[i] = planar.termination_reason(c, failed, jump, sign, det_sign[i], k_new, out, k1)
     o_jump[i] = jump

@@ -11,7 +11,7 @@ from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
-from envs.numba_cache import drop_stale_caches
+from envs.kernels.cache import drop_stale_caches
 
 __all__ = ["PARALLEL_MIN_BATCH", "THREADING_LAYER", "random_streams", "uniform_batch"]
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from envs.workspace_kernels import pack_workspace
+from envs.tasks.grid_kernels import pack_workspace
 from kinematics import DistanceConstraintMechanism
 from kinematics.linalg import determinant
 
@@ -84,7 +84,7 @@ class WorkspaceMap:
 
     @functools.cached_property
     def packed(self) -> tuple[np.ndarray, ...]:
-        """The grid as the compiled sampling kernels read it (``envs.workspace_kernels.pack_workspace``)."""
+        """The grid as the compiled sampling kernels read it (``envs.tasks.grid_kernels.pack_workspace``)."""
         return pack_workspace(self)
 
     @functools.cached_property

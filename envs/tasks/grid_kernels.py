@@ -1,4 +1,4 @@
-"""Compiled task sampling on a certified grid (``envs.workspace``): starts, targets and circles in one safe region.
+"""Compiled task sampling on a certified grid (``envs.tasks.grid``): starts, targets and circles in one safe region.
 
 A robot with three pose coordinates (planar or translational) may draw its tasks from the connected safe
 regions of a grid over its pose bounds (``task_region="grid"``): start and target lie in one region, so a
@@ -6,7 +6,7 @@ singularity-free path between them is known without checking one. Each pose is a
 (regions drawn in proportion to their size) jittered within its cell, kept if it is safe (the family's
 ``_safe``: inside the sampling box, strokes within the limits less the margin, k ≥ k_safe and, for cranks and
 sliders, k_I ≥ k_I,safe) and still in that region. Every draw comes from NumPy generators through
-``envs.numba_setup.random_streams``, so a generator's stream is the same whether NumPy or a kernel draws.
+``envs.kernels.setup.random_streams``, so a generator's stream is the same whether NumPy or a kernel draws.
 
 The packed grid (``pack_workspace``) is a tuple: (cell (3,), labels (n_0, n_1, n_2), sampled-label lookup,
 component ids (c,), cumulative sampling weights (c,), the sampled components' node indices, their offsets
@@ -20,15 +20,15 @@ import math
 import numba
 import numpy as np
 
-from envs import family_kernels, family_layout, numba_setup
-from envs.family_kernels import W_A, _inverse_kinematics, _safe, _singularity, _work
-from envs.family_layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL
-from envs.numba_cache import drop_stale_caches
-from envs.numba_setup import _next_double
+from envs.kernels import generic, layout, setup
+from envs.kernels.cache import drop_stale_caches
+from envs.kernels.generic import W_A, _inverse_kinematics, _safe, _singularity, _work
+from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL
+from envs.kernels.setup import _next_double
 
 __all__ = ["SAMPLER_TRIES", "SEGMENT_POINTS", "pack_workspace", "sample_circle_batch", "sample_reach_batch"]
 
-drop_stale_caches(__file__, [family_kernels.__file__, family_layout.__file__, numba_setup.__file__])
+drop_stale_caches(__file__, [generic.__file__, layout.__file__, setup.__file__])
 
 #: Candidates a sampler may reject (per pose or pair) before it reports failure.
 SAMPLER_TRIES = 6400
@@ -43,7 +43,7 @@ def _jit(fn):
 
 
 def pack_workspace(workspace) -> tuple:
-    """A certified ``envs.workspace.WorkspaceMap`` as the tuple of arrays the sampling kernels read (module doc)."""
+    """A certified ``envs.tasks.grid.WorkspaceMap`` as the tuple of arrays the sampling kernels read (module doc)."""
     labels = np.ascontiguousarray(workspace.labels, dtype=np.int64)
     ids = np.asarray(workspace.component_ids, dtype=np.int64)
     sampled = np.zeros(int(labels.max()) + 1, dtype=np.bool_)
@@ -207,7 +207,7 @@ def sample_reach_batch(c, ws, streams, n, hard, min_distance, fixed_kind=0, fixe
     """Draw n start/target pairs in one safe region each (``_sample_reach``), or None if one could not be found.
 
     Args:
-        c: The family's packed constants (``family_kernels.pack_family``).
+        c: The family's packed constants (``generic.pack_family``).
         ws: The packed grid (``pack_workspace``).
         streams: ``random_streams`` of one generator (shape (1, 2)) or of n generators (shape (n, 2)).
         n: Number of pairs.

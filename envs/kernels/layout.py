@@ -1,8 +1,8 @@
-"""Offsets into the packed constants of the distance-constraint family (``envs.family_kernels.pack_family``).
+"""Offsets into the packed constants of the distance-constraint family (``envs.kernels.generic.pack_family``).
 
-Shared by the family's kernels: ``envs.family_kernels`` (any pose space over work arrays), ``envs.family_planar``
-(the planar pose space in scalars), ``envs.family_three`` (three actuators in registers) and
-``envs.workspace_kernels`` (tasks on a certified grid).
+Shared by the family's kernels: ``envs.kernels.generic`` (any pose space over work arrays), ``envs.kernels.planar``
+(the planar pose space in scalars), ``envs.kernels.three`` (three actuators in registers) and
+``envs.tasks.grid_kernels`` (tasks on a certified grid).
 """
 
 from __future__ import annotations

@@ -1,0 +1,482 @@
+"""The Gymnasium environments of every robot: ``FamilyReachEnv`` and ``FamilyTrackEnv``, one robot each.
+
+A robot is a ``kinematics.DistanceConstraintMechanism`` given as data or a preset's name
+(``envs.presets.ROBOT_PRESETS``); a task kind is an option of the parameters (``envs.params.FamilyParams``).
+Both envs step through ``envs.physics``; ``envs.vector`` batches N of them.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from envs.kernels import generic as fk
+from envs.params import TARGET_MODES, FamilyParams
+from envs.physics import (
+    INFO_KEYS,
+    TERMINATION_REASONS,
+    TYPE_I_INFO,
+    FamilyReference,
+    FamilyState,
+    StepBuffers,
+    copy_state,
+    evaluate,
+    initial_state,
+    observation_bounds,
+    step,
+)
+from envs.presets import build_family_params
+from envs.rendering import HumanWindow
+from envs.tasks import grid_kernels
+from envs.tasks.grid import WorkspaceMap
+
+__all__ = ["TRAIL_LENGTH", "FamilyEnvBase", "FamilyReachEnv", "FamilyTrackEnv"]
+
+#: Poses kept for the drawn trail.
+TRAIL_LENGTH = 200
+
+
+class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
+    """Shared machinery of the single-robot family environments; see ``FamilyReachEnv`` for the documentation."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+    with_velocity = False
+    reset_options: tuple[str, ...] = ()
+
+    def _setup(self, render_mode: str | None, params: FamilyParams) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.params = params
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / params.dt}
+        n = params.robot.n_actuators
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
+        low, high = observation_bounds(params, self.with_velocity)
+        self.observation_space = spaces.Box(low.copy(), high.copy(), dtype=np.float32)
+        self._state: FamilyState | None = None
+        self._buffers = (StepBuffers(params, 1, self.with_velocity), StepBuffers(params, 1, self.with_velocity))
+        self._next = 0
+        self._terminated = False
+        self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
+        rows = params.evaluation_rows
+        self._reward_row = rows["reward"]
+        self._info_rows = tuple((name, rows[name]) for name in INFO_KEYS)
+        self._pose_rows, self._target_rows = rows["pose"], rows["target"]
+        self._window: HumanWindow | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start a new episode (see the class docstring, Starting State)."""
+        super().reset(seed=seed)
+        options = {} if options is None else options
+        if not isinstance(options, dict):
+            raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+        unknown = set(options) - set(self.reset_options)
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self.reset_options)}")
+        start, reference = self.sample_tasks((self.np_random,), options)
+        self._state = initial_state(self.params, start, reference)
+        self._terminated = False
+        self._trail.clear()
+        if self.render_mode is not None:  # the trail is drawn only
+            self._trail.append(self.params.robot.pose_space.position(self._state.x[0]).copy())
+        n = self.params.robot.n_actuators
+        evaluation, observations = evaluate(
+            self.params, self._state, np.zeros((1, n)), np.zeros(1, dtype=np.int64), self.with_velocity
+        )
+        if self.render_mode == "human":
+            self.render()
+        return observations[0], self._info(evaluation[:, 0], 0)
+
+    def step(self, action: Any):
+        """Apply normalised stroke rates for one period dt (see the class docstring)."""
+        if self._state is None:
+            raise gym.error.ResetNeeded("Cannot call step() before reset()")
+        if self._terminated:
+            raise gym.error.ResetNeeded("The episode has terminated; call reset() before step()")
+        n = self.params.robot.n_actuators
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"action must be an array of {n} real numbers, got {action!r}") from exc
+        if a.shape != (n,):
+            raise ValueError(f"action must have shape ({n},), got shape {a.shape}")
+        out = self._buffers[self._next]
+        state, outcome, evaluation, observations = step(
+            self.params, self._state, a.reshape(1, n), self.with_velocity, out
+        )
+        self._next ^= 1
+        self._state = state
+        reason = int(outcome.reason[0])
+        self._terminated = reason != 0
+        row = evaluation[:, 0]
+        info = self._info(row, reason)
+        if self.render_mode is not None:
+            self._trail.append(self.params.robot.pose_space.position(info["pose"]).copy())
+        if self.render_mode == "human":
+            self.render()
+        return observations[0].copy(), float(row[self._reward_row]), self._terminated, False, info
+
+    def render(self):
+        """An RGB frame (``rgb_array``, headless), or a window update (``human``); None without a render mode."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        if self._state is None:
+            raise gym.error.ResetNeeded("Cannot call render() before reset()")
+        frame = self._frame()
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._window is None:
+            self._window = HumanWindow(self.metadata["render_fps"])
+        self._window.show(frame)
+        return None
+
+    def close(self) -> None:
+        """Close the window of ``human`` rendering, if open."""
+        if self._window is not None:
+            self._window.close()
+            self._window = None
+        super().close()
+
+    def _frame(self) -> np.ndarray:
+        from envs.rendering import render_family_frame
+
+        evaluation, _ = evaluate(
+            self.params, self._state, np.zeros_like(self._state.q), np.zeros(1, dtype=np.int64), False
+        )
+        target = evaluation[self.params.evaluation_rows["target"], 0]
+        return render_family_frame(
+            self.params.robot,
+            self._state.x[0],
+            target,
+            float(self._state.inverse_condition[0]),
+            safe_threshold=self.params.safe_threshold,
+            hard_threshold=self.params.hard_threshold,
+            view_low=self.params.pose_low,
+            view_high=self.params.pose_high,
+            trail=list(self._trail),
+            step=int(self._state.t[0]),
+            q=self._state.q[0],
+        )
+
+    @property
+    def workspace(self) -> WorkspaceMap | None:
+        """The certified grid tasks are drawn from (``task_region="grid"``), else None."""
+        return self.params.workspace
+
+    @property
+    def state(self) -> FamilyState | None:
+        """A copy of the current batched state (N = 1), or None before the first reset."""
+        return None if self._state is None else copy_state(self._state)
+
+    def _info(self, row: np.ndarray, reason: int) -> dict[str, Any]:
+        v = row.tolist()
+        info = {name: v[index] for name, index in self._info_rows}
+        info["is_success"] = info["is_success"] != 0.0
+        info["termination_reason"] = TERMINATION_REASONS[reason]
+        info["pose"] = row[self._pose_rows].copy()
+        info["target"] = row[self._target_rows].copy()
+        for name in TYPE_I_INFO:
+            info[name] = info.pop(name)
+        return info
+
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, FamilyReference]:
+        """Draw one task per generator in one compiled call (start poses (M, m) and references)."""
+        raise NotImplementedError
+
+
+_ARGUMENTS_DOC = """
+    ## Arguments
+    | Parameter | Type | Default | Description |
+    |-----------|------|---------|-------------|
+    | `render_mode` | str or None | `None` | "rgb_array" (headless) or "human" (a window) |
+    | `robot` | mechanism, str or None | `None` | a mechanism, a preset or robot name; None: "stewart_gough" |
+    | `stroke_limits` | (float, float) | `(0.45, 0.75)` | actuator limits: leg lengths [m], crank angles [rad] |
+    | `dt` | float | `0.05` | control period [s] |
+    | `max_rate` | float | `0.1` | stroke rate of a unit action [m/s] |
+    | `integrator` | str | `"euler"` | "euler" or "rk4" |
+    | `pose_low` | sequence of m floats | `(-0.2, -0.2, 0.3, -0.6, -0.6, -1.9)` | pose bounds [m, rad] |
+    | `pose_high` | sequence of m floats | `(0.2, 0.2, 0.75, 0.6, 0.6, 1.9)` | pose bounds [m, rad] |
+    | `sample_low` | sequence of m floats | `(-0.1, -0.1, 0.4, -0.2, -0.2, -0.5)` | task box [m, rad] |
+    | `sample_high` | sequence of m floats | `(0.1, 0.1, 0.6, 0.2, 0.2, 0.5)` | task box [m, rad] |
+    | `safe_threshold` | float | `0.1` | k below which the penalty and the cost start |
+    | `hard_threshold` | float | `0.03` | k below which the episode terminates |
+    | `actuator_safe_threshold` | float | `0.1` | k_I (cranks, sliders) below which its penalty and the cost start |
+    | `actuator_hard_threshold` | float | `0.02` | k_I (cranks, sliders) below which the episode terminates |
+    | `actuator_singularity_weight` | float | `1.0` | w_s1, the Type I penalty's weight |
+    | `position_weight` | float | `1.0` | w_p [1/m] |
+    | `orientation_weight` | float | `1.0` | w_o [1/m] |
+    | `singularity_weight` | float | `1.0` | w_s |
+    | `action_weight` | float | `0.01` | w_a |
+    | `termination_penalty` | float | `50.0` | P |
+    | `success_position_tolerance` | float | `0.01` | [m] |
+    | `success_orientation_tolerance` | float | `0.05` | [rad] |
+    | `track_period` | float | `8.0` | Track reference period [s] |
+    | `track_amplitude` | sequence of m floats | `(0.05, 0.0, 0.04, 0.0, 0.1, 0.0)` | largest amplitudes [m, rad] |
+    | `track_path` | sequence of m-tuples | `()` | vertices of a polyline Track reference (units of the amplitudes) |
+    | `track_path_times` | sequence of floats | `()` | share of the period of each segment of the path |
+    | `hard_kind` | str | `"detour"` | "detour", "ill_conditioned" or "crossing" (grid only) hard targets |
+    | `task_region` | str | `"box"` | "box" (the sampling box) or "grid" (regions of a certified grid; m = 3) |
+    | `grid_cell` | (float, float, float) | `(0.025, 0.025, 0.05)` | spacing of the certified grid [m, rad] |
+    | `track_shape` | str | `"sinusoid"` | "sinusoid" (or the `track_path`) or "circle" (grid only) |
+    | `track_radius_range` | (float, float) | `(0.05, 0.15)` | radius of a circle reference [m] |
+    | `track_angle_range` | (float, float) | `(0.0, 0.4)` | amplitude of a circle's third coordinate [rad] |
+    | `**kwargs` | | | any other field of `FamilyParams` (Newton, substeps, margins) |
+
+    `robot` may name a preset of `ROBOT_PRESETS` (its settings apply under the caller's own); a mechanism gets
+    bounds, task box, strokes and amplitudes scaled by its size around its `home_pose()` (`derived_defaults`)
+    unless given.
+"""
+
+
+class FamilyReachEnv(FamilyEnvBase):
+    r"""Reach a target pose with any parallel robot of the distance-constraint family, away from singularities.
+
+    ## Description
+    Leg i of the robot (``kinematics.DistanceConstraintMechanism``, by default the Stewart–Gough hexapod
+    ``kinematics.StewartGough()``) keeps the platform point P_i at the distance q_i from the base anchor B_i:
+    Φ_i = ‖p + R P_i − B_i‖² − q_i² = 0. Each step the leg lengths q move at the commanded rates; the pose
+    follows through the twist J_f q̇, J_f = −J_x⁻¹ J_q (Euler or RK4 on the rotation group: R ← exp([ω h]×) R),
+    and is corrected onto Φ = 0 by Newton's method (residual ≤ 1e-10, in substeps of ≤ 1 cm of predicted
+    motion). Near a Type II singularity (J_x singular; for the hexapod, Fichter's: centred and turned by
+    ±90° about the vertical) small stroke rates give huge platform motion.
+
+    Cranks and sliders (the Delta ``DeltaReach-v0``, the planar 3-RRR ``Planar3RRRReach-v0``, the 3-PRR
+    ``Planar3PRRReach-v0``; ``robot=`` takes a mechanism or a name of ``ROBOTS``) move their link's end
+    A_i(q_i) = B_i + a_i (cos q_i u_i + sin q_i v_i) + q_i e_i, Φ_i = ‖p + R P_i − A_i‖² − l_i², and bring Type I
+    singularities (J_q singular: a link in line with its crank or square to its rail), measured by the actuator
+    condition number k_I.
+
+    ```
+        ___P___      {P}: platform frame; pose x = (p [m], rotation vector r [rad]) of {P} in {B}
+       /  / \\  \\     six legs B_i → P_i, lengths q_i actuated
+      B__B   B__B    {B}: base frame, z up
+    ```
+
+    ## Action Space
+    `Box(-1, 1, (n,), float32)`: actuator rates q̇_i / max_rate (m/s for legs and sliders, rad/s for cranks);
+    actuators stop at `stroke_limits` (the joint limits).
+
+    ## Observation Space
+    `Box(low, high, (D,), float32)` with finite bounds; spatial robots (D = 33, or 39 with Track's velocity):
+
+    | Num | Observation | Unit |
+    |-----|-------------|------|
+    | 0-2 | platform position p | m |
+    | 3-6 | orientation quaternion (w, x, y, z), w ≥ 0 | 1 |
+    | 7-9 | target position p* | m |
+    | 10-13 | target quaternion, w ≥ 0 | 1 |
+    | 14-16 | position error p* − p | m |
+    | 17-19 | orientation error: rotation vector of R* Rᵀ (in {B}) | rad |
+    | 20-25 | leg lengths normalised to [−1, 1] over the stroke limits | 1 |
+    | 26-31 | stroke error (q(x*) − q) / (q_max − q_min) | 1 |
+    | 32 | inverse condition number k | 1 |
+    | 33-38 | (Track) target velocity ẋ* = (ṗ*, ṙ*) | m/s, rad/s |
+
+    Planar robots: (x, y, cos φ, sin φ), the target likewise, (x* − x, y* − y, wrap(φ* − φ)), strokes,
+    stroke errors, k (D = 18). Translational robots (the Delta): p, p*, p* − p, strokes, stroke errors, k (D = 16;
+    19 with Track's velocity).
+
+    ## Rewards
+    r = −(w_p ‖p* − p‖ + w_o ℓ_c θ_err) − w_s ((k_safe − k)/k_safe)² [k < k_safe] − w_a ‖a‖² − P [terminated],
+    − w_s1 ((k_I,safe − k_I)/k_I,safe)² [k_I < k_I,safe], with θ_err the angle of R* Rᵀ (the last term, Type I, is 0
+    for legs). Each term is in `info` and the reward is their sum; `info["cost"]` = 1 while k < k_safe or
+    k_I < k_I,safe, and `info["cost_actuator_singularity"]` = 1 while k_I < k_I,safe (the Type I part alone).
+
+    ## Starting State
+    Tasks are certified, not guessed (a 6-D pose space cannot be gridded): start and target are drawn
+    uniformly in the task box (`sample_low`–`sample_high`, rotation-vector coordinates), each *safe* (strokes
+    within the limits less 2 cm, k ≥ k_safe), at least `min_distance` apart in (δp, ℓ_c δθ). A *standard*
+    target is kept only when the geodesic from the start (p linear, R along one rotation) is safe at points
+    at most `segment_spacing` (1 cm) apart, so a singularity-free path is known. A *hard* target is kept
+    only when that geodesic dips below `safe_threshold` (staying inside the box and the stroke limits) and a
+    waypoint is found whose two geodesics
+    start → waypoint → target are safe at the same spacing: a detour is known, the straight line is not safe.
+    With `hard_kind="ill_conditioned"` (the hexapod's `StewartGoughReachHard-v0` and the Delta's
+    `DeltaReachHard-v0`, whose workspaces have no detour tasks) a hard target lies in the ill-conditioned band
+    2 `hard_threshold` ≤ k < `safe_threshold` (toward Fichter's singularity; for the Delta, at the outer, lower edge
+    of its workspace), on a geodesic from a safe start that keeps k ≥ 2 `hard_threshold`. For cranks and sliders
+    "safe" and the path's k are min(k, k_I k_safe / k_I,safe), both kinds of singularity (the band is on k).
+    With `task_region="grid"` (the 3-RPR ids), start and target are instead drawn in one connected safe region
+    of the certified grid (``envs.tasks.grid``), at least `min_distance` apart; its hard targets
+    (`hard_kind="crossing"`) are those whose straight line from the start dips below `hard_threshold`, while the
+    region certifies a detour. `reset(options={"targets": "hard"})` switches for one episode; with the grid,
+    `options` may also give a `"start"` and/or a `"target"` pose (safe, in one region).
+
+    ## Episode End
+    Termination (penalty P), first applicable: `newton_failed`, `assembly_mode_change` (prediction and
+    correction more than `jump_tolerance` apart), `singularity_crossed` (sign(det J_x) flipped),
+    `singular` (k < `hard_threshold`), `out_of_bounds`, and for cranks and sliders `actuator_singular` (the Type I
+    measure below `actuator_hard_threshold`). Truncation after the registered 200 steps.
+    `info["is_success"]`: position error ≤ `success_position_tolerance` and orientation error ≤
+    `success_orientation_tolerance`.
+    {arguments}
+    | `targets` | str | `"standard"` | "standard", "hard" or "mixed" (hard with probability 1/2 per episode) |
+
+    ## Version History
+    * v0: Initial version.
+    """
+
+    reset_options = ("targets", "start", "target")
+    target_modes = TARGET_MODES
+
+    def __init__(
+        self, render_mode: str | None = None, targets: str = "standard", robot: Any = None, **kwargs: Any
+    ) -> None:
+        if targets not in TARGET_MODES:
+            raise ValueError(f"targets must be one of {TARGET_MODES}, got {targets!r}")
+        self.targets = targets
+        self._setup(render_mode, build_family_params(robot, **kwargs))
+
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, FamilyReference]:
+        """Certified start/target pairs, one per generator (see the class docstring, Starting State).
+
+        "mixed" draws each episode's kind first (hard with probability 1/2, from its own generator).
+        """
+        mode = options.get("targets", self.targets)
+        if mode not in TARGET_MODES:
+            raise ValueError(f"options['targets'] must be one of {TARGET_MODES}, got {mode!r}")
+        params = self.params
+        n, m = len(generators), params.robot.n_pose
+        start = self._fixed_pose("start", options["start"]) if "start" in options else None
+        target = self._fixed_pose("target", options["target"]) if "target" in options else None
+        if start is not None and target is not None:
+            if params.workspace is not None and params.workspace.component_of(start) != params.workspace.component_of(
+                target
+            ):
+                raise ValueError(
+                    f"start {start.tolist()} and target {target.tolist()} lie in different safe regions "
+                    "(different working modes): no singularity-free path joins them"
+                )
+            self.last_waypoints = np.tile(target, (n, 1))
+            return np.tile(start, (n, 1)), FamilyReference(np.tile(target, (n, 1)), np.zeros((n, m)), np.zeros((n, m)))
+        hard = np.array([g.random() < 0.5 for g in generators]) if mode == "mixed" else np.full(n, mode == "hard")
+        starts, targets, waypoints = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+        for kind in (False, True):
+            rows = np.flatnonzero(hard == kind)
+            if rows.size == 0:
+                continue
+            streams = fk.random_streams([generators[i] for i in rows])
+            if params.workspace is not None:
+                fixed_kind, fixed = (
+                    (1, start) if start is not None else ((2, target) if target is not None else (0, None))
+                )
+                found = grid_kernels.sample_reach_batch(
+                    params.packed,
+                    params.workspace.packed,
+                    streams,
+                    rows.size,
+                    kind,
+                    params.min_distance,
+                    fixed_kind,
+                    fixed,
+                )
+                if found is not None:
+                    found = (*found, found[1])
+            elif start is not None or target is not None:
+                raise ValueError("reset options 'start' and 'target' alone need task_region='grid'; give both")
+            else:
+                found = fk.sample_reach_batch(params.packed, streams, rows.size, m, kind, params.min_distance)
+            if found is None:
+                what = "hard" if kind else "standard"
+                if start is not None or target is not None:
+                    raise ValueError(f"no {what} task exists for the given pose")
+                raise RuntimeError(f"no certified {what} task found in the task box after {fk.SAMPLER_TRIES} tries")
+            starts[rows], targets[rows], waypoints[rows] = found
+        self.last_waypoints = waypoints
+        return starts, FamilyReference(targets, np.zeros((n, m)), np.zeros((n, m)))
+
+    def _fixed_pose(self, name: str, value: Any) -> np.ndarray:
+        """A start or target pose given in ``reset`` options, checked to be finite and safe."""
+        m = self.params.robot.n_pose
+        try:
+            pose = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"options[{name!r}] must be a pose of {m} numbers, got {value!r}") from exc
+        if pose.shape != (m,) or not np.isfinite(pose).all():
+            raise ValueError(f"options[{name!r}] must be {m} finite numbers, got {value!r}")
+        safe = fk.safe_batch(self.params.packed, pose[None])[0]
+        if safe and self.params.workspace is not None:
+            safe = bool(np.isin(self.params.workspace.component_of(pose), self.params.workspace.component_ids))
+        if not safe:
+            raise ValueError(
+                f"options[{name!r}] = {pose.tolist()} is not in the certified safe set (the task box, strokes "
+                f"within the limits less {self.params.stroke_margin}, k ≥ {self.params.safe_threshold})"
+            )
+        return pose
+
+
+class FamilyTrackEnv(FamilyEnvBase):
+    """Follow a moving target with any robot of the distance-constraint family (a motion-simulator reference).
+
+    ## Description
+    As ``FamilyReachEnv``, but the target moves: x*_j(t) = c_j + a_j sin(2π t / track_period + θ_j) for each
+    pose coordinate, or, with a `track_path`, along a closed polyline once per `track_period`, at rest at each
+    vertex (the Delta's `DeltaTrack-v0`: the adept cycle ``ADEPT_CYCLE``, 25 mm up, 305 mm across, 25 mm down
+    and back, in a random horizontal direction, every 4 s). With the hexapod's defaults the reference combines
+    surge (x, ≤ 5 cm), heave (z, ≤ 4 cm)
+    and pitch (rotation about y, ≤ 0.1 rad): a motion-simulator cue. The centre, amplitudes (½–1 of
+    `track_amplitude`) and phases are drawn so that the whole period stays in the safe set (checked at points
+    ≤ 1 cm apart). The observation ends with the target velocity. Truncation after the registered 400 steps.
+
+    ## Action Space
+    As ``FamilyReachEnv``.
+
+    ## Observation Space
+    As ``FamilyReachEnv``, plus the target velocity (m values).
+
+    ## Rewards
+    As ``FamilyReachEnv``.
+
+    ## Starting State
+    The platform starts on the reference at t = 0.
+
+    ## Episode End
+    As ``FamilyReachEnv`` (400 steps).
+    {arguments}
+
+    ## Version History
+    * v0: Initial version.
+    """
+
+    with_velocity = True
+
+    def __init__(self, render_mode: str | None = None, robot: Any = None, **kwargs: Any) -> None:
+        self._setup(render_mode, build_family_params(robot, **kwargs))
+
+    def sample_tasks(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+    ) -> tuple[np.ndarray, FamilyReference]:
+        """References whose whole period is safe, one per generator; the start is the reference at t = 0."""
+        n, m = len(generators), self.params.robot.n_pose
+        streams = fk.random_streams(generators)
+        if self.params.track_shape == "circle":
+            found = grid_kernels.sample_circle_batch(
+                self.params.packed,
+                self.params.workspace.packed,
+                streams,
+                n,
+                self.params.track_radius_range,
+                self.params.track_angle_range,
+                int(np.ceil(self.params.track_period / self.params.dt)),
+            )
+        else:
+            found = fk.sample_track_batch(self.params.packed, streams, n, m, self.params.track_amplitude, 64)
+        if found is None:
+            raise RuntimeError(f"no safe reference found in the task box after {fk.SAMPLER_TRIES} tries")
+        center, amplitude, phase = found
+        start, _ = fk.reference_batch(self.params.packed, np.zeros(n, dtype=np.int64), center, amplitude, phase)
+        return start, FamilyReference(center, amplitude, phase)
+
+
+FamilyReachEnv.__doc__ = FamilyReachEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)
+FamilyTrackEnv.__doc__ = FamilyTrackEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)

@@ -1,0 +1,366 @@
+"""Named robots and their documented settings, and the construction of an env's parameters from them.
+
+``ROBOT_PRESETS`` holds the defaults of the robots with registered ids; ``build_family_params`` validates an
+env's keyword arguments into ``FamilyParams``, from a preset's name or from any
+``kinematics.DistanceConstraintMechanism`` (whose bounds, task box and strokes are then derived from its size).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from envs.kernels import generic as fk
+from envs.params import HARD_KINDS, INTEGRATORS, TASK_REGIONS, TRACK_SHAPES, FamilyParams
+from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
+
+__all__ = ["ADEPT_CYCLE", "ROBOTS", "ROBOT_PRESETS", "build_family_params", "derived_defaults"]
+
+#: The robots a family environment builds by name (``robot="delta"``), each with its default geometry.
+ROBOTS: dict[str, type[DistanceConstraintMechanism]] = {
+    "planar_3rpr": Planar3RPR,
+    "stewart_gough": StewartGough,
+    "delta": Delta,
+    "planar_3rrr": Planar3RRR,
+    "planar_3prr": Planar3PRR,
+}
+
+#: The "adept cycle" of pick-and-place benchmarks as a Track path of a translational robot: from the pick point up
+#: 25 mm, across 305 mm, down 25 mm to the place point, and back the same way (vertices in units of
+#: ``track_amplitude`` = (0.305, 0, 0.025) m; the heading in the horizontal plane is drawn per episode). The
+#: vertical moves take 1/10 of the period each, the moves across 3/10, at rest at every corner.
+ADEPT_CYCLE: dict[str, Any] = {
+    "track_path": (
+        (0.0, 0.0, 0.0),
+        (0.0, 0.0, 1.0),
+        (1.0, 0.0, 1.0),
+        (1.0, 0.0, 0.0),
+        (1.0, 0.0, 1.0),
+        (0.0, 0.0, 1.0),
+    ),
+    "track_path_times": (1.0, 3.0, 1.0, 1.0, 3.0, 1.0),
+    "track_amplitude": (0.305, 0.0, 0.025),
+}
+
+_DELTA: dict[str, Any] = {
+    # An ABB IRB 360 size (``kinematics.DEFAULT_DELTA``), plate below the base (z < 0). Motors turn 1 rad/s at a unit
+    # action, within −0.6 to 1.7 rad (0: arm horizontal, positive down). Tasks in a 1.2 m square, 0.7 m deep
+    # (z −1.7 to −1.0 m; the home, every arm 30° down, is at z = −1.354 m); the plate must stay within ±0.75 m,
+    # z −1.8 to −0.85 m. Its Type II zone (k < 0.1) is the outer, lower edge of that box: hard targets are there.
+    "robot": "delta",
+    "stroke_limits": (-0.6, 1.7),
+    "max_rate": 1.0,
+    "pose_low": (-0.75, -0.75, -1.8),
+    "pose_high": (0.75, 0.75, -0.85),
+    "sample_low": (-0.6, -0.6, -1.7),
+    "sample_high": (0.6, 0.6, -1.0),
+    "min_distance": 0.1,
+    "stroke_margin": 0.05,
+    "track_period": 4.0,
+    "hard_kind": "ill_conditioned",
+    # Substeps of up to 3 cm of predicted motion, and certified paths checked every 3 cm (1 cm for the smaller
+    # robots): 2.5 % of the 1.24 m forearms.
+    "max_substep": 0.03,
+    "segment_spacing": 0.03,
+}
+
+_PLANAR_3RRR: dict[str, Any] = {
+    # ``kinematics.Planar3RRR()`` (base radius 0.25 m, cranks and links 0.14 m, elbows "−−−"): cranks turn
+    # 0.5 rad/s at a unit action within −2.2 to 0.6 rad. Tasks within ±0.1 m and φ ±0.7 rad, where a band of
+    # Type II singularities (the links' lines concurrent) lies near φ ≈ 0.3–0.6 rad.
+    "robot": "planar_3rrr",
+    "stroke_limits": (-2.2, 0.6),
+    "max_rate": 0.5,
+    "pose_low": (-0.125, -0.125, -0.9),
+    "pose_high": (0.125, 0.125, 0.9),
+    "sample_low": (-0.1, -0.1, -0.7),
+    "sample_high": (0.1, 0.1, 0.7),
+    "stroke_margin": 0.05,
+}
+
+_PLANAR_3RPR: dict[str, Any] = {
+    # The lesson's 3-RPR (``kinematics.Planar3RPR()``): legs 0.3-1.0 m at 0.25 m/s, the pose within x -0.2-1.2 m,
+    # y -0.3-1.2 m, φ ±π/2. Tasks come from the certified grid (cells of 2.5 cm, 2.5 cm, 0.05 rad) inside those
+    # bounds less (5 cm, 5 cm, 0.1 rad): start and target in one safe region (k ≥ 0.15), at least 0.1 m apart.
+    # Hard targets: the straight line from the start crosses k < 0.03 (``hard_kind="crossing"``). Track: a
+    # circle of radius 5-15 cm with φ oscillating by up to ±0.4 rad, every 10 s.
+    "robot": "planar_3rpr",
+    "stroke_limits": (0.3, 1.0),
+    "max_rate": 0.25,
+    "pose_low": (-0.2, -0.3, -np.pi / 2),
+    "pose_high": (1.2, 1.2, np.pi / 2),
+    "sample_low": (-0.2 + 0.05, -0.3 + 0.05, -np.pi / 2 + 0.1),
+    "sample_high": (1.2 - 0.05, 1.2 - 0.05, np.pi / 2 - 0.1),
+    "safe_threshold": 0.15,
+    "success_position_tolerance": 0.02,
+    "success_orientation_tolerance": 0.1,
+    "min_distance": 0.1,
+    "task_region": "grid",
+    "hard_kind": "crossing",
+    "track_shape": "circle",
+    "track_period": 10.0,
+}
+
+#: Documented defaults of the robots with registered ids: constructor keyword arguments of the envs.
+ROBOT_PRESETS: dict[str, dict[str, Any]] = {
+    "planar_3rpr": _PLANAR_3RPR,
+    # A symmetric 6-6 hexapod (``kinematics.StewartGough()``): base radius 0.5 m, platform radius 0.3 m, legs
+    # 0.59 m at the home pose p = (0, 0, 0.5) m. Strokes 0.45-0.75 m at 0.1 m/s. Standard tasks keep to a box of
+    # ±0.1 m, z 0.4-0.6 m, tilts ±0.2 rad and yaw ±0.5 rad, where k ≥ 0.2. Hard tasks widen the tilts to
+    # ±0.35 rad and the yaw to ±1.3 rad, toward Fichter's singularity at yaw ±90°.
+    "stewart_gough": {
+        "robot": "stewart_gough",
+        **{
+            name: FamilyParams.__dataclass_fields__[name].default
+            for name in ("stroke_limits", "pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude")
+        },
+    },
+    # In this workspace no straight path between two safe poses dips below k_safe (0 of 10 000 pairs, even
+    # with k_safe = 0.25: k is quasi-concave there), so hard targets are ill-conditioned ones instead: toward
+    # Fichter's singularity, where 2 k_hard ≤ k < k_safe, reached from a safe start. Large yaws stretch the
+    # legs, so this task's hexapod has longer strokes (0.40-0.85 m).
+    "stewart_gough_hard": {
+        "robot": "stewart_gough",
+        "pose_low": FamilyParams.pose_low,
+        "pose_high": FamilyParams.pose_high,
+        "track_amplitude": FamilyParams.track_amplitude,
+        "stroke_limits": (0.40, 0.85),
+        "sample_low": (-0.12, -0.12, 0.38, -0.3, -0.3, -1.45),
+        "sample_high": (0.12, 0.12, 0.62, 0.3, 0.3, 1.45),
+        "hard_kind": "ill_conditioned",
+    },
+    "delta": _DELTA,
+    "delta_track": {**_DELTA, **ADEPT_CYCLE},
+    "planar_3rrr": _PLANAR_3RRR,
+    # ``kinematics.Planar3PRR()``: sliders along the base triangle's sides at 0.1 m/s; bounds around its home.
+    "planar_3prr": {"robot": "planar_3prr"},
+}
+
+
+def _number(name: str, value: Any, *, allow_zero: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        raise ValueError(f"{name} must be finite and {'≥' if allow_zero else '>'} 0, got {value!r}")
+    return value
+
+
+def _vector(name: str, value: Any, size: int) -> tuple[float, ...]:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a sequence of {size} numbers, got {value!r}") from exc
+    if arr.shape != (size,) or not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
+    return tuple(float(v) for v in arr)
+
+
+def _track_path(path: Any, times: Any, m: int) -> tuple[tuple[tuple[float, ...], ...], tuple[float, ...]]:
+    """Validate a polyline Track reference: 2–8 vertices of m finite values and as many positive time shares."""
+    if len(path) == 0 and len(times) == 0:
+        return (), ()
+    vertices = np.asarray(path, dtype=np.float64)
+    if vertices.ndim != 2 or vertices.shape[1] != m or not 2 <= len(vertices) <= fk.PATH_VERTICES:
+        raise ValueError(
+            f"track_path must hold 2 to {fk.PATH_VERTICES} vertices of {m} values, got shape {vertices.shape}"
+        )
+    shares = np.asarray(times, dtype=np.float64)
+    if shares.shape != (len(vertices),) or not np.all(np.isfinite(shares)) or not np.all(shares > 0):
+        raise ValueError(
+            f"track_path_times must be {len(vertices)} positive shares (one per segment), got {tuple(np.ravel(times))}"
+        )
+    if not np.all(np.isfinite(vertices)):
+        raise ValueError(f"track_path must be finite, got {vertices.tolist()}")
+    return tuple(tuple(map(float, v)) for v in vertices), tuple(map(float, shares))
+
+
+def derived_defaults(robot: DistanceConstraintMechanism) -> dict[str, Any]:
+    """Bounds, task box, stroke limits and Track amplitudes of a robot, scaled by its size around its home pose.
+
+    The reach ρ is half the mean distance of the base anchors from their centroid. Pose bounds span ±ρ in
+    position (planar: φ ±0.6 rad; spatial: ±0.8 ρ in x, y, ±0.9 ρ in z, tilts ±0.6 rad and yaw ±1.9 rad) and the
+    task box 0.6 (spatial: 0.4) of that in position, tilts ±0.2 rad and yaw ±0.5 rad. Legs get strokes from
+    0.5 (spatial: 0.75) of the shortest to 1.6 (spatial: 1.3) of the longest leg at home; cranks ±1 rad and
+    sliders ±0.2 m around their values at home.
+
+    Args:
+        robot: The mechanism.
+
+    Returns:
+        Keyword arguments of ``FamilyParams`` (a caller's own values take precedence).
+    """
+    home = robot.home_pose()
+    reach = 0.5 * float(np.mean(np.linalg.norm(robot.base - robot.base.mean(axis=0), axis=1)))
+    space = robot.pose_space.name
+    if space == "spatial":
+        half = np.array([0.8 * reach, 0.8 * reach, 0.9 * reach, 0.6, 0.6, 1.9])
+        box = np.array([0.4 * reach, 0.4 * reach, 0.4 * reach, 0.2, 0.2, 0.5])
+        amplitude = (0.2 * reach, 0.0, 0.16 * reach, 0.0, 0.1, 0.0)
+        leg_band = (0.75, 1.3)
+    else:
+        half = np.array([reach, reach, 0.6 if space == "planar" else reach])
+        box = 0.6 * half
+        amplitude = (0.3 * reach, 0.3 * reach, 0.2)
+        leg_band = (0.5, 1.6)
+    at_home = robot.inverse_kinematics(home)
+    if all(kind == "leg" for kind in robot.actuator_kinds):
+        strokes = (leg_band[0] * float(at_home.min()), leg_band[1] * float(at_home.max()))
+    else:  # cranks [rad] or sliders [m]: a band around the home pose's values
+        band = 1.0 if "crank" in robot.actuator_kinds else 0.2
+        strokes = (float(at_home.min()) - band, float(at_home.max()) + band)
+    return {
+        "pose_low": tuple(home - half),
+        "pose_high": tuple(home + half),
+        "sample_low": tuple(home - box),
+        "sample_high": tuple(home + box),
+        "track_amplitude": amplitude,
+        "stroke_limits": strokes,
+    }
+
+
+def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwargs: Any) -> FamilyParams:
+    """Validate constructor arguments into ``FamilyParams``; a robot without bounds gets ones around its home pose.
+
+    Args:
+        robot: The mechanism, or the name of one with its default geometry (a key of ``ROBOTS``); default
+            ``StewartGough()``.
+        **kwargs: Fields of ``FamilyParams``.
+
+    Returns:
+        The validated parameters.
+
+    Raises:
+        TypeError: On a robot that is not a ``DistanceConstraintMechanism`` or an argument of the wrong type.
+        ValueError: On an argument out of its range, naming the expected and the actual value.
+    """
+    if robot is None:
+        robot = "stewart_gough"
+    if isinstance(robot, str):
+        if robot in ROBOT_PRESETS:  # a preset: its documented settings, under the caller's own
+            preset = dict(ROBOT_PRESETS[robot])
+            name = preset.pop("robot")
+            kwargs = {**preset, **kwargs}
+            robot = name
+        if robot not in ROBOTS:
+            raise ValueError(
+                f"robot must be a DistanceConstraintMechanism or one of {sorted(set(ROBOTS) | set(ROBOT_PRESETS))}, "
+                f"got {robot!r}"
+            )
+        robot = ROBOTS[robot]()
+    if not isinstance(robot, DistanceConstraintMechanism):
+        raise TypeError(f"robot must be a kinematics.DistanceConstraintMechanism, got {type(robot).__name__}")
+    m = robot.n_pose
+    defaults = FamilyParams.__dataclass_fields__
+    for name, value in derived_defaults(robot).items():
+        kwargs.setdefault(name, value)
+    unknown = set(kwargs) - set(defaults)
+    if unknown:
+        raise TypeError(f"unknown argument(s) {sorted(unknown)}")
+    values: dict[str, Any] = {}
+    for name in ("pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude"):
+        values[name] = _vector(name, kwargs.get(name, defaults[name].default), m)
+    lo, hi = _vector("stroke_limits", kwargs.get("stroke_limits", defaults["stroke_limits"].default), 2)
+    has_legs = "leg" in robot.actuator_kinds
+    if not (0 < lo < hi if has_legs else lo < hi):
+        bound = "0 < q_min < q_max (leg lengths)" if has_legs else "q_min < q_max"
+        raise ValueError(f"stroke_limits must satisfy {bound}, got {(lo, hi)}")
+    for a, b in (("pose_low", "pose_high"), ("sample_low", "sample_high")):
+        if not all(u < v for u, v in zip(values[a], values[b])):
+            raise ValueError(f"{a} must be < {b} componentwise, got {values[a]} and {values[b]}")
+    if not all(
+        pl <= sl and sh <= ph
+        for pl, sl, sh, ph in zip(values["pose_low"], values["sample_low"], values["sample_high"], values["pose_high"])
+    ):
+        raise ValueError(
+            f"the sampling box {values['sample_low']}–{values['sample_high']} must lie inside the pose bounds "
+            f"{values['pose_low']}–{values['pose_high']}"
+        )
+    if robot.pose_space.name == "spatial" and max(map(abs, values["pose_low"][3:] + values["pose_high"][3:])) >= 2.5:
+        raise ValueError("rotation-vector bounds must stay within ±2.5 rad, away from the wrap at |r| = π")
+    values["track_path"], values["track_path_times"] = _track_path(
+        kwargs.get("track_path", ()), kwargs.get("track_path_times", ()), m
+    )
+    options = {}
+    for name, valid in (("hard_kind", HARD_KINDS), ("task_region", TASK_REGIONS), ("track_shape", TRACK_SHAPES)):
+        options[name] = kwargs.get(name, defaults[name].default)
+        if options[name] not in valid:
+            raise ValueError(f"{name} must be one of {valid}, got {options[name]!r}")
+    if options["task_region"] == "grid" and m != 3:
+        raise ValueError(f"task_region='grid' needs a robot with 3 pose coordinates, got {m} ({robot.pose_space.name})")
+    if options["hard_kind"] == "crossing" and options["task_region"] != "grid":
+        raise ValueError(f"hard_kind='crossing' needs task_region='grid', got {options['task_region']!r}")
+    if options["track_shape"] == "circle" and (options["task_region"] != "grid" or values["track_path"]):
+        raise ValueError("track_shape='circle' needs task_region='grid' and no track_path")
+    values["grid_cell"] = _vector("grid_cell", kwargs.get("grid_cell", defaults["grid_cell"].default), 3)
+    if not all(v > 0 for v in values["grid_cell"]):
+        raise ValueError(f"grid_cell must be 3 positive spacings, got {values['grid_cell']}")
+    for name in ("track_radius_range", "track_angle_range"):
+        values[name] = _vector(name, kwargs.get(name, defaults[name].default), 2)
+        if not 0 <= values[name][0] <= values[name][1]:
+            raise ValueError(f"{name} must satisfy 0 ≤ low ≤ high, got {values[name]}")
+    integrator = kwargs.get("integrator", "euler")
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
+    safe = _number("safe_threshold", kwargs.get("safe_threshold", defaults["safe_threshold"].default))
+    hard = _number("hard_threshold", kwargs.get("hard_threshold", defaults["hard_threshold"].default))
+    if not 0 < hard < safe < 1:
+        raise ValueError(f"thresholds must satisfy 0 < hard_threshold < safe_threshold < 1, got {hard} and {safe}")
+    hard1 = _number(
+        "actuator_hard_threshold",
+        kwargs.get("actuator_hard_threshold", defaults["actuator_hard_threshold"].default),
+        allow_zero=True,
+    )
+    safe1 = _number(
+        "actuator_safe_threshold", kwargs.get("actuator_safe_threshold", defaults["actuator_safe_threshold"].default)
+    )
+    if not hard1 < safe1 < 1:
+        raise ValueError(
+            f"thresholds must satisfy actuator_hard_threshold < actuator_safe_threshold < 1, got {hard1} and {safe1}"
+        )
+    iterations = kwargs.get("newton_max_iterations", defaults["newton_max_iterations"].default)
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
+        raise ValueError(f"newton_max_iterations must be an int ≥ 1, got {iterations!r}")
+    substeps = kwargs.get("max_substeps", defaults["max_substeps"].default)
+    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise ValueError(f"max_substeps must be an int ≥ 1, got {substeps!r}")
+    scalars = {}
+    for name in (
+        "dt",
+        "max_rate",
+        "success_position_tolerance",
+        "success_orientation_tolerance",
+        "newton_tolerance",
+        "jump_tolerance",
+        "max_substep",
+        "track_period",
+        "segment_spacing",
+    ):
+        scalars[name] = _number(name, kwargs.get(name, defaults[name].default))
+    for name in (
+        "position_weight",
+        "orientation_weight",
+        "singularity_weight",
+        "action_weight",
+        "termination_penalty",
+        "actuator_singularity_weight",
+        "stroke_margin",
+        "min_distance",
+    ):
+        scalars[name] = _number(name, kwargs.get(name, defaults[name].default), allow_zero=True)
+    return FamilyParams(
+        robot=robot,
+        stroke_limits=(lo, hi),
+        integrator=integrator,
+        **options,
+        safe_threshold=safe,
+        hard_threshold=hard,
+        actuator_hard_threshold=hard1,
+        actuator_safe_threshold=safe1,
+        newton_max_iterations=int(iterations),
+        max_substeps=int(substeps),
+        **values,
+        **scalars,
+    )

@@ -1,0 +1,7 @@
+"""Wrappers of the environments: the singularity shield, the goal view for HER and the planner's wrappers."""
+
+from envs.wrappers.goal import GoalReachWrapper
+from envs.wrappers.planner import PlannerResidualWrapper, PlannerWaypointWrapper
+from envs.wrappers.shield import SingularityShield
+
+__all__ = ["GoalReachWrapper", "PlannerResidualWrapper", "PlannerWaypointWrapper", "SingularityShield"]
