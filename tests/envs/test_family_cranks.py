@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 import envs
 from envs import family
 from envs import family_kernels as fk
-from envs.controllers import FamilyResolvedRateController
+from envs.controllers import ResolvedRateController
 from envs.shield import SingularityShield
 
 CRANK_IDS = (
@@ -27,7 +27,7 @@ REACH_IDS = tuple(i for i in CRANK_IDS if "Track" not in i)
 
 def test_the_ids_are_registered_family_ids():
     """Every new id is registered, on the family core, with its robot built by name."""
-    assert set(CRANK_IDS) <= set(envs.FAMILY_IDS)
+    assert set(CRANK_IDS) <= set(envs.ENV_IDS)
     kinds = {i: gym.make(i).unwrapped.params.robot.actuator_kinds for i in CRANK_IDS}
     assert kinds["DeltaReach-v0"] == ("crank",) * 3
     assert kinds["Planar3PRRReach-v0"] == ("slider",) * 3
@@ -238,7 +238,7 @@ def test_goal_view_reward_equals_step_reward(env_id):
 def test_resolved_rate_reaches_standard_targets(env_id):
     """The resolved-rate baseline reads the observation (translational, planar) and reaches standard targets."""
     vec = gym.make_vec(env_id, num_envs=8, vectorization_mode="vector_entry_point")
-    controller = FamilyResolvedRateController(vec.unwrapped.params)
+    controller = ResolvedRateController(vec.unwrapped.params)
     obs, _ = vec.reset(seed=0, options={"targets": "standard"})
     reached = np.zeros(8, dtype=bool)
     for _ in range(200):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from envs import SingularityShield
-from envs.core import TERMINATION_REASONS
+from envs.family import TERMINATION_REASONS
 from envs.shield import SHIELD_SCALES
 
 SINGULAR = {"newton_failed", "assembly_mode_change", "singularity_crossed", "singular"}
