@@ -182,15 +182,24 @@ def test_standard_targets_have_a_safe_straight_path(hexapod):
 
 
 def test_shield_holds_the_hexapod_out_of_the_singular_zone():
-    """Behind the shield, full-speed random actions never terminate at a singularity."""
-    env = SingularityShield(gym.make("StewartGoughReachHard-v0"), k_guard=0.05)
-    env.reset(seed=0)
-    rng = np.random.default_rng(0)
-    for _ in range(100):
-        _, _, terminated, truncated, info = env.step(rng.choice([-1.0, 1.0], size=6).astype(np.float32))
-        assert info["termination_reason"] not in ("singular", "singularity_crossed", "newton_failed")
-        if terminated or truncated:
-            env.reset()
+    """Turning about the vertical toward Fichter's singularity ends in it unshielded; behind the shield, never."""
+
+    def yaw_drive(env: gym.Env) -> list[str]:
+        env.reset(seed=1)
+        reasons = []
+        for _ in range(120):
+            state, robot = env.unwrapped.state, env.unwrapped.params.robot
+            rate = robot.inverse_jacobian(state.q[0], state.x[0]) @ np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+            _, _, terminated, truncated, info = env.step((rate / np.abs(rate).max()).astype(np.float32))
+            reasons.append(info["termination_reason"])
+            if terminated or truncated:
+                break
+        return reasons
+
+    singular = {"singular", "singularity_crossed", "newton_failed", "assembly_mode_change"}
+    assert singular & set(yaw_drive(gym.make("StewartGoughReachHard-v0")))  # the negative control
+    shielded = yaw_drive(SingularityShield(gym.make("StewartGoughReachHard-v0"), k_guard=0.05))
+    assert not singular & set(shielded) and len(shielded) == 120
 
 
 def test_goal_view_reward_equals_step_reward():

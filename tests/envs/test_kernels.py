@@ -127,7 +127,12 @@ def params() -> FamilyParams:
 
 @pytest.mark.parametrize("integrator", ["euler", "rk4"])
 def test_transition_matches_numpy_oracle(integrator, rng):
-    """2000 random states and saturated-ish actions: same reasons, poses to 1e-12, same stroke rates."""
+    """2000 random states and saturated-ish actions: the same reasons exactly, poses to 1e-12, same stroke rates.
+
+    Only states whose deciding quantity (the oracle's k, its jump, a pose coordinate) lies within a relative
+    1e-9 of its threshold are left out of the reason comparison, where two correct roundings may differ;
+    they are counted and must stay rare.
+    """
     p = _params(integrator=integrator)
     state = _random_states(p, rng, 2000)
     action = rng.uniform(-1.5, 1.5, size=(2000, 3))
@@ -135,8 +140,19 @@ def test_transition_matches_numpy_oracle(integrator, rng):
     q, x, _, a, q_rate, reason, jump = oracle_transition(p, state, action)
     np.testing.assert_array_equal(outcome.action, a)
     np.testing.assert_allclose(outcome.q_rate, q_rate, rtol=0, atol=1e-15)
+    k_oracle, _ = p.robot.singularity_measures(q, x, validate=False)
+    bounds = np.array([p.pose_low, p.pose_high])
+    near = (
+        (np.abs(k_oracle - p.hard_threshold) <= 1e-9 * p.hard_threshold)
+        | (np.abs(jump - p.jump_tolerance) <= 1e-9 * p.jump_tolerance)
+        | np.any(np.abs(x[:, None, :] - bounds) <= 1e-9 * np.maximum(np.abs(bounds), 1.0), axis=(1, 2))
+    )
+    assert near.sum() <= 10, f"{near.sum()} of 2000 states lie within 1e-9 of a threshold"
+    differ = np.flatnonzero((outcome.reason != reason) & ~near)
+    assert differ.size == 0, (
+        f"reasons differ for states {differ[:10]}: env {outcome.reason[differ[:10]]}, oracle {reason[differ[:10]]}"
+    )
     agree = outcome.reason == reason
-    assert agree.mean() >= 0.995, f"reasons differ for {np.flatnonzero(~agree)[:10]}"
     both_ok = agree & (reason == 0)
     assert both_ok.sum() > 500  # many ordinary steps are compared, not just terminations
     np.testing.assert_allclose(new.x[both_ok], x[both_ok], rtol=0, atol=1e-11)

@@ -97,3 +97,23 @@ def test_the_shield_inside_filters_the_summed_action():
         if terminated or truncated:
             break
     assert not terminated and info["is_success"]
+
+
+def test_the_shield_inside_keeps_a_random_residual_out_of_singularities():
+    """Random saturated residuals end episodes at singularities without the shield inside; with it, never."""
+    singular = {"singular", "singularity_crossed", "newton_failed", "assembly_mode_change"}
+
+    def run(env: gym.Env) -> list[str]:
+        env.reset(seed=10003)
+        rng = np.random.default_rng(0)
+        reasons = []
+        for _ in range(300):
+            _, _, terminated, truncated, info = env.step(rng.choice([-1.0, 1.0], size=3).astype(np.float32))
+            reasons.append(info["termination_reason"])
+            if terminated or truncated:
+                env.reset()
+        return reasons
+
+    assert singular & set(run(envs.PlannerResidualWrapper(gym.make("Planar3RPRReachHard-v0"))))  # negative control
+    shielded = envs.PlannerResidualWrapper(envs.SingularityShield(gym.make("Planar3RPRReachHard-v0"), k_guard=0.05))
+    assert not singular & set(run(shielded))
