@@ -12,13 +12,16 @@ from kinematics.mechanism import _scalarize
 
 __all__ = ["DEFAULT_DELTA", "Delta"]
 
-#: The default geometry [m]: the dimensions R. L. Williams II gives for the ABB FlexPicker IRB 360 in "The Delta
-#: Parallel Robot: Kinematics Solutions" (Ohio University, 2015): base triangle side s_B = 0.567, plate triangle
-#: side s_P = 0.076, upper arm L = 0.524, forearm (parallelogram) l = 1.244. The motor axes lie on the sides of the
-#: base triangle, so the base radius (centre to motor axis) is s_B √3 / 6 and the plate radius s_P √3 / 6.
+#: The default geometry [m]: the ABB FlexPicker IRB 360 of R. L. Williams II, "The Delta Parallel Robot: Kinematics
+#: Solutions" (Ohio University, 2015): base triangle side s_B = 0.567, plate triangle side s_P = 0.076, upper arm
+#: L = 0.524, forearm (parallelogram) l = 1.244. The motor axes lie on the sides of the base triangle, so the base
+#: radius (centre to motor axis) is w_B = s_B √3 / 6; the forearms end at the vertices of the plate triangle, so the
+#: plate radius (centre to forearm joint) is u_P = s_P / √3. His arm 1 points along −y, our arm 0 along +x, so his
+#: point (x, y, z) is our (−y, x, z), turned by +90° about z; his θ_1, θ_2, θ_3 are our q_0, q_1, q_2, and both
+#: turn an arm downwards for positive angles.
 DEFAULT_DELTA = {
     "base_radius": 0.567 * np.sqrt(3.0) / 6.0,
-    "platform_radius": 0.076 * np.sqrt(3.0) / 6.0,
+    "platform_radius": 0.076 / np.sqrt(3.0),
     "upper_arm": 0.524,
     "forearm": 1.244,
 }
@@ -42,15 +45,17 @@ class Delta(DistanceConstraintMechanism):
     edge); Type II where the forearms lose rank, for example all parallel to one plane.
 
     Args:
-        base_radius: R_b [m], base centre to the motor axes.
-        platform_radius: r_p [m], plate centre to the forearms' lower joints.
+        base_radius: R_b [m], base centre to the motor axes (Williams' w_B).
+        platform_radius: r_p [m], plate centre to the forearms' lower joints (Williams' u_P).
         upper_arm: a [m].
         forearm: l [m].
         elbows: "out" (the usual posture: each elbow outside the line from its motor to the plate) or "in";
             the branch of the closed-form inverse kinematics.
         singular_tolerance: See ``DistanceConstraintMechanism``. Default 1e-12.
 
-    Defaults: ``DEFAULT_DELTA`` (an ABB IRB 360 size, about 1.1 m across the working range).
+    Defaults: ``DEFAULT_DELTA`` (Williams' ABB IRB 360, about 1.1 m across the working range). With them, the
+    inverse kinematics of (0, 0, −0.9) m is −20.5° on every arm and the forward kinematics of q = 0 is
+    z = −1.065 m, his worked examples.
     """
 
     def __init__(

@@ -16,10 +16,28 @@ MAX_EPISODE_STEPS = {
     "Planar3RPRReachHard-v0": 200,
     "Planar3RPRReachMixed-v0": 200,
     "Planar3RPRTrack-v0": 400,
+    "StewartGoughReach-v0": 200,
+    "StewartGoughReachHard-v0": 200,
+    "StewartGoughTrack-v0": 400,
+    "DeltaReach-v0": 200,
+    "DeltaReachHard-v0": 200,
+    "DeltaTrack-v0": 400,
+    "Planar3RRRReach-v0": 200,
+    "Planar3RRRReachHard-v0": 200,
+    "Planar3PRRReach-v0": 200,
+    "ParallelRobotReach-v0": 200,
+    "ParallelRobotReachHard-v0": 200,
+    "ParallelRobotTrack-v0": 400,
 }
 
-#: The reward terms, whose sum is the reward.
-REWARD_TERMS = ("reward_tracking", "reward_singularity", "reward_action", "reward_termination")
+#: The reward terms, whose sum is the reward (the last, Type I, is 0 for legs).
+REWARD_TERMS = (
+    "reward_tracking",
+    "reward_singularity",
+    "reward_action",
+    "reward_termination",
+    "reward_actuator_singularity",
+)
 
 #: Every key an info dict must carry (reset and step).
 INFO_KEYS = (
@@ -31,6 +49,10 @@ INFO_KEYS = (
     "is_success",
     "termination_reason",
     "cost",
+    "actuator_condition_number",
+    "cost_actuator_singularity",
+    "pose",
+    "target",
 )
 
 #: Termination reasons that mean "the robot met a singularity or left its working mode".
@@ -84,7 +106,7 @@ def straight_line_action(env: gym.Env, target: np.ndarray) -> np.ndarray:
     q_rate = params.robot.inverse_jacobian(q, x) @ (target - x)
     peak = float(np.max(np.abs(q_rate)))
     if peak == 0.0:
-        return np.zeros(3, dtype=np.float32)
+        return np.zeros(q_rate.shape, dtype=np.float32)
     return (q_rate / peak * min(1.0, peak / (params.max_rate * params.dt))).astype(np.float32)
 
 
@@ -96,15 +118,23 @@ def best_node(workspace: WorkspaceMap, mask: np.ndarray) -> np.ndarray:
     return workspace.nodes.reshape(-1, 3)[best].copy()
 
 
-def component_node(workspace: WorkspaceMap, component: int, rank: int = 0) -> np.ndarray:
-    """Pose of the ``rank``-th best-conditioned node of a sampled component, away from the pose bounds, shape (3,)."""
+def component_node(
+    workspace: WorkspaceMap,
+    component: int,
+    rank: int = 0,
+    box: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """Pose of the ``rank``-th best-conditioned node of a sampled component, inside the task box, shape (3,).
+
+    ``box`` is (sample_low, sample_high); None: the pose bounds less two grid cells (the 3-RPR preset's task box).
+    """
     spec = workspace.spec
     flat = workspace.component_nodes[int(component)]
     poses = workspace.nodes.reshape(-1, 3)[flat]
-    margin = np.asarray(spec.bounds_margin)
-    inside = np.all(
-        (poses >= np.asarray(spec.pose_low) + margin) & (poses <= np.asarray(spec.pose_high) - margin), axis=1
-    )
+    if box is None:
+        margin = 2.0 * np.asarray(spec.cell)
+        box = (np.asarray(spec.pose_low) + margin, np.asarray(spec.pose_high) - margin)
+    inside = np.all((poses >= np.asarray(box[0])) & (poses <= np.asarray(box[1])), axis=1)
     flat, poses = flat[inside], poses[inside]
     order = np.argsort(-workspace.inverse_condition.ravel()[flat], kind="stable")
     return poses[order[rank]].copy()

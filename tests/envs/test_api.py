@@ -13,7 +13,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gymnasium_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from envs import PLANAR_3RPR_IDS, core
+from envs import ENV_IDS, PLANAR_3RPR_IDS, family
+from envs import family_kernels as fk
 from tests.envs.helpers import INFO_KEYS, MAX_EPISODE_STEPS, REWARD_TERMS, component_node
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -37,7 +38,7 @@ def _rollout(env: gym.Env, steps: int, seed: int = 0) -> list[tuple]:
 
 
 @pytest.mark.parametrize("render_mode", [None, "rgb_array"])
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_gymnasium_env_checker_passes_without_warnings(env_id, render_mode, make_env):
     """Gymnasium's own checker accepts the bare environment and emits no warning."""
     env = make_env(env_id, render_mode=render_mode)
@@ -47,7 +48,7 @@ def test_gymnasium_env_checker_passes_without_warnings(env_id, render_mode, make
     assert not caught, f"gymnasium check_env warned:\n{_format(caught)}"
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_sb3_env_checker_passes_without_warnings(env_id, make_env):
     """Stable-Baselines3's checker accepts the made (wrapped) environment and emits no warning."""
     env = make_env(env_id)
@@ -58,10 +59,20 @@ def test_sb3_env_checker_passes_without_warnings(env_id, make_env):
 
 
 def test_registry_matches_expected_ids():
-    """PLANAR_3RPR_IDS is exactly the documented set of ids, each registered."""
-    assert set(PLANAR_3RPR_IDS) == set(MAX_EPISODE_STEPS)
-    for env_id in PLANAR_3RPR_IDS:
+    """ENV_IDS is exactly the documented set of ids, each registered; PLANAR_3RPR_IDS are its 3-RPR ones."""
+    assert len(ENV_IDS) == len(set(ENV_IDS))
+    assert set(ENV_IDS) == set(MAX_EPISODE_STEPS)
+    assert set(PLANAR_3RPR_IDS) == {i for i in MAX_EPISODE_STEPS if i.startswith("Planar3RPR")}
+    assert len(PLANAR_3RPR_IDS) == 4
+    for env_id in ENV_IDS:
         assert env_id in gym.registry, env_id
+        expected = "envs.family:FamilyTrackEnv" if "Track" in env_id else "envs.family:FamilyReachEnv"
+        assert gym.spec(env_id).entry_point == expected
+
+
+def test_reward_terms_are_the_family_ones():
+    """The reward terms the tests sum are exactly those the environments report."""
+    assert REWARD_TERMS == family.REWARD_TERMS
 
 
 def test_make_with_module_prefix_in_fresh_interpreter():
@@ -75,10 +86,10 @@ def test_make_with_module_prefix_in_fresh_interpreter():
     )
     result = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split() == ["Planar3RPRReachEnv", "200", "True"]
+    assert result.stdout.split() == ["FamilyReachEnv", "200", "True"]
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_max_episode_steps_truncates(env_id, make_env):
     """The spec sets max_episode_steps and the TimeLimit truncates exactly there (robot at rest)."""
     expected = MAX_EPISODE_STEPS[env_id]
@@ -86,29 +97,30 @@ def test_max_episode_steps_truncates(env_id, make_env):
     env = make_env(env_id)
     assert env.spec.max_episode_steps == expected
     env.reset(seed=0)
-    still = np.zeros(3, dtype=np.float32)
+    still = np.zeros(env.action_space.shape, dtype=np.float32)
     for step in range(1, expected + 1):
         _, _, terminated, truncated, _ = env.step(still)
         assert not terminated, f"terminated at rest at step {step}"
         assert truncated == (step == expected), f"truncated={truncated} at step {step}"
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_spaces(env_id, make_env):
-    """Normalised Box(-1, 1, (3,), float32) actions; finite float32 observation bounds of the right size."""
+    """Normalised Box(-1, 1, (n,), float32) actions; finite float32 observation bounds of the documented size."""
     env = make_env(env_id)
-    assert env.action_space == gym.spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+    robot = env.unwrapped.params.robot
+    assert env.action_space == gym.spaces.Box(-1.0, 1.0, shape=(robot.n_actuators,), dtype=np.float32)
     space = env.observation_space
     assert isinstance(space, gym.spaces.Box)
     assert space.dtype == np.float32
-    reach_shape = make_env("Planar3RPRReach-v0").observation_space.shape
-    assert space.shape == ((reach_shape[0] + 3,) if "Track" in env_id else reach_shape)  # + target velocity
+    reach_size = {"spatial": 33, "planar": 18, "translational": 16}[robot.pose_space.name]  # Observation Space
+    assert space.shape == ((reach_size + robot.n_pose,) if "Track" in env_id else (reach_size,))  # + velocity
     assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
     assert np.all(space.low < space.high)
     assert space.is_bounded("both")
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_observations_rewards_and_infos(env_id, make_env):
     """Observations are float32 members of the space; rewards are Python floats; infos carry every key."""
     env = make_env(env_id)
@@ -129,7 +141,7 @@ def test_observations_rewards_and_infos(env_id, make_env):
         assert (info["termination_reason"] != "") == terminated
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_reward_is_sum_of_terms(env_id, make_env):
     """The reward is reward_tracking + reward_singularity + reward_action + reward_termination, every step."""
     env = make_env(env_id)
@@ -146,14 +158,16 @@ def test_reward_is_sum_of_terms(env_id, make_env):
         assert terminated_seen, "600 random steps of the hard task never terminated"
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_cost_flags_low_conditioning(env_id, make_env):
-    """info["cost"] is 1.0 exactly when the inverse condition number is below safe_threshold, else 0.0."""
+    """info["cost"] is 1.0 exactly when k < safe_threshold or k_I < actuator_safe_threshold, else 0.0."""
     env = make_env(env_id)
-    safe = env.unwrapped.params.safe_threshold
+    params = env.unwrapped.params
     costs = []
     for _, _, _, _, info in _rollout(env, 600, seed=3):
-        expected = 1.0 if info["inverse_condition_number"] < safe else 0.0
+        type_i = info["actuator_condition_number"] < params.actuator_safe_threshold
+        assert info["cost_actuator_singularity"] == (1.0 if type_i else 0.0), info
+        expected = 1.0 if info["inverse_condition_number"] < params.safe_threshold or type_i else 0.0
         assert info["cost"] == expected, info
         costs.append(info["cost"])
     assert 0.0 in costs
@@ -161,7 +175,7 @@ def test_cost_flags_low_conditioning(env_id, make_env):
         assert 1.0 in costs, "600 random steps of the hard task never went below safe_threshold"
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_returned_arrays_are_fresh(env_id, make_env, rng):
     """Mutating a returned observation or info array changes neither the env nor the next results."""
     mutated, clean = make_env(env_id), make_env(env_id)
@@ -172,7 +186,7 @@ def test_returned_arrays_are_fresh(env_id, make_env, rng):
         for value in (obs_a, *info_a.values()):
             if isinstance(value, np.ndarray):
                 value[...] = 123.0
-        action = rng.uniform(-1.0, 1.0, size=3).astype(np.float32)
+        action = rng.uniform(-1.0, 1.0, size=mutated.action_space.shape).astype(np.float32)
         obs_a, _, terminated, truncated, info_a = mutated.step(action)
         obs_b, _, _, _, info_b = clean.step(action)
         np.testing.assert_array_equal(obs_a, obs_b, err_msg=f"step {step}")
@@ -189,11 +203,14 @@ def test_returned_arrays_are_fresh(env_id, make_env, rng):
 
 
 def _documented_observation(env: gym.Env) -> np.ndarray:
-    """The observation the Observation Space table describes, rebuilt from the state (float64, clipped)."""
+    """The observation the Observation Space table describes for a planar robot, rebuilt from the state."""
     unwrapped = env.unwrapped
     params, state = unwrapped.params, unwrapped.state
     q, x = state.q[0], state.x[0]
-    target, velocity = core.reference_pose(params, state.reference, state.t)
+    reference = state.reference
+    target, velocity = fk.reference_batch(
+        params.packed, state.t, reference.center, reference.amplitude, reference.phase
+    )
     target, velocity = target[0], velocity[0]
     lo, hi = params.stroke_limits
     robot = params.robot
@@ -210,11 +227,22 @@ def _documented_observation(env: gym.Env) -> np.ndarray:
     ]
     if env.observation_space.shape[0] == 21:
         parts.append(velocity)
+    assert env.observation_space.shape[0] == (21 if unwrapped.with_velocity else 18)
     expected = np.concatenate([np.asarray(p, dtype=np.float64) for p in parts])
     return np.clip(expected, env.observation_space.low, env.observation_space.high)
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+#: The ids of planar robots, whose observation layout the planar rows of the Observation Space section give.
+PLANAR_IDS = tuple(i for i in ENV_IDS if i.startswith(("Planar3", "ParallelRobotReachHard")))
+
+
+def test_planar_ids_are_the_planar_robots():
+    """PLANAR_IDS holds exactly the ids whose robot is planar."""
+    planar = {i for i in ENV_IDS if gym.make(i).unwrapped.params.robot.pose_space.name == "planar"}
+    assert planar == set(PLANAR_IDS)
+
+
+@pytest.mark.parametrize("env_id", PLANAR_IDS)
 def test_observation_matches_documented_layout(env_id, make_env, rng):
     """Every entry is what the Observation Space table says, in that order (pose, target, errors, k, …)."""
     env = make_env(env_id)
@@ -232,13 +260,14 @@ def test_success_at_the_target(make_env):
     env = make_env("Planar3RPRReach-v0")
     workspace = env.unwrapped.workspace
     component = workspace.component_ids[np.argmax(workspace.component_weights)]
-    pose = component_node(workspace, component)
+    params = env.unwrapped.params
+    pose = component_node(workspace, component, box=(params.sample_low, params.sample_high))
+    np.testing.assert_allclose(component_node(workspace, component), pose, rtol=0, atol=0)  # the default box
     _, info = env.reset(seed=0, options={"start": pose, "target": pose})
     assert info["is_success"] and info["position_error"] == 0.0 and info["orientation_error"] == 0.0
     _, reward, terminated, _, info = env.step(np.zeros(3, dtype=np.float32))
     assert not terminated and info["is_success"]
     assert info["reward_tracking"] == 0.0 and reward == pytest.approx(info["reward_singularity"], abs=1e-15)
-    params = env.unwrapped.params
     outcomes = set()
     for _ in range(10):
         _, _, terminated, _, info = env.step(np.array([0.5, 1.0, 0.5], dtype=np.float32))

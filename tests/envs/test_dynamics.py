@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs import PLANAR_3RPR_IDS, core
-from envs.tasks import is_safe
+from envs import PLANAR_3RPR_IDS, family
+from envs import family_kernels as fk
 from kinematics.linalg import determinant
 from tests.envs.helpers import SINGULAR_REASONS, best_node, pose_metric, straight_line_action
 
@@ -23,7 +23,7 @@ def _start_near_stroke_limit(env, leg: int, sign: int) -> np.ndarray:
     lo, hi = params.stroke_limits
     gap = hi - q[:, leg] if sign > 0 else q[:, leg] - lo
     kept = np.isin(workspace.labels.ravel(), workspace.component_ids)
-    return best_node(workspace, kept & (gap >= 0.02) & (gap <= 0.03) & is_safe(params, workspace, nodes))
+    return best_node(workspace, kept & (gap >= 0.02) & (gap <= 0.03) & fk.safe_batch(params.packed, nodes))
 
 
 @pytest.mark.parametrize("sign", [1, -1], ids=["extend", "retract"])
@@ -70,7 +70,7 @@ def test_stroke_clamp_uses_the_achieved_rate(make_env):
         if q[0] + commanded[0] * params.dt > hi:
             break
         env.step(action)
-    _, outcome = core.transition(params, unwrapped.state, action[None].astype(np.float64))
+    _, outcome = family.transition(params, unwrapped.state, action[None].astype(np.float64))
     env.step(action)
     q_next, x_next = unwrapped.state.q[0], unwrapped.state.x[0]
     achieved = (q_next - q) / params.dt
@@ -96,6 +96,12 @@ def test_out_of_range_actions_are_clipped(env_id, make_env):
     assert result_big[1] == result_unit[1]
     weight = big.unwrapped.params.action_weight
     assert result_big[4]["reward_action"] == pytest.approx(-weight * 2.25, rel=1e-12)
+
+
+def _substep_count(params, q: np.ndarray, x: np.ndarray, q_rate: np.ndarray) -> int:
+    """Substeps of a step: ⌈‖J_f q̇ dt (1, 1, ℓ_c)‖ / max_substep⌉ within [1, max_substeps] (library J_f)."""
+    motion = np.linalg.norm(params.robot.forward_jacobian(q, x) @ q_rate * params.dt * pose_metric(params))
+    return int(np.clip(np.ceil(motion / params.max_substep), 1, params.max_substeps))
 
 
 def _euler_error(env, seed: int, scale: float) -> tuple[float, float, float]:
@@ -148,8 +154,8 @@ def test_rk4_prediction_is_closer_than_euler(seed, make_env, rng):
     for _ in range(5):
         action = rng.uniform(-1.0, 1.0, size=3).astype(np.float32)
         state = euler_env.unwrapped.state
-        after_euler, euler = core.transition(euler_params, state, action[None].astype(np.float64))
-        after_rk4, rk4 = core.transition(rk4_params, state, action[None].astype(np.float64))
+        after_euler, euler = family.transition(euler_params, state, action[None].astype(np.float64))
+        after_rk4, rk4 = family.transition(rk4_params, state, action[None].astype(np.float64))
         assert euler.reason[0] == 0 and rk4.reason[0] == 0
         assert rk4.jump[0] < 0.1 * euler.jump[0], (rk4.jump, euler.jump)
         np.testing.assert_allclose(after_rk4.x, after_euler.x, rtol=0, atol=1e-9)
@@ -160,7 +166,7 @@ def test_rk4_prediction_is_closer_than_euler(seed, make_env, rng):
         corrected = euler_env.unwrapped.state.x[0]
         np.testing.assert_array_equal(corrected, after_euler.x[0])
         gap = np.linalg.norm((corrected - predicted) * pose_metric(euler_params))
-        if core.substep_counts(euler_params, state.q, state.x, euler.q_rate)[0] == 1:
+        if _substep_count(euler_params, state.q[0], state.x[0], euler.q_rate[0]) == 1:
             assert gap == pytest.approx(euler.jump[0], rel=1e-6)
         else:  # substeps follow the path more closely than one Euler step
             assert euler.jump[0] < gap
@@ -227,8 +233,12 @@ def test_track_target_follows_its_reference(make_env):
     for _ in range(60):
         obs, _, terminated, _, info = env.step(np.zeros(3, dtype=np.float32))
         assert not terminated
-        expected, _ = core.reference_pose(params, unwrapped.state.reference, unwrapped.state.t)
+        reference, t = unwrapped.state.reference, unwrapped.state.t
+        expected, _ = fk.reference_batch(params.packed, t, reference.center, reference.amplitude, reference.phase)
         np.testing.assert_array_equal(info["target"], expected[0])
+        phase = 2.0 * np.pi / params.track_period * t[0] * params.dt + reference.phase[0]
+        formula = reference.center[0] + reference.amplitude[0] * np.sin(phase)
+        np.testing.assert_allclose(info["target"], formula, rtol=0, atol=1e-14)
         assert not np.array_equal(info["target"], targets[-1]), "the target did not move"
         np.testing.assert_allclose(obs[4:6], info["target"][:2], atol=1e-6)
         targets.append(info["target"])

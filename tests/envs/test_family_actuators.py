@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from envs import family
-from envs.core import TERMINATION_REASONS
+from envs.family import TERMINATION_REASONS
 from envs.family_kernels import initial_batch
 from kinematics import Delta, Planar3PRR, Planar3RRR
 

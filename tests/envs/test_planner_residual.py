@@ -11,6 +11,7 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 from envs.controllers import PlannerController
+from envs.family import wrap_angle
 from envs.family_kernels import observation_layout
 
 ERROR = observation_layout("planar", 3, False)["error"]
@@ -31,7 +32,9 @@ def test_residual_wrapper_passes_the_checker_and_extends_the_observation():
     # a safe straight line: the waypoint is the target, and a_p is the resolved-rate action toward it
     np.testing.assert_allclose(obs[-6:-3], obs[ERROR], atol=1e-6)
     controller = PlannerController(env.unwrapped.params)
-    expected = controller.act(info["pose"][None], info["target"][None], np.zeros((1, 3)))[0]
+    error = info["target"] - info["pose"]
+    error[2] = wrap_angle(error[2])
+    expected = controller.act(info["pose"][None], error[None], np.zeros((1, 3)))[0]
     np.testing.assert_allclose(obs[-3:], expected, atol=1e-6)
 
 
@@ -66,12 +69,16 @@ def test_the_policy_action_is_scaled_added_and_clipped():
 
 
 def test_bad_arguments_are_named():
-    """Scale out of range, a non-3-RPR env and a malformed action each get a precise error."""
+    """Scale out of range, a foreign or hexapod env and a malformed action each get a precise error."""
     with pytest.raises(ValueError, match=r"scale must be a number in \(0, 2\], got 0"):
         envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), scale=0)
     with pytest.raises(ValueError, match="lookahead must be a positive distance"):
         envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), lookahead=-1.0)
-    with pytest.raises(TypeError, match="wraps the planar 3-RPR Reach environments, got"):
+    with pytest.raises(TypeError, match="wraps the Reach environments of envs, got CartPoleEnv"):
+        envs.PlannerResidualWrapper(gym.make("CartPole-v1"))
+    with pytest.raises(
+        ValueError, match="the planner needs a planar robot with task_region='grid', got spatial with task_region='box'"
+    ):
         envs.PlannerResidualWrapper(gym.make("StewartGoughReach-v0"))
     env = envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"))
     env.reset(seed=0)
@@ -90,3 +97,23 @@ def test_the_shield_inside_filters_the_summed_action():
         if terminated or truncated:
             break
     assert not terminated and info["is_success"]
+
+
+def test_the_shield_inside_keeps_a_random_residual_out_of_singularities():
+    """Random saturated residuals end episodes at singularities without the shield inside; with it, never."""
+    singular = {"singular", "singularity_crossed", "newton_failed", "assembly_mode_change"}
+
+    def run(env: gym.Env) -> list[str]:
+        env.reset(seed=10003)
+        rng = np.random.default_rng(0)
+        reasons = []
+        for _ in range(300):
+            _, _, terminated, truncated, info = env.step(rng.choice([-1.0, 1.0], size=3).astype(np.float32))
+            reasons.append(info["termination_reason"])
+            if terminated or truncated:
+                env.reset()
+        return reasons
+
+    assert singular & set(run(envs.PlannerResidualWrapper(gym.make("Planar3RPRReachHard-v0"))))  # negative control
+    shielded = envs.PlannerResidualWrapper(envs.SingularityShield(gym.make("Planar3RPRReachHard-v0"), k_guard=0.05))
+    assert not singular & set(run(shielded))

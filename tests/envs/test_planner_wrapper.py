@@ -11,9 +11,16 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 from envs.family_kernels import observation_layout
-from envs.tasks import segment_min_condition
 
 ERROR = observation_layout("planar", 3, False)["error"]
+
+
+def segment_min_condition(params, start: np.ndarray, target: np.ndarray, n: int) -> float:
+    """Smallest inverse condition number at n points of the straight line start → target (x, y, φ), ends included."""
+    points = start + np.linspace(0.0, 1.0, n)[:, None] * (target - start)
+    robot = params.robot
+    q = robot.inverse_kinematics(points, validate=False)
+    return float(np.min(robot.inverse_condition_number(np.maximum(q, 1e-9), points, validate=False)))
 
 
 def test_mixed_targets_draw_both_kinds():
@@ -23,7 +30,7 @@ def test_mixed_targets_draw_both_kinds():
     dips = []
     for seed in range(60):
         _, info = env.reset(seed=seed)
-        k = segment_min_condition(params, info["pose"][None], info["target"][None], 400)[0]
+        k = segment_min_condition(params, info["pose"], info["target"], 400)
         dips.append(k < params.hard_threshold)
     share = np.mean(dips)
     assert 0.3 < share < 0.7, share  # hard with probability 1/2 (standard pairs almost never dip that low)
@@ -90,13 +97,17 @@ def test_waypoint_on_a_detour_points_along_the_path_not_at_the_target():
 
 
 def test_waypoint_wrapper_is_deterministic_and_refuses_other_envs():
-    """The same seed gives the same observations; a hexapod env or a bad lookahead is refused clearly."""
+    """The same seed gives the same observations; a foreign env, a hexapod env or a bad lookahead is refused clearly."""
     a, b = (envs.PlannerWaypointWrapper(gym.make("Planar3RPRReachHard-v0")) for _ in range(2))
     np.testing.assert_array_equal(a.reset(seed=3)[0], b.reset(seed=3)[0])
     for _ in range(5):
         action = np.full(3, 0.3, dtype=np.float32)
         np.testing.assert_array_equal(a.step(action)[0], b.step(action)[0])
-    with pytest.raises(TypeError, match="wraps the planar 3-RPR Reach environments, got FamilyReachEnv"):
+    with pytest.raises(TypeError, match="wraps the Reach environments of envs, got CartPoleEnv"):
+        envs.PlannerWaypointWrapper(gym.make("CartPole-v1"))
+    with pytest.raises(
+        ValueError, match="the planner needs a planar robot with task_region='grid', got spatial with task_region='box'"
+    ):
         envs.PlannerWaypointWrapper(gym.make("StewartGoughReach-v0"))
     with pytest.raises(ValueError, match="lookahead must be a positive distance"):
         envs.PlannerWaypointWrapper(gym.make("Planar3RPRReach-v0"), lookahead=0.0)

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envs import PLANAR_3RPR_IDS
+from envs import ENV_IDS
 
 
 @pytest.fixture
@@ -18,7 +18,7 @@ def headless(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_rgb_array_frames(env_id, headless, make_env):
     """render() gives uint8 (H, W, 3) frames with a drawing on them, identical while nothing moves."""
     env = make_env(env_id, render_mode="rgb_array")
@@ -31,15 +31,16 @@ def test_rgb_array_frames(env_id, headless, make_env):
     np.testing.assert_array_equal(env.render(), frame)
 
 
-@pytest.mark.parametrize("env_id", PLANAR_3RPR_IDS)
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_frames_change_when_the_robot_moves(env_id, headless, make_env):
     """After a few steps that move the platform, the frame is different."""
     env = make_env(env_id, render_mode="rgb_array")
     env.reset(seed=0)
     before = env.render()
     x_before = env.unwrapped.state.x.copy()
+    action = np.resize(np.array([0.5, -0.3, 0.2], dtype=np.float32), env.action_space.shape)
     for _ in range(5):
-        _, _, terminated, _, _ = env.step(np.array([0.5, -0.3, 0.2], dtype=np.float32))
+        _, _, terminated, _, _ = env.step(action)
         if terminated:
             break
     assert not np.allclose(env.unwrapped.state.x, x_before)
@@ -66,7 +67,7 @@ def test_render_fps_is_one_over_dt(dt, make_env):
     env = make_env("Planar3RPRReach-v0", render_mode="rgb_array", dt=dt)
     assert env.metadata["render_fps"] == pytest.approx(1.0 / dt, rel=1e-12)
     assert env.unwrapped.metadata["render_fps"] == pytest.approx(1.0 / dt, rel=1e-12)
-    assert "rgb_array" in env.metadata["render_modes"]
+    assert env.metadata["render_modes"] == ["human", "rgb_array"]
 
 
 @pytest.mark.parametrize("wrapped", [False, True], ids=["unwrapped", "made"])

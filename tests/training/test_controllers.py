@@ -110,6 +110,16 @@ def test_unknown_controller_lists_choices(make_env):
         load_controller("pid", make_env(REACH))
 
 
+def test_planner_refuses_a_robot_without_a_certified_grid():
+    """The planner needs a planar robot with task_region="grid"; on the hexapod load_controller says why."""
+    with pytest.raises(
+        EvaluationError,
+        match=r"controller 'planner' cannot drive StewartGoughReach-v0: the planner needs a planar robot with "
+        r"task_region='grid', got spatial with task_region='box'",
+    ):
+        load_controller("planner", gym.make("StewartGoughReach-v0"))
+
+
 @pytest.mark.parametrize("targets", ["standard", "hard"])
 @pytest.mark.parametrize("name", NAMES)
 def test_episodes_are_deterministic(name, targets, make_env):
