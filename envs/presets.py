@@ -45,9 +45,9 @@ ADEPT_CYCLE: dict[str, Any] = {
 }
 
 _DELTA: dict[str, Any] = {
-    # An ABB IRB 360 size (``kinematics.DEFAULT_DELTA``), plate below the base (z < 0). Motors turn 1 rad/s at a unit
+    # Williams' ABB IRB 360 (``kinematics.DEFAULT_DELTA``), plate below the base (z < 0). Motors turn 1 rad/s at a unit
     # action, within −0.6 to 1.7 rad (0: arm horizontal, positive down). Tasks in a 1.2 m square, 0.7 m deep
-    # (z −1.7 to −1.0 m; the home, every arm 30° down, is at z = −1.354 m); the plate must stay within ±0.75 m,
+    # (z −1.7 to −1.0 m; the home, every arm 30° down, is at z = −1.366 m); the plate must stay within ±0.75 m,
     # z −1.8 to −0.85 m. Its Type II zone (k < 0.1) is the outer, lower edge of that box: hard targets are there.
     "robot": "delta",
     "stroke_limits": (-0.6, 1.7),

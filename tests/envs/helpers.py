@@ -8,7 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.workspace import WorkspaceMap
+from envs.tasks.grid import WorkspaceMap
 
 #: Episode length every registered id promises (README and Episode End sections).
 MAX_EPISODE_STEPS = {

@@ -13,8 +13,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gymnasium_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from envs import ENV_IDS, PLANAR_3RPR_IDS, family
-from envs import family_kernels as fk
+from envs import ENV_IDS, PLANAR_3RPR_IDS, physics
+from envs.kernels import generic as fk
 from tests.envs.helpers import INFO_KEYS, MAX_EPISODE_STEPS, REWARD_TERMS, component_node
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -66,13 +66,13 @@ def test_registry_matches_expected_ids():
     assert len(PLANAR_3RPR_IDS) == 4
     for env_id in ENV_IDS:
         assert env_id in gym.registry, env_id
-        expected = "envs.family:FamilyTrackEnv" if "Track" in env_id else "envs.family:FamilyReachEnv"
+        expected = "envs.env:FamilyTrackEnv" if "Track" in env_id else "envs.env:FamilyReachEnv"
         assert gym.spec(env_id).entry_point == expected
 
 
 def test_reward_terms_are_the_family_ones():
     """The reward terms the tests sum are exactly those the environments report."""
-    assert REWARD_TERMS == family.REWARD_TERMS
+    assert REWARD_TERMS == physics.REWARD_TERMS
 
 
 def test_make_with_module_prefix_in_fresh_interpreter():

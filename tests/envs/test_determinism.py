@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from envs import ENV_IDS
-from envs.family import TERMINATION_REASONS
+from envs.physics import TERMINATION_REASONS
 from tests.envs.helpers import all_finite, assert_steps_equal, numeric_info_values
 
 #: Random-action steps per id of the long rollout (10 000 per id, 30 000 for three 3-RPR ids).

@@ -10,7 +10,8 @@ import re
 import gymnasium as gym
 import pytest
 
-from envs import ENV_IDS, FamilyParams, FamilyReachEnv, FamilyTrackEnv, family
+from envs import ENV_IDS, FamilyParams, FamilyReachEnv, FamilyTrackEnv
+from envs import params as env_params
 
 ENV_CLASSES = [FamilyReachEnv, FamilyTrackEnv]
 
@@ -114,13 +115,13 @@ def test_arguments_table_names_every_choice(cls):
     rows = _argument_rows(cls)
     choices = {
         "render_mode": tuple(cls.metadata["render_modes"]),
-        "integrator": family._INTEGRATORS,
-        "hard_kind": family._HARD_KINDS,
-        "task_region": family._TASK_REGIONS,
-        "track_shape": family._TRACK_SHAPES,
+        "integrator": env_params.INTEGRATORS,
+        "hard_kind": env_params.HARD_KINDS,
+        "task_region": env_params.TASK_REGIONS,
+        "track_shape": env_params.TRACK_SHAPES,
     }
     if cls is FamilyReachEnv:
-        choices["targets"] = family._TARGET_MODES
+        choices["targets"] = env_params.TARGET_MODES
     missing = []
     for name, values in choices.items():
         description = rows[name][3] if name in rows else ""
@@ -212,7 +213,7 @@ def test_documented_episode_length_matches_the_registry(cls):
     assert match, "Episode End does not state the truncation length"
     length = int(match.group(1) or match.group(2))
     assert length == gym.spec(DEFAULT_ID[cls]).max_episode_steps
-    entry_point = f"envs.family:{cls.__name__}"
+    entry_point = f"envs.env:{cls.__name__}"
     for env_id in ENV_IDS:
         if gym.spec(env_id).entry_point == entry_point:
             assert gym.spec(env_id).max_episode_steps == length, env_id

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs import PLANAR_3RPR_IDS, family
-from envs import family_kernels as fk
+from envs import PLANAR_3RPR_IDS, physics
+from envs.kernels import generic as fk
 from kinematics.linalg import determinant
 from tests.envs.helpers import SINGULAR_REASONS, best_node, pose_metric, straight_line_action
 
@@ -70,7 +70,7 @@ def test_stroke_clamp_uses_the_achieved_rate(make_env):
         if q[0] + commanded[0] * params.dt > hi:
             break
         env.step(action)
-    _, outcome = family.transition(params, unwrapped.state, action[None].astype(np.float64))
+    _, outcome = physics.transition(params, unwrapped.state, action[None].astype(np.float64))
     env.step(action)
     q_next, x_next = unwrapped.state.q[0], unwrapped.state.x[0]
     achieved = (q_next - q) / params.dt
@@ -154,8 +154,8 @@ def test_rk4_prediction_is_closer_than_euler(seed, make_env, rng):
     for _ in range(5):
         action = rng.uniform(-1.0, 1.0, size=3).astype(np.float32)
         state = euler_env.unwrapped.state
-        after_euler, euler = family.transition(euler_params, state, action[None].astype(np.float64))
-        after_rk4, rk4 = family.transition(rk4_params, state, action[None].astype(np.float64))
+        after_euler, euler = physics.transition(euler_params, state, action[None].astype(np.float64))
+        after_rk4, rk4 = physics.transition(rk4_params, state, action[None].astype(np.float64))
         assert euler.reason[0] == 0 and rk4.reason[0] == 0
         assert rk4.jump[0] < 0.1 * euler.jump[0], (rk4.jump, euler.jump)
         np.testing.assert_allclose(after_rk4.x, after_euler.x, rtol=0, atol=1e-9)

@@ -8,9 +8,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
-from envs import family
-from envs import family_kernels as fk
-from envs.shield import SingularityShield
+from envs import physics, presets
+from envs.kernels import generic as fk
+from envs.wrappers.shield import SingularityShield
 from kinematics import DistanceConstraintMechanism, Planar3RPR, StewartGough
 from kinematics.stewart_gough import semi_regular_hexagon
 
@@ -26,7 +26,7 @@ def _random_poses(params, n, seed):
 @pytest.fixture(scope="module")
 def hexapod():
     """Parameters of the default hexapod environment."""
-    return family.build_family_params()
+    return presets.build_family_params()
 
 
 def test_kernels_match_the_kinematics_library(hexapod):
@@ -45,10 +45,10 @@ def test_kernels_match_the_kinematics_library(hexapod):
 def test_transition_is_the_twist_integrated_and_corrected(hexapod):
     """One step: the new pose satisfies Φ = 0 (≤ 1e-10), moved along J_f q̇ to first order, on the rotation group."""
     x = _random_poses(hexapod, 50, 1)
-    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
-    state = family.initial_state(hexapod, x, ref)
+    ref = physics.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = physics.initial_state(hexapod, x, ref)
     action = np.random.default_rng(2).uniform(-1, 1, size=(len(x), 6))
-    new, outcome = family.transition(hexapod, state, action)
+    new, outcome = physics.transition(hexapod, state, action)
     ok = outcome.reason == 0
     assert ok.mean() > 0.9
     robot = hexapod.robot
@@ -62,9 +62,9 @@ def test_transition_is_the_twist_integrated_and_corrected(hexapod):
 def test_newton_in_kernels_equals_library_forward_kinematics(hexapod):
     """The compiled correction lands on the pose the library's Newton finds from the same guess."""
     x = _random_poses(hexapod, 20, 3)
-    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
-    state = family.initial_state(hexapod, x, ref)
-    new, outcome = family.transition(hexapod, state, np.full((len(x), 6), 0.3))
+    ref = physics.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = physics.initial_state(hexapod, x, ref)
+    new, outcome = physics.transition(hexapod, state, np.full((len(x), 6), 0.3))
     result = hexapod.robot.forward_kinematics(new.q, x)
     ok = outcome.reason == 0
     np.testing.assert_allclose(result.x[ok], new.x[ok], atol=1e-9)
@@ -94,7 +94,7 @@ def test_reward_is_the_sum_of_its_terms_and_rollouts_are_deterministic(env_id):
         for _ in range(60):
             obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
             assert env.observation_space.contains(obs)
-            terms = sum(info[name] for name in family.REWARD_TERMS)
+            terms = sum(info[name] for name in physics.REWARD_TERMS)
             assert reward == pytest.approx(terms, abs=1e-12)
             assert info["constraint_residual"] <= 1e-10 or terminated
             out.append(obs)
@@ -145,10 +145,10 @@ def test_parallel_step_equals_serial_step_bit_for_bit(hexapod):
     """The multi-core step (N ≥ PARALLEL_MIN_BATCH) gives exactly the one-thread results."""
     n = 2 * fk.PARALLEL_MIN_BATCH + 7
     generators = [np.random.default_rng(i) for i in range(n)]
-    start, reference = family.FamilyReachEnv().sample_tasks(generators, {})
-    state = family.initial_state(hexapod, start, reference)
+    start, reference = envs.FamilyReachEnv().sample_tasks(generators, {})
+    state = physics.initial_state(hexapod, start, reference)
     action = np.random.default_rng(1).uniform(-1, 1, size=(n, 6))
-    low, high = family.observation_bounds(hexapod, False)
+    low, high = physics.observation_bounds(hexapod, False)
     args = (hexapod.packed, low, high, False, state.q, state.x, state.t, state.det_sign, state.residual)
     ref = (*state.reference, action)
     outs = [fk.allocate_step(n, 6, low.shape[0]) for _ in range(2)]
@@ -250,7 +250,7 @@ def test_a_new_robot_is_data_a_6ups_and_a_3rpr_of_other_geometry():
 def test_bad_arguments_are_refused_with_the_expected_and_actual_value(kwargs, match):
     """Constructor arguments are validated at the boundary."""
     with pytest.raises((ValueError, TypeError), match=match):
-        family.FamilyReachEnv(**kwargs)
+        envs.FamilyReachEnv(**kwargs)
 
 
 def test_bad_actions_are_refused():
@@ -301,7 +301,7 @@ def test_vector_env_autoreset_modes_and_sb3_adapter(mode):
 
 def test_6x6_inverse_condition_against_lapack():
     """The compiled one-sided Jacobi gives LAPACK's σ_min/σ_max: 1e-12 when well conditioned, 1e-7 down to k = 1e-4."""
-    from envs.linalg_kernels import inverse_condition6
+    from envs.kernels.linalg import inverse_condition6
 
     rng = np.random.default_rng(0)
     U, _ = np.linalg.qr(rng.normal(size=(400, 6, 6)))
@@ -322,7 +322,7 @@ def test_6x6_inverse_condition_against_lapack():
 @pytest.mark.parametrize("count", [1, 7, 16])
 def test_6x6_inverse_condition_lanes_equal_one_at_a_time(count):
     """Side by side, each matrix's k is bit for bit its k alone, whatever its neighbours (converged, zero, NaN)."""
-    from envs.linalg_kernels import LANES, inverse_condition6, inverse_condition6_lanes
+    from envs.kernels.linalg import LANES, inverse_condition6, inverse_condition6_lanes
 
     rng = np.random.default_rng(count)
     U, _ = np.linalg.qr(rng.normal(size=(count, 6, 6)))
@@ -349,14 +349,14 @@ def test_hexapod_transition_in_blocks_equals_one_robot_at_a_time(hexapod):
     """The batched transition conditions LANES robots at a time; each robot's outcome is bit for bit its N = 1 one."""
     x = _random_poses(hexapod, 120, 5)[:37]  # two full blocks of 16 and a partial one
     assert len(x) == 37
-    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
-    state = family.initial_state(hexapod, x, ref)
+    ref = physics.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = physics.initial_state(hexapod, x, ref)
     action = np.random.default_rng(6).uniform(-1, 1, size=(len(x), 6))
-    batch, outcome = family.transition(hexapod, state, action)
+    batch, outcome = physics.transition(hexapod, state, action)
     for i in (0, 15, 16, 31, 32, 36):
-        one_ref = family.FamilyReference(x[i : i + 1].copy(), np.zeros((1, 6)), np.zeros((1, 6)))
-        one = family.initial_state(hexapod, x[i : i + 1], one_ref)
-        single, single_outcome = family.transition(hexapod, one, action[i : i + 1])
+        one_ref = physics.FamilyReference(x[i : i + 1].copy(), np.zeros((1, 6)), np.zeros((1, 6)))
+        one = physics.initial_state(hexapod, x[i : i + 1], one_ref)
+        single, single_outcome = physics.transition(hexapod, one, action[i : i + 1])
         for name in ("q", "x", "inverse_condition", "residual"):
             np.testing.assert_array_equal(getattr(batch, name)[i], getattr(single, name)[0])
         assert outcome.reason[i] == single_outcome.reason[0]

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs import family
-from envs.family import TERMINATION_REASONS
-from envs.family_kernels import initial_batch
+from envs import physics, presets
+from envs.kernels.generic import initial_batch
+from envs.physics import TERMINATION_REASONS
 from kinematics import Delta, Planar3PRR, Planar3RRR
 
 ROBOTS = {"delta": Delta, "3rrr": Planar3RRR, "3prr": Planar3PRR}
@@ -27,7 +27,7 @@ def _setup(name: str, count: int = 200, seed: int = 0):
     spread = np.array(SPREADS[name])
     at_home = robot.inverse_kinematics(home)
     band = 1.5 if name != "3prr" else 0.3
-    params = family.build_family_params(
+    params = presets.build_family_params(
         robot,
         pose_low=tuple(home - 3 * spread),
         pose_high=tuple(home + 3 * spread),
@@ -63,10 +63,10 @@ def test_initial_state_matches_the_reference(name: str) -> None:
 def test_transition_is_the_actuator_motion_integrated_and_corrected(name: str) -> None:
     """One step: q' = q + a · rate · dt; Φ(q', x') = 0; x' is Newton's pose from x; k' is the reference's."""
     robot, params, x = _setup(name)
-    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
-    state = family.initial_state(params, x, ref)
+    ref = physics.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = physics.initial_state(params, x, ref)
     action = np.random.default_rng(1).uniform(-1.0, 1.0, (len(x), 3))
-    new, outcome = family.transition(params, state, action)
+    new, outcome = physics.transition(params, state, action)
     ok = outcome.reason == 0
     assert ok.mean() > 0.95, np.bincount(outcome.reason)
     lo, hi = params.stroke_limits
@@ -96,7 +96,7 @@ def test_a_type_one_pose_terminates_as_actuator_singular() -> None:
     k1 = float(robot.actuator_condition_number(q, x))
     assert 1e-3 < k1 < 0.2
     for threshold, expected in ((2 * k1, "actuator_singular"), (0.2 * k1, "")):
-        params = family.build_family_params(
+        params = presets.build_family_params(
             robot,
             pose_low=(-1.5, -1.0, -2.0),
             pose_high=(1.0, 1.0, -0.5),
@@ -108,19 +108,19 @@ def test_a_type_one_pose_terminates_as_actuator_singular() -> None:
             hard_threshold=1e-4,
             safe_threshold=1e-3,
         )
-        ref = family.FamilyReference(x[None].copy(), np.zeros((1, 3)), np.zeros((1, 3)))
-        state = family.initial_state(params, x[None], ref)
-        _, outcome = family.transition(params, state, np.zeros((1, 3)))
+        ref = physics.FamilyReference(x[None].copy(), np.zeros((1, 3)), np.zeros((1, 3)))
+        state = physics.initial_state(params, x[None], ref)
+        _, outcome = physics.transition(params, state, np.zeros((1, 3)))
         assert TERMINATION_REASONS[outcome.reason[0]] == expected
 
 
 def test_stroke_limits_of_cranks_may_be_negative_but_legs_not() -> None:
     """Crank angles take any limits q_min < q_max; leg lengths still need 0 < q_min."""
-    family.build_family_params(Delta(), stroke_limits=(-1.0, 1.0))
+    presets.build_family_params(Delta(), stroke_limits=(-1.0, 1.0))
     with pytest.raises(ValueError, match="0 < q_min < q_max"):
-        family.build_family_params(stroke_limits=(-0.1, 0.7))
+        presets.build_family_params(stroke_limits=(-0.1, 0.7))
     with pytest.raises(ValueError, match="actuator_hard_threshold < actuator_safe_threshold < 1"):
-        family.build_family_params(Delta(), actuator_hard_threshold=0.2, actuator_safe_threshold=0.1)
+        presets.build_family_params(Delta(), actuator_hard_threshold=0.2, actuator_safe_threshold=0.1)
 
 
 def test_a_delta_given_as_data_gets_an_environment() -> None:
@@ -162,7 +162,7 @@ def test_planar_cranks_and_sliders_step_through_the_family_env(name: str) -> Non
 def test_the_type_one_penalty_and_cost_are_reported_apart_from_type_two() -> None:
     """Below actuator_safe_threshold the reward loses w_s1 ((s1 − k_I)/s1)² and the cost is 1; info has both terms."""
     robot, params, x = _setup("3rrr", count=50)
-    params = family.build_family_params(
+    params = presets.build_family_params(
         robot,
         pose_low=params.pose_low,
         pose_high=params.pose_high,
@@ -173,17 +173,17 @@ def test_the_type_one_penalty_and_cost_are_reported_apart_from_type_two() -> Non
         actuator_safe_threshold=0.9,
         actuator_singularity_weight=2.0,
     )
-    ref = family.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
-    state = family.initial_state(params, x, ref)
+    ref = physics.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = physics.initial_state(params, x, ref)
     zeros = np.zeros((len(x), 3))
-    evaluation, _ = family.evaluate(params, state, zeros, np.zeros(len(x), dtype=np.int64), False)
-    info = family.step_info(params, evaluation, np.zeros(len(x), dtype=np.int64))
+    evaluation, _ = physics.evaluate(params, state, zeros, np.zeros(len(x), dtype=np.int64), False)
+    info = physics.step_info(params, evaluation, np.zeros(len(x), dtype=np.int64))
     k1 = robot.actuator_condition_number(state.q, x)
     np.testing.assert_allclose(info["actuator_condition_number"], k1, rtol=1e-12)
     expected = np.where(k1 < 0.9, -2.0 * ((0.9 - k1) / 0.9) ** 2, 0.0)
     np.testing.assert_allclose(info["reward_actuator_singularity"], expected, rtol=1e-12, atol=1e-15)
     assert (k1 < 0.9).any() and (k1 >= 0.9).any()
-    total = sum(info[name] for name in family.REWARD_TERMS)
+    total = sum(info[name] for name in physics.REWARD_TERMS)
     np.testing.assert_allclose(evaluation[params.evaluation_rows["reward"]], total, rtol=1e-12, atol=1e-12)
     k2 = info["inverse_condition_number"]
     np.testing.assert_array_equal(info["cost"], ((k2 < params.safe_threshold) | (k1 < 0.9)).astype(float))
@@ -215,7 +215,7 @@ def test_planar_cranks_are_drawn_from_their_angles() -> None:
     """The headless frame of a 3-RRR draws each crank from its angle: the env's frame is the one of its state's q."""
     import gymnasium as gym
 
-    from envs.rendering_family import render_family_frame
+    from envs.rendering import render_family_frame
 
     robot, params, _ = _setup("3rrr", count=10)
     env = gym.make("StewartGoughReach-v0", robot=robot, stroke_limits=params.stroke_limits, render_mode="rgb_array")
@@ -225,7 +225,7 @@ def test_planar_cranks_are_drawn_from_their_angles() -> None:
     state = env.unwrapped._state
     p = env.unwrapped.params
     target = env.unwrapped._info(
-        family.evaluate(p, state, np.zeros((1, 3)), np.zeros(1, dtype=np.int64), False)[0][:, 0], 0
+        physics.evaluate(p, state, np.zeros((1, 3)), np.zeros(1, dtype=np.int64), False)[0][:, 0], 0
     )["target"]
     common = {
         "safe_threshold": p.safe_threshold,

@@ -9,10 +9,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
-from envs import family
-from envs import family_kernels as fk
+from envs import physics, presets
 from envs.controllers import ResolvedRateController
-from envs.shield import SingularityShield
+from envs.kernels import generic as fk
+from envs.wrappers.shield import SingularityShield
 
 CRANK_IDS = (
     "DeltaReach-v0",
@@ -59,7 +59,7 @@ def test_reward_is_the_sum_of_its_terms_and_rollouts_are_deterministic(env_id):
         for _ in range(60):
             obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
             assert env.observation_space.contains(obs)
-            assert reward == pytest.approx(sum(info[name] for name in family.REWARD_TERMS), abs=1e-12)
+            assert reward == pytest.approx(sum(info[name] for name in physics.REWARD_TERMS), abs=1e-12)
             assert info["constraint_residual"] <= 1e-10 or terminated
             type1 = info["actuator_condition_number"] < params.actuator_safe_threshold
             assert info["cost_actuator_singularity"] == float(type1)
@@ -114,9 +114,9 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
     n = 2 * fk.PARALLEL_MIN_BATCH + 7
     generators = [np.random.default_rng(i) for i in range(n)]
     start, reference = gym.make("DeltaReach-v0").unwrapped.sample_tasks(generators, {})
-    state = family.initial_state(params, start, reference)
+    state = physics.initial_state(params, start, reference)
     action = np.random.default_rng(1).uniform(-1, 1, size=(n, 3))
-    low, high = family.observation_bounds(params, False)
+    low, high = physics.observation_bounds(params, False)
     args = (params.packed, low, high, False, state.q, state.x, state.t, state.det_sign, state.residual)
     ref = (*state.reference, action)
     outs = [fk.allocate_step(n, 3, low.shape[0]) for _ in range(2)]
@@ -129,7 +129,7 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
 @pytest.mark.parametrize("integrator", ["euler", "rk4"])
 @pytest.mark.parametrize("env_id", ["DeltaReach-v0", "Planar3RRRReach-v0", "Planar3PRRReach-v0"])
 def test_scalar_transition_equals_the_work_array_algorithm_bit_for_bit(env_id, integrator):
-    """``envs.family_three`` (3 × 3 in registers) gives exactly what the general work-array kernels give.
+    """``envs.kernels.three`` (3 × 3 in registers) gives exactly what the general work-array kernels give.
 
     The general path (``_advance_spatial``, ``_singularity``, ``_actuator_condition``) is what any pose space
     runs; the scalar path replaces it for three cranks or sliders. Full-speed random actions, so some robots
@@ -139,7 +139,7 @@ def test_scalar_transition_equals_the_work_array_algorithm_bit_for_bit(env_id, i
     params = env.params
     n = 300
     start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(n)], {})
-    state = family.initial_state(params, start, reference)
+    state = physics.initial_state(params, start, reference)
     c = params.packed
     rng = np.random.default_rng(7)
     q, x, residual = state.q, state.x, state.residual
@@ -291,14 +291,14 @@ def test_path_reference_rate_is_the_derivative_of_its_pose(delta_track):
     steps = round(params.track_period / params.dt)
     fine = params.dt / 20.0
     # Sample the reference at fine times by scaling ω: a second packing with dt / 20 (same period).
-    preset = {**family.ROBOT_PRESETS["delta_track"], "dt": fine}
-    fine_params = family.build_family_params(preset.pop("robot"), **preset)
+    preset = {**presets.ROBOT_PRESETS["delta_track"], "dt": fine}
+    fine_params = presets.build_family_params(preset.pop("robot"), **preset)
     t = np.arange(20 * steps + 1)
     one = [np.repeat(r[:1], len(t), 0) for r in ref[:3]]  # centre, amplitude, phase
     pose, rate = fk.reference_batch(fine_params.packed, t, *one)
     numeric = (pose[2:] - pose[:-2]) / (2 * fine)
     np.testing.assert_allclose(rate[1:-1], numeric, atol=2e-3 * np.abs(rate).max())
-    _, high = family.observation_bounds(params, True)
+    _, high = physics.observation_bounds(params, True)
     assert np.all(np.abs(rate) <= high[-3:] + 1e-12)
     assert np.abs(rate[:, :2]).max() > 0.3  # the move across peaks at π/2 · 0.305 m / 1.2 s ≈ 0.40 m/s
 
@@ -329,11 +329,11 @@ def test_track_starts_on_the_cycle_and_the_whole_cycle_is_safe(delta_track):
 )
 def test_bad_paths_and_robot_names_are_refused(kwargs, match):
     """A malformed path or an unknown robot name is refused with the expected and the actual value."""
-    base = {**family.ROBOT_PRESETS["delta"]}
+    base = {**presets.ROBOT_PRESETS["delta"]}
     base.update(kwargs)
     robot = base.pop("robot")
     with pytest.raises(ValueError, match=match):
-        family.build_family_params(robot, **base)
+        presets.build_family_params(robot, **base)
 
 
 @pytest.mark.parametrize("hard", [False, True])

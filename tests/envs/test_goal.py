@@ -8,7 +8,7 @@ import pytest
 from stable_baselines3.common.env_checker import check_env
 
 from envs import GoalReachWrapper
-from envs.goal import OBSERVATION_INDEX
+from envs.wrappers.goal import OBSERVATION_INDEX
 
 
 @pytest.fixture(params=["Planar3RPRReach-v0", "Planar3RPRReachHard-v0"])

@@ -1,7 +1,7 @@
 """The compiled family kernels on the 3-RPR preset against NumPy oracles built on the kinematics library.
 
-``envs.family`` runs the dynamics, reward and observation of every robot through Numba kernels (a planar robot
-with legs on scalars, ``envs.family_planar``). Here, with ``ROBOT_PRESETS["planar_3rpr"]``, they are checked
+``envs.physics`` runs the dynamics, reward and observation of every robot through Numba kernels (a planar robot
+with legs on scalars, ``envs.kernels.planar``). Here, with ``ROBOT_PRESETS["planar_3rpr"]``, they are checked
 against straightforward NumPy versions of the same algorithm that call ``kinematics.Planar3RPR`` (itself checked
 against the lesson, SymPy and finite differences) and LAPACK.
 """
@@ -14,9 +14,14 @@ import numba
 import numpy as np
 import pytest
 
-from envs import family, family_layout, linalg_kernels, numba_setup
-from envs import family_kernels as fk
-from envs.family import FamilyParams, FamilyReference, FamilyState, build_family_params, initial_state
+from envs import physics
+from envs.kernels import generic as fk
+from envs.kernels import layout as family_layout
+from envs.kernels import linalg as linalg_kernels
+from envs.kernels import setup as numba_setup
+from envs.params import FamilyParams
+from envs.physics import FamilyReference, FamilyState, initial_state
+from envs.presets import build_family_params
 from kinematics import Planar3RPR
 
 # -- NumPy oracles (the pre-kernel implementation of the transition, on the kinematics library) ---------------
@@ -38,7 +43,7 @@ def _oracle_predict(params, q, x, q_rate, h, rate):
 
 
 def oracle_transition(params: FamilyParams, state: FamilyState, action: np.ndarray):
-    """family.transition as NumPy array code on Planar3RPR's forward_jacobian / forward_kinematics / SVD."""
+    """physics.transition as NumPy array code on Planar3RPR's forward_jacobian / forward_kinematics / SVD."""
     robot = params.robot
     metric = params.pose_metric
     a = np.clip(action, -1.0, 1.0)
@@ -84,15 +89,15 @@ def oracle_transition(params: FamilyParams, state: FamilyState, action: np.ndarr
         k_new, det = robot.singularity_measures(q_k[0], x_k[0], validate=False)
         out = bool(np.any((x_k[0] < params.pose_low) | (x_k[0] > params.pose_high)))
         if failed:
-            reason[i] = family.NEWTON_FAILED
+            reason[i] = physics.NEWTON_FAILED
         elif jump > params.jump_tolerance:
-            reason[i] = family.ASSEMBLY_MODE_CHANGE
+            reason[i] = physics.ASSEMBLY_MODE_CHANGE
         elif np.sign(det) != state.det_sign[i]:
-            reason[i] = family.SINGULARITY_CROSSED
+            reason[i] = physics.SINGULARITY_CROSSED
         elif k_new < params.hard_threshold:
-            reason[i] = family.SINGULAR
+            reason[i] = physics.SINGULAR
         elif out:
-            reason[i] = family.OUT_OF_BOUNDS
+            reason[i] = physics.OUT_OF_BOUNDS
         q_next[i], x_next[i], residual[i], jumps[i] = q_k[0], x_k[0], res, jump
     return q_next, x_next, residual, a, q_rate, reason, jumps
 
@@ -136,7 +141,7 @@ def test_transition_matches_numpy_oracle(integrator, rng):
     p = _params(integrator=integrator)
     state = _random_states(p, rng, 2000)
     action = rng.uniform(-1.5, 1.5, size=(2000, 3))
-    new, outcome = family.transition(p, state, action)
+    new, outcome = physics.transition(p, state, action)
     q, x, _, a, q_rate, reason, jump = oracle_transition(p, state, action)
     np.testing.assert_array_equal(outcome.action, a)
     np.testing.assert_allclose(outcome.q_rate, q_rate, rtol=0, atol=1e-15)
@@ -242,8 +247,8 @@ def test_observation_and_rewards_match_numpy_formulas(params, rng):
             ],
             axis=-1,
         )
-        low, high = family.observation_bounds(params, with_velocity)
-        evaluation, got = family.evaluate(params, current, action, reason, with_velocity)
+        low, high = physics.observation_bounds(params, with_velocity)
+        evaluation, got = physics.evaluate(params, current, action, reason, with_velocity)
         assert got.dtype == np.float32 and got.shape == (n, size)
         np.testing.assert_allclose(got, np.clip(expected[:, :size], low, high).astype(np.float32), rtol=2e-7, atol=1e-7)
         rows = params.evaluation_rows
@@ -257,7 +262,7 @@ def test_observation_and_rewards_match_numpy_formulas(params, rng):
         np.testing.assert_array_equal(evaluation[rows["is_success"]] != 0, success)
         np.testing.assert_array_equal(evaluation[rows["cost"]], current.inverse_condition < params.safe_threshold)
     target = center
-    terms = family.reward_terms(params, state.x, target, state.inverse_condition, action, reason)
+    terms = physics.reward_terms(params, state.x, target, state.inverse_condition, action, reason)
     delta = target - state.x
     wrapped = (delta[:, 2] + np.pi) % (2 * np.pi) - np.pi
     position = np.hypot(delta[:, 0], delta[:, 1])
@@ -297,7 +302,7 @@ def test_threading_layer_falls_back_without_tbb(monkeypatch):
 
 
 def _step_arrays(result) -> list[np.ndarray]:
-    """Every array of a ``family.step`` result: the state's (reference included), the outcome's, evaluation, obs."""
+    """Every array of a ``physics.step`` result: the state's (reference included), the outcome's, evaluation, obs."""
     new, outcome, evaluation, obs = result
     return [*new[:-1], *new.reference, *outcome, evaluation, obs]
 
@@ -307,10 +312,10 @@ def test_parallel_kernel_equals_serial(params, rng, monkeypatch):
     n = fk.PARALLEL_MIN_BATCH + 7
     state = _random_states(params, rng, n)
     action = rng.uniform(-1, 1, size=(n, 3))
-    parallel = [a.copy() for a in _step_arrays(family.step(params, state, action, False))]
+    parallel = [a.copy() for a in _step_arrays(physics.step(params, state, action, False))]
     assert numba.threading_layer() == numba_setup.THREADING_LAYER
     monkeypatch.setattr(fk, "PARALLEL_MIN_BATCH", 10**9)
-    serial = _step_arrays(family.step(params, state, action, False))
+    serial = _step_arrays(physics.step(params, state, action, False))
     for a, b in zip(parallel, serial):
         np.testing.assert_array_equal(a, b)
 
@@ -319,13 +324,13 @@ def test_step_equals_transition_then_evaluate(params, rng):
     """The fused step is transition followed by evaluate, to the last bit."""
     state = _random_states(params, rng, 300)
     action = rng.uniform(-1, 1, size=(300, 3))
-    new, outcome, evaluation, obs = family.step(params, state, action, True)
-    new2, outcome2 = family.transition(params, state, action)
-    evaluation2, obs2 = family.evaluate(params, new2, outcome2.action, outcome2.reason, True)
+    new, outcome, evaluation, obs = physics.step(params, state, action, True)
+    new2, outcome2 = physics.transition(params, state, action)
+    evaluation2, obs2 = physics.evaluate(params, new2, outcome2.action, outcome2.reason, True)
     for a, b in zip([*new[:-1], *outcome, evaluation, obs], [*new2[:-1], *outcome2, evaluation2, obs2]):
         np.testing.assert_array_equal(a, b)
     rows = params.evaluation_rows
-    terms = family.reward_terms(
+    terms = physics.reward_terms(
         params, new.x, evaluation[rows["target"]].T, new.inverse_condition, outcome.action, outcome.reason
     )
     total = sum(terms.values())
@@ -336,11 +341,11 @@ def test_mismatched_batches_are_refused(params, rng):
     """Actions of the wrong width or batch size are refused with a clear error before the kernels run."""
     state = _random_states(params, rng, 4)
     with pytest.raises(ValueError, match=r"shape \(N, 3\)"):
-        family.transition(params, state, np.zeros((4, 2)))
+        physics.transition(params, state, np.zeros((4, 2)))
     with pytest.raises(ValueError, match=r"action must have shape \(4, 3\), got \(3, 3\)"):
-        family.step(params, state, np.zeros((3, 3)), False)
+        physics.step(params, state, np.zeros((3, 3)), False)
     with pytest.raises(ValueError, match=r"target must have shape \(N, 3\)"):
-        family.reward_terms(params, state.x, state.x[:, :2], state.inverse_condition, np.zeros((4, 3)), np.zeros(4))
+        physics.reward_terms(params, state.x, state.x[:, :2], state.inverse_condition, np.zeros((4, 3)), np.zeros(4))
 
 
 def test_packed_constants_follow_params():
@@ -362,16 +367,16 @@ def test_step_buffers_give_the_fresh_result(params, rng):
     """Stepping into reused buffers (as the single env does) equals stepping into fresh arrays."""
     state = _random_states(params, rng, 5)
     action = rng.uniform(-1, 1, size=(5, 3))
-    buffers = (family.StepBuffers(params, 5, False), family.StepBuffers(params, 5, False))
+    buffers = (physics.StepBuffers(params, 5, False), physics.StepBuffers(params, 5, False))
     reused = state
     fresh = state
     for k in range(4):
-        reused, *_ = family.step(params, reused, action, False, buffers[k % 2])
-        fresh, *_ = family.step(params, fresh, action, False)
+        reused, *_ = physics.step(params, reused, action, False, buffers[k % 2])
+        fresh, *_ = physics.step(params, fresh, action, False)
     for a, b in zip([*reused[:-1], *reused.reference], [*fresh[:-1], *fresh.reference]):
         np.testing.assert_array_equal(a, b)
-    with pytest.raises(family.NonFiniteActionError, match="action must be finite") as caught:
-        family.step(params, state, np.where(np.arange(5)[:, None] == 3, np.inf, action), False)
+    with pytest.raises(physics.NonFiniteActionError, match="action must be finite") as caught:
+        physics.step(params, state, np.where(np.arange(5)[:, None] == 3, np.inf, action), False)
     np.testing.assert_array_equal(caught.value.rows, [3])
 
 

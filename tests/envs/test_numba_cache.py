@@ -1,8 +1,8 @@
-"""envs.numba_cache: a module's Numba cache is dropped when a module it calls into changes."""
+"""envs.kernels.cache: a module's Numba cache is dropped when a module it calls into changes."""
 
 from __future__ import annotations
 
-from envs.numba_cache import drop_stale_caches
+from envs.kernels.cache import drop_stale_caches
 
 
 def test_a_changed_dependency_drops_the_cache_and_an_unchanged_one_keeps_it(tmp_path):

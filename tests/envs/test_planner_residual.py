@@ -11,8 +11,8 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 from envs.controllers import PlannerController
-from envs.family import wrap_angle
-from envs.family_kernels import observation_layout
+from envs.kernels.generic import observation_layout
+from envs.physics import wrap_angle
 
 ERROR = observation_layout("planar", 3, False)["error"]
 

@@ -10,7 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
-from envs.family_kernels import observation_layout
+from envs.kernels.generic import observation_layout
 
 ERROR = observation_layout("planar", 3, False)["error"]
 

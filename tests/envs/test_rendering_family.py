@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from envs.rendering_family import leg_color, render_family_frame
+from envs.rendering import leg_color, render_family_frame
 from kinematics import Planar3RPR, StewartGough
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -128,7 +128,7 @@ def test_headless_and_windowless():
         "import json, sys\n"
         "import numpy as np\n"
         "from kinematics import Planar3RPR, StewartGough\n"
-        "from envs.rendering_family import render_family_frame\n"
+        "from envs.rendering import render_family_frame\n"
         "shapes = []\n"
         "for robot in (StewartGough(), Planar3RPR()):\n"
         "    h = robot.home_pose()\n"

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from envs import SingularityShield
-from envs.family import TERMINATION_REASONS
-from envs.shield import SHIELD_SCALES
+from envs.physics import TERMINATION_REASONS
+from envs.wrappers.shield import SHIELD_SCALES
 
 SINGULAR = {"newton_failed", "assembly_mode_change", "singularity_crossed", "singular"}
 

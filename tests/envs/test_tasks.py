@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs import family_kernels as fk
-from envs import numba_setup, workspace_kernels
-from envs.workspace import WorkspaceMap
+from envs.kernels import generic as fk
+from envs.kernels import setup as numba_setup
+from envs.tasks import grid_kernels as workspace_kernels
+from envs.tasks.grid import WorkspaceMap
 from tests.envs.helpers import pose_metric
 
 #: (env id, reset options) of every way to get a Reach task; the flag says whether it is a hard one.
