@@ -186,9 +186,19 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         return info
 
     def sample_tasks(
-        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+        self,
+        generators: Sequence[np.random.Generator],
+        options: dict[str, Any],
+        streams: np.ndarray | None = None,
     ) -> tuple[np.ndarray, FamilyReference]:
-        """Draw one task per generator in one compiled call (start poses (M, m) and references)."""
+        """Draw one task per generator in one compiled call (start poses (M, m) and references).
+
+        Args:
+            generators: The M generators, task i drawn from the i-th.
+            options: Reset options.
+            streams: ``envs.kernels.setup.random_streams(generators)``, shape (M, 2), if the caller keeps them
+                (the vector env holds one row per sub-environment); None computes them.
+        """
         raise NotImplementedError
 
 
@@ -336,7 +346,10 @@ class FamilyReachEnv(FamilyEnvBase):
         self._setup(render_mode, build_family_params(robot, **kwargs))
 
     def sample_tasks(
-        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+        self,
+        generators: Sequence[np.random.Generator],
+        options: dict[str, Any],
+        streams: np.ndarray | None = None,
     ) -> tuple[np.ndarray, FamilyReference]:
         """Certified start/target pairs, one per generator (see the class docstring, Starting State).
 
@@ -360,12 +373,14 @@ class FamilyReachEnv(FamilyEnvBase):
             self.last_waypoints = np.tile(target, (n, 1))
             return np.tile(start, (n, 1)), FamilyReference(np.tile(target, (n, 1)), np.zeros((n, m)), np.zeros((n, m)))
         hard = np.array([g.random() < 0.5 for g in generators]) if mode == "mixed" else np.full(n, mode == "hard")
+        if streams is None:
+            streams = fk.random_streams(generators)
         starts, targets, waypoints = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
         for kind in (False, True):
             rows = np.flatnonzero(hard == kind)
             if rows.size == 0:
                 continue
-            streams = fk.random_streams([generators[i] for i in rows])
+            rows_streams = streams if rows.size == n else streams[rows]
             if params.workspace is not None:
                 fixed_kind, fixed = (
                     (1, start) if start is not None else ((2, target) if target is not None else (0, None))
@@ -373,7 +388,7 @@ class FamilyReachEnv(FamilyEnvBase):
                 found = grid_kernels.sample_reach_batch(
                     params.packed,
                     params.workspace.packed,
-                    streams,
+                    rows_streams,
                     rows.size,
                     kind,
                     params.min_distance,
@@ -385,7 +400,7 @@ class FamilyReachEnv(FamilyEnvBase):
             elif start is not None or target is not None:
                 raise ValueError("reset options 'start' and 'target' alone need task_region='grid'; give both")
             else:
-                found = fk.sample_reach_batch(params.packed, streams, rows.size, m, kind, params.min_distance)
+                found = fk.sample_reach_batch(params.packed, rows_streams, rows.size, m, kind, params.min_distance)
             if found is None:
                 what = "hard" if kind else "standard"
                 if start is not None or target is not None:
@@ -454,11 +469,15 @@ class FamilyTrackEnv(FamilyEnvBase):
         self._setup(render_mode, build_family_params(robot, **kwargs))
 
     def sample_tasks(
-        self, generators: Sequence[np.random.Generator], options: dict[str, Any]
+        self,
+        generators: Sequence[np.random.Generator],
+        options: dict[str, Any],
+        streams: np.ndarray | None = None,
     ) -> tuple[np.ndarray, FamilyReference]:
         """References whose whole period is safe, one per generator; the start is the reference at t = 0."""
         n, m = len(generators), self.params.robot.n_pose
-        streams = fk.random_streams(generators)
+        if streams is None:
+            streams = fk.random_streams(generators)
         if self.params.track_shape == "circle":
             found = grid_kernels.sample_circle_batch(
                 self.params.packed,

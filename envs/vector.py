@@ -14,6 +14,7 @@ from gymnasium.vector.utils import batch_space
 
 from envs import physics
 from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv
+from envs.kernels.setup import random_streams
 from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate, initial_state, step_info
 
 __all__ = ["FamilyReachVectorEnv", "FamilyTrackVectorEnv", "FamilyVectorEnv"]
@@ -165,6 +166,9 @@ class FamilyVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
 
         self._generators: list[np.random.Generator | None] = [None] * self.num_envs
+        # The kernels' handle on each generator (``envs.kernels.setup.random_streams``), made once per generator:
+        # an episode start then costs no Python work per robot beyond its task's compiled draw.
+        self._streams = np.zeros((self.num_envs, 2), dtype=np.uint64)
         self._seeds: list[int | None] = [None] * self.num_envs
         self._state: FamilyState | None = None
         self._observations: np.ndarray | None = None
@@ -209,7 +213,7 @@ class FamilyVectorEnv(VectorEnv):
             )
         for i in rows:
             if seeds[i] is not None or self._generators[i] is None:
-                self._generators[i], self._seeds[i] = seeding.np_random(seeds[i])
+                self._new_generator(i, seeds[i])
         fresh = self._start_episodes(rows, options)
         if mask is None:
             self._state = fresh
@@ -368,7 +372,7 @@ class FamilyVectorEnv(VectorEnv):
         """The generators of the sub-environments (drawn from a random seed if not yet seeded)."""
         for i, generator in enumerate(self._generators):
             if generator is None:
-                self._generators[i], self._seeds[i] = seeding.np_random()
+                self._new_generator(i, None)
         return tuple(self._generators)
 
     @property
@@ -457,14 +461,20 @@ class FamilyVectorEnv(VectorEnv):
 
         One compiled call for all of them (``sample_tasks``), each drawing from its own generator.
         """
-        start, reference = self._sampler.sample_tasks([self._generators[i] for i in rows.tolist()], options)
+        generators = [self._generators[i] for i in rows.tolist()]
+        start, reference = self._sampler.sample_tasks(generators, options, self._streams[rows])
         return self._initial_state(start, reference)
+
+    def _new_generator(self, i: int, seed: int | None) -> None:
+        """Give sub-environment i a new generator (seeded with ``seed``, or from entropy) and its stream."""
+        self._generators[i], self._seeds[i] = seeding.np_random(seed)
+        self._streams[i] = random_streams([self._generators[i]])[0]
 
     def _restart(self, rows: np.ndarray, observations: np.ndarray, info: dict[str, np.ndarray]) -> None:
         """Autoreset the sub-environments ``rows``: new episodes, their observations and reset infos."""
         for i in rows:
             if self._generators[i] is None:  # pragma: no cover - every row was reset before stepping
-                self._generators[i], self._seeds[i] = seeding.np_random()
+                self._new_generator(i, None)
         fresh = self._start_episodes(rows, {})
         _put(self._state, rows, fresh)
         new_obs, new_info = self._evaluate(
