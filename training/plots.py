@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -14,9 +13,7 @@ from PIL import Image
 
 from envs.params import FamilyParams
 from envs.tasks.grid import WorkspaceMap
-
-if TYPE_CHECKING:
-    from training.evaluate import EpisodeRecord
+from training.records import EpisodeRecord
 
 __all__ = ["condition_figure", "save_gif", "trajectories_figure"]
 
