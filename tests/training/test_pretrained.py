@@ -208,7 +208,7 @@ def test_other_shipped_3rpr_policies_keep_their_recorded_performance(run):
     assert_keeps_record(metrics, record)
 
 
-#: The shipped policies of the crank- and slider-driven robots (issue 16), each with its regression.json.
+#: The shipped policies of the crank- and slider-driven robots, each with its regression.json.
 CRANK_RUNS = [
     demo._pretrained(name)
     for name in ("ppo-DeltaReach-v0", "ppo-DeltaTrack-v0", "ppo-Planar3RRRReach-v0", "ppo-Planar3PRRReach-v0")
