@@ -107,7 +107,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"action must have shape ({n},), got shape {a.shape}")
         out = self._buffers[self._next]
         state, outcome, evaluation, observations = step(
-            self.params, self._state, a.reshape(1, n), self.with_velocity, out
+            self.params, self._state, a.reshape(1, n), self.with_velocity, out, validate=False
         )
         self._next ^= 1
         self._state = state

@@ -348,7 +348,13 @@ class StepBuffers:
 
 
 def step(
-    params: FamilyParams, state: FamilyState, action: np.ndarray, with_velocity: bool, out: StepBuffers | None = None
+    params: FamilyParams,
+    state: FamilyState,
+    action: np.ndarray,
+    with_velocity: bool,
+    out: StepBuffers | None = None,
+    *,
+    validate: bool = True,
 ) -> tuple[FamilyState, FamilyOutcome, np.ndarray, np.ndarray]:
     """``transition`` then ``evaluate``, fused in one compiled pass (on every core for large N).
 
@@ -358,6 +364,8 @@ def step(
         action: Normalised stroke rates, shape (N, n), float64.
         with_velocity: Whether the observation ends with the target velocity.
         out: Buffers to write into (none of them may hold ``state``), or None.
+        validate: Check the state's and the buffers' shapes (``check_state``). The envs pass False for the
+            state they hold, which ``initial_state`` and ``step`` made with the right shapes.
 
     Returns:
         (new state, outcome, evaluation, observations).
@@ -365,14 +373,14 @@ def step(
     Raises:
         NonFiniteActionError: If an action is not finite (``state`` is untouched).
     """
-    n = check_state(params, state)
+    n = check_state(params, state) if validate else state.q.shape[0]
     if action.shape != state.q.shape or action.dtype != np.float64:
         action = _rows(action, params.robot.n_actuators, "action")
         if action.shape[0] != n:
             raise ValueError(f"action must have shape {state.q.shape}, got {action.shape}")
     if out is None:
         out = StepBuffers(params, n, with_velocity)
-    elif out.shape != (n, params.robot.n_pose, observation_bounds(params, with_velocity)[0].shape[0]):
+    elif validate and out.shape != (n, params.robot.n_pose, observation_bounds(params, with_velocity)[0].shape[0]):
         raise ValueError(f"out holds buffers of shape (N, m, D) = {out.shape}, the step needs N = {n}")
     ref = with_strokes(params, state.reference)
     low, high = observation_bounds(params, with_velocity)
@@ -410,8 +418,8 @@ def copy_state(state: FamilyState) -> FamilyState:
 def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
     """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order.
 
-    The 3-RPR's ``step_info`` over this core's row layout (``params.evaluation_rows``), with the Type I
-    terms after it.
+    ``INFO_KEYS`` in order (``is_success`` as bools, the reasons as names, pose and target as (N, m)), the Type I
+    entries last.
     """
     rows = params.evaluation_rows
     info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS[:8]}

@@ -253,7 +253,7 @@ class FamilyVectorEnv(VectorEnv):
         out = self._buffers[self._next]  # not the one holding self._state
         try:
             state, outcome, evaluation, observations = physics.step(
-                self.params, self._state, a, self.with_velocity, out
+                self.params, self._state, a, self.with_velocity, out, validate=False
             )
         except NonFiniteActionError as exc:  # checked inside the compiled pass; no robot has moved
             bad = exc.rows
