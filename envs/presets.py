@@ -279,18 +279,22 @@ def _fit_task_box(
 
     The share is measured on ``_BOX_CHECKS`` fixed random poses of the box with the family's certificate
     (``envs.kernels.generic.safety_batch``); the box shrinks by ``_BOX_SHRINK`` at most ``_BOX_SHRINKS``
-    times.
+    times, and the safest box tried is returned if none reaches the share (a home pose near a singularity).
     """
     c = fk.pack_certificate(robot, stroke_limits, stroke_margin, safe_threshold, actuator_safe_threshold)
     home = robot.home_pose()
     lo, hi = np.array(low), np.array(high)
     unit = np.random.default_rng(0).uniform(size=(_BOX_CHECKS, len(lo)))
-    for _ in range(_BOX_SHRINKS):
+    best, best_fraction = (lo, hi), -1.0
+    for _ in range(_BOX_SHRINKS + 1):
         safety, _ = fk.safety_batch(c, lo + unit * (hi - lo))
-        if np.mean(safety >= safe_threshold) >= _BOX_SAFE_FRACTION:
+        fraction = float(np.mean(safety >= safe_threshold))
+        if fraction > best_fraction:
+            best, best_fraction = (lo, hi), fraction
+        if fraction >= _BOX_SAFE_FRACTION:
             break
         lo, hi = home + _BOX_SHRINK * (lo - home), home + _BOX_SHRINK * (hi - home)
-    return tuple(map(float, lo)), tuple(map(float, hi))
+    return tuple(map(float, best[0])), tuple(map(float, best[1]))
 
 
 def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwargs: Any) -> FamilyParams:

@@ -50,6 +50,13 @@ def menagerie(scale: float = 1.0) -> DistanceConstraintMechanism:
     )
 
 
+def menagerie_low() -> DistanceConstraintMechanism:
+    """The Menagerie Stewart platform lowered to z = 0.4 m, its legs leaning far out: much of the box is unsafe."""
+    return DistanceConstraintMechanism(
+        MENAGERIE_BASE, MENAGERIE_PLATFORM, pose_space="spatial", home=(0, 0, 0.4, 0, 0, 0)
+    )
+
+
 def _hexapod() -> DistanceConstraintMechanism:
     default = StewartGough()
     return DistanceConstraintMechanism(default.base, default.platform, pose_space="spatial")
@@ -64,6 +71,7 @@ ROBOTS = {
     "menagerie": lambda: menagerie(1.0),
     "menagerie_x0.1": lambda: menagerie(0.1),
     "menagerie_x3": lambda: menagerie(3.0),
+    "menagerie_low": menagerie_low,
     "hexapod": _hexapod,
     "planar_3rpr_x2": lambda: _planar(2.0),
     "planar_3rpr_x0.2": lambda: _planar(0.2),
