@@ -241,8 +241,8 @@ _ARGUMENTS_DOC = """
     | `**kwargs` | | | any other field of `FamilyParams` (Newton, substeps, margins) |
 
     `robot` may name a preset of `ROBOT_PRESETS` (its settings apply under the caller's own); a mechanism gets
-    bounds, task box, strokes and amplitudes scaled by its size around its `home_pose()` (`derived_defaults`)
-    unless given.
+    bounds, task box, strokes, amplitudes, rates and lengths scaled by its size around its `home_pose()`
+    (`derived_defaults`; the task box shrunk until at least half of it is safe) unless given.
 """
 
 

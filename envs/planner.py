@@ -4,12 +4,14 @@ The planner knows the geometry and may be slow; it is the ceiling the learned po
 on hard targets, and it answers how many hard tasks can be done at all.
 
 **The graph.** Its nodes are the safe nodes of the certified grid (``envs.tasks.grid``: strokes inside the limits
-with a 2 cm margin and k ≥ k_safe, in a component the tasks are drawn from). Two nodes of the same component
-that are neighbours in the 26-neighbourhood are joined when the straight segment between them is *certified*:
-at points at most ``spacing`` apart in z = (x, y, ℓ_c φ) (ends included), every stroke lies inside the limits
-and k ≥ k_safe. An edge costs its length in z times 1 + w (1 − k_e / k_c)₊, where k_e is the smallest k on it
-and k_c = ``clearance`` · k_safe: among paths of similar length, the one that keeps away from the singular
-zone wins.
+with the stroke margin and safety ≥ k_safe, in a component the tasks are drawn from). Two nodes of the same
+component that are neighbours in the 26-neighbourhood are joined when the straight segment between them is
+*certified*: at points at most ``spacing`` apart in z = (x, y, ℓ_c φ) (ends included), every stroke lies inside
+the limits less the margin and the safety (k; with cranks and sliders also k_I, ``envs.tasks.grid``) is at
+least k_safe; the family's one certificate, ``envs.kernels.generic.segment_min_safety_batch``, decides it, as it
+does for the task samplers. An edge costs its length in z times 1 + w (1 − k_e / k_c)₊, where k_e is the
+smallest safety on it and k_c = ``clearance`` · k_safe: among paths of similar length, the one that keeps away
+from the singular zone wins.
 
 **A plan.** If the straight segment start → target is certified, it is the plan. Otherwise the start and the
 target are joined to the safe nodes of their 5 × 5 × 5 neighbourhoods by certified segments, Dijkstra's
@@ -38,6 +40,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
 
+from envs.kernels import generic as fk
 from envs.params import FamilyParams
 from envs.physics import wrap_angle
 from envs.tasks.grid import WorkspaceMap, WorkspaceSpec, certify_workspace
@@ -59,7 +62,8 @@ class Plan:
         found: Whether a certified path exists (else ``waypoints`` is the straight segment, not certified).
         length: Length of the polyline in z = (x, y, ℓ_c φ) [m].
         straight: Length of the straight segment start → target in z [m].
-        min_k: Smallest k at the checked points of the path (−1 where a stroke leaves its limits).
+        min_k: Smallest safety at the checked points of the path (−1 where a stroke leaves its limits less the
+            margin).
         seconds: Wall time spent planning [s].
     """
 
@@ -90,7 +94,7 @@ class SafeGraph:
     ) -> None:
         spec = workspace.spec
         self.workspace = workspace
-        self.robot, self.stroke_limits = spec.robot, spec.stroke_limits
+        self.robot = spec.robot
         self.spacing, self.weight = float(spacing), float(weight)
         self.k_safe = float(spec.safe_threshold)
         self.k_clear = float(clearance) * self.k_safe
@@ -120,35 +124,15 @@ class SafeGraph:
 
     # -- certification -------------------------------------------------------------------------------
 
-    def _points(self, start: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Checked points of segments start → target (M, 3) each: (points (K, 3), segment index (K,))."""
-        length = np.linalg.norm((target - start) * self.metric, axis=-1)
-        count = np.maximum(np.ceil(length / self.spacing).astype(np.int64), 1)  # intervals per segment
-        segment = np.repeat(np.arange(len(start)), count + 1)
-        first = np.repeat(np.cumsum(count + 1) - (count + 1), count + 1)
-        fraction = (np.arange(segment.size) - first) / count[segment]
-        points = start[segment] + fraction[:, None] * (target - start)[segment]
-        return points, segment
-
     def segment_min_k(self, start: np.ndarray, target: np.ndarray) -> np.ndarray:
-        """Smallest k at the checked points of each segment; −1 where a stroke leaves its limits, shape (M,).
+        """Smallest safety at the checked points of each segment; −1 where a stroke leaves its limits, shape (M,).
 
         Args:
             start: Poses (x [m], y [m], φ [rad]), shape (M, 3).
             target: Poses, shape (M, 3).
         """
         start, target = np.atleast_2d(start), np.atleast_2d(target)
-        if len(start) == 0:
-            return np.empty(0)
-        points, segment = self._points(start, target)
-        robot = self.robot
-        q = robot.inverse_kinematics(points, validate=False)
-        lo, hi = self.stroke_limits
-        k = robot.inverse_condition_number(np.maximum(q, 1e-9), points, validate=False)
-        k = np.where((q.min(axis=-1) >= lo) & (q.max(axis=-1) <= hi) & np.isfinite(k), k, -1.0)
-        out = np.full(len(start), np.inf)
-        np.minimum.at(out, segment, k)
-        return out
+        return fk.segment_min_safety_batch(self.workspace.spec.constants, start, target, self.spacing)
 
     # -- queries -------------------------------------------------------------------------------------
 

@@ -2,7 +2,8 @@
 
 ``ROBOT_PRESETS`` holds the defaults of the robots with registered ids; ``build_family_params`` validates an
 env's keyword arguments into ``FamilyParams``, from a preset's name or from any
-``kinematics.DistanceConstraintMechanism`` (whose bounds, task box and strokes are then derived from its size).
+``kinematics.DistanceConstraintMechanism`` (whose bounds, task box, strokes, rates and lengths are then derived
+from its size and home pose, ``derived_defaults``).
 """
 
 from __future__ import annotations
@@ -16,7 +17,15 @@ from envs.kernels import generic as fk
 from envs.params import HARD_KINDS, INTEGRATORS, TASK_REGIONS, TRACK_SHAPES, FamilyParams
 from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
 
-__all__ = ["ADEPT_CYCLE", "ROBOTS", "ROBOT_PRESETS", "build_family_params", "derived_defaults"]
+__all__ = [
+    "ADEPT_CYCLE",
+    "REFERENCE_REACH",
+    "ROBOTS",
+    "ROBOT_PRESETS",
+    "build_family_params",
+    "derived_defaults",
+    "reach",
+]
 
 #: The robots a family environment builds by name (``robot="delta"``), each with its default geometry.
 ROBOTS: dict[str, type[DistanceConstraintMechanism]] = {
@@ -177,14 +186,43 @@ def _track_path(path: Any, times: Any, m: int) -> tuple[tuple[tuple[float, ...],
     return tuple(tuple(map(float, v)) for v in vertices), tuple(map(float, shares))
 
 
-def derived_defaults(robot: DistanceConstraintMechanism) -> dict[str, Any]:
-    """Bounds, task box, stroke limits and Track amplitudes of a robot, scaled by its size around its home pose.
+#: The reach ρ [m] of the default hexapod ``StewartGough()``, whose sizes ``FamilyParams``' lengths are.
+REFERENCE_REACH = 0.25
+#: Lengths of ``FamilyParams`` per reach ρ (the default hexapod's values at ρ = ``REFERENCE_REACH``).
+_LENGTHS_PER_REACH = {
+    "segment_spacing": 0.04,
+    "min_distance": 0.2,
+    "success_position_tolerance": 0.04,
+    "jump_tolerance": 0.08,
+    "max_substep": 0.04,
+}
+#: The keys of ``derived_defaults`` that a preset's robot (given by name) also takes: its shape, not its lengths.
+_SHAPE_KEYS = ("pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude", "stroke_limits")
+#: Poses of the task box checked for safety, and the safe share of them a derived task box must reach.
+_BOX_CHECKS = 512
+_BOX_SAFE_FRACTION = 0.5
+#: Factor by which a derived task box shrinks around the home pose while it is not safe enough, and how often.
+_BOX_SHRINK = 0.8
+_BOX_SHRINKS = 12
 
-    The reach ρ is half the mean distance of the base anchors from their centroid. Pose bounds span ±ρ in
-    position (planar: φ ±0.6 rad; spatial: ±0.8 ρ in x, y, ±0.9 ρ in z, tilts ±0.6 rad and yaw ±1.9 rad) and the
-    task box 0.6 (spatial: 0.4) of that in position, tilts ±0.2 rad and yaw ±0.5 rad. Legs get strokes from
-    0.5 (spatial: 0.75) of the shortest to 1.6 (spatial: 1.3) of the longest leg at home; cranks ±1 rad and
-    sliders ±0.2 m around their values at home.
+
+def reach(robot: DistanceConstraintMechanism) -> float:
+    """ρ [m]: half the mean distance of the base anchors from their centroid (the default hexapod: 0.25 m)."""
+    return 0.5 * float(np.mean(np.linalg.norm(robot.base - robot.base.mean(axis=0), axis=1)))
+
+
+def derived_defaults(robot: DistanceConstraintMechanism) -> dict[str, Any]:
+    """Bounds, task box, strokes, rates and lengths of a robot, scaled by its size around its home pose.
+
+    With the reach ρ (``reach``): pose bounds span ±ρ in position (planar: φ ±0.6 rad; spatial: ±0.8 ρ in x,
+    y, ±0.9 ρ in z, tilts ±0.6 rad and yaw ±1.9 rad) and the task box 0.6 (spatial: 0.4) of that in position,
+    tilts ±0.2 rad and yaw ±0.5 rad. Legs get strokes from 0.5 (spatial: 0.75) of the shortest to 1.6
+    (spatial: 1.3) of the longest leg at home; cranks ±1 rad and sliders ±0.2 m around their values at home.
+    Lengths are the default hexapod's in proportion to ρ / ``REFERENCE_REACH`` (s): the certification spacing,
+    the smallest task distance, the success tolerance, the Newton jump and substep lengths, and for legs and
+    sliders the stroke margin (0.02 s m) and the stroke rate (0.1 s m/s); the Newton residual tolerance is
+    1e-12 s² m². ``build_family_params`` then shrinks a derived task box around the home pose until at least
+    half of it is safe.
 
     Args:
         robot: The mechanism.
@@ -193,17 +231,18 @@ def derived_defaults(robot: DistanceConstraintMechanism) -> dict[str, Any]:
         Keyword arguments of ``FamilyParams`` (a caller's own values take precedence).
     """
     home = robot.home_pose()
-    reach = 0.5 * float(np.mean(np.linalg.norm(robot.base - robot.base.mean(axis=0), axis=1)))
+    rho = reach(robot)
+    scale = rho / REFERENCE_REACH
     space = robot.pose_space.name
     if space == "spatial":
-        half = np.array([0.8 * reach, 0.8 * reach, 0.9 * reach, 0.6, 0.6, 1.9])
-        box = np.array([0.4 * reach, 0.4 * reach, 0.4 * reach, 0.2, 0.2, 0.5])
-        amplitude = (0.2 * reach, 0.0, 0.16 * reach, 0.0, 0.1, 0.0)
+        half = np.array([0.8 * rho, 0.8 * rho, 0.9 * rho, 0.6, 0.6, 1.9])
+        box = np.array([0.4 * rho, 0.4 * rho, 0.4 * rho, 0.2, 0.2, 0.5])
+        amplitude = (0.2 * rho, 0.0, 0.16 * rho, 0.0, 0.1, 0.0)
         leg_band = (0.75, 1.3)
     else:
-        half = np.array([reach, reach, 0.6 if space == "planar" else reach])
+        half = np.array([rho, rho, 0.6 if space == "planar" else rho])
         box = 0.6 * half
-        amplitude = (0.3 * reach, 0.3 * reach, 0.2)
+        amplitude = (0.3 * rho, 0.3 * rho, 0.2)
         leg_band = (0.5, 1.6)
     at_home = robot.inverse_kinematics(home)
     if all(kind == "leg" for kind in robot.actuator_kinds):
@@ -211,6 +250,11 @@ def derived_defaults(robot: DistanceConstraintMechanism) -> dict[str, Any]:
     else:  # cranks [rad] or sliders [m]: a band around the home pose's values
         band = 1.0 if "crank" in robot.actuator_kinds else 0.2
         strokes = (float(at_home.min()) - band, float(at_home.max()) + band)
+    lengths = {name: per_reach * rho for name, per_reach in _LENGTHS_PER_REACH.items()}
+    lengths["newton_tolerance"] = 1e-12 * scale**2
+    if "crank" not in robot.actuator_kinds:  # strokes in metres
+        lengths["stroke_margin"] = 0.02 * scale
+        lengths["max_rate"] = 0.1 * scale
     return {
         "pose_low": tuple(home - half),
         "pose_high": tuple(home + half),
@@ -218,11 +262,48 @@ def derived_defaults(robot: DistanceConstraintMechanism) -> dict[str, Any]:
         "sample_high": tuple(home + box),
         "track_amplitude": amplitude,
         "stroke_limits": strokes,
+        **lengths,
     }
+
+
+def _fit_task_box(
+    robot: DistanceConstraintMechanism,
+    low: tuple[float, ...],
+    high: tuple[float, ...],
+    stroke_limits: tuple[float, float],
+    stroke_margin: float,
+    safe_threshold: float,
+    actuator_safe_threshold: float,
+) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """A derived task box shrunk around the home pose until ``_BOX_SAFE_FRACTION`` of it is safe.
+
+    The share is measured on ``_BOX_CHECKS`` fixed random poses of the box with the family's certificate
+    (``envs.kernels.generic.safety_batch``); the box shrinks by ``_BOX_SHRINK`` at most ``_BOX_SHRINKS``
+    times, and the safest box tried is returned if none reaches the share (a home pose near a singularity).
+    """
+    c = fk.pack_certificate(robot, stroke_limits, stroke_margin, safe_threshold, actuator_safe_threshold)
+    home = robot.home_pose()
+    lo, hi = np.array(low), np.array(high)
+    unit = np.random.default_rng(0).uniform(size=(_BOX_CHECKS, len(lo)))
+    best, best_fraction = (lo, hi), -1.0
+    for _ in range(_BOX_SHRINKS + 1):
+        safety, _ = fk.safety_batch(c, lo + unit * (hi - lo))
+        fraction = float(np.mean(safety >= safe_threshold))
+        if fraction > best_fraction:
+            best, best_fraction = (lo, hi), fraction
+        if fraction >= _BOX_SAFE_FRACTION:
+            break
+        lo, hi = home + _BOX_SHRINK * (lo - home), home + _BOX_SHRINK * (hi - home)
+    return tuple(map(float, best[0])), tuple(map(float, best[1]))
 
 
 def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwargs: Any) -> FamilyParams:
     """Validate constructor arguments into ``FamilyParams``; a robot without bounds gets ones around its home pose.
+
+    A mechanism takes every ``derived_defaults`` the caller does not give; a robot given by name takes its
+    preset's settings, then the derived bounds, task box, strokes and Track amplitudes (its lengths and rates
+    are the preset's or ``FamilyParams``'). A derived task box shrinks around the home pose until at least half
+    of it is safe.
 
     Args:
         robot: The mechanism, or the name of one with its default geometry (a key of ``ROBOTS``); default
@@ -238,7 +319,8 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     """
     if robot is None:
         robot = "stewart_gough"
-    if isinstance(robot, str):
+    named = isinstance(robot, str)
+    if named:
         if robot in ROBOT_PRESETS:  # a preset: its documented settings, under the caller's own
             preset = dict(ROBOT_PRESETS[robot])
             name = preset.pop("robot")
@@ -254,8 +336,11 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         raise TypeError(f"robot must be a kinematics.DistanceConstraintMechanism, got {type(robot).__name__}")
     m = robot.n_pose
     defaults = FamilyParams.__dataclass_fields__
-    for name, value in derived_defaults(robot).items():
-        kwargs.setdefault(name, value)
+    derived = derived_defaults(robot)
+    box_derived = "sample_low" not in kwargs and "sample_high" not in kwargs
+    for name, value in derived.items():
+        if not named or name in _SHAPE_KEYS:
+            kwargs.setdefault(name, value)
     unknown = set(kwargs) - set(defaults)
     if unknown:
         raise TypeError(f"unknown argument(s) {sorted(unknown)}")
@@ -350,6 +435,10 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         "min_distance",
     ):
         scalars[name] = _number(name, kwargs.get(name, defaults[name].default), allow_zero=True)
+    if box_derived:
+        values["sample_low"], values["sample_high"] = _fit_task_box(
+            robot, values["sample_low"], values["sample_high"], (lo, hi), scalars["stroke_margin"], safe, safe1
+        )
     return FamilyParams(
         robot=robot,
         stroke_limits=(lo, hi),

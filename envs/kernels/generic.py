@@ -50,12 +50,15 @@ __all__ = [
     "evaluation_rows",
     "initial_batch",
     "observation_layout",
+    "pack_certificate",
     "pack_family",
     "reference_batch",
     "safe_batch",
+    "safety_batch",
     "sample_reach_batch",
     "sample_track_batch",
     "segment_batch",
+    "segment_min_safety_batch",
     "singularity_batch",
     "step_batch",
     "strokes_batch",
@@ -196,44 +199,39 @@ def _jit_parallel(fn):
     return numba.njit(cache=True, nogil=True, error_model="numpy", parallel=True)(fn)
 
 
-def pack_family(params) -> np.ndarray:
-    """The constants of ``params`` (an ``envs.family.FamilyParams``) as the kernels' float64 vector, shape (C_SIZE,).
+def pack_certificate(
+    robot, stroke_limits, stroke_margin, safe_threshold, actuator_safe_threshold, hard_threshold=0.0
+) -> np.ndarray:
+    """The constants the certificate reads (``safety_batch``, ``segment_min_safety_batch``), shape (C_SIZE,).
+
+    The robot's geometry, actuation and pose scale, its stroke limits and margin and the safe thresholds; every
+    other entry is 0 (``pack_family`` fills them).
 
     Args:
-        params: Environment constants with a ``DistanceConstraintMechanism`` as ``robot``.
+        robot: A ``DistanceConstraintMechanism``.
+        stroke_limits: (q_min, q_max) of every actuator [m, or rad for cranks].
+        stroke_margin: Distance a safe pose keeps from both limits [m, rad].
+        safe_threshold: k_safe.
+        actuator_safe_threshold: k_I,safe (unused for legs).
+        hard_threshold: k_hard.
 
     Returns:
         Read-only float64 vector indexed by the ``C_*`` offsets.
     """
-    robot = params.robot
     n, m = robot.n_actuators, robot.n_pose
     c = np.zeros(C_SIZE)
     c[C_N] = n
     c[C_SPATIAL] = 1.0 if robot.pose_space.name == "spatial" else 0.0
+    c[C_TRANSLATIONAL] = 1.0 if robot.pose_space.name == "translational" else 0.0
     c[C_LC] = robot.characteristic_length
-    c[C_LMIN], c[C_LMAX] = params.stroke_limits
-    c[C_DT], c[C_RATE] = params.dt, params.max_rate
-    c[C_RK4] = 1.0 if params.integrator == "rk4" else 0.0
-    c[C_SAFE], c[C_HARD] = params.safe_threshold, params.hard_threshold
-    c[C_WP], c[C_WO] = params.position_weight, params.orientation_weight
-    c[C_WS], c[C_WA] = params.singularity_weight, params.action_weight
-    c[C_PENALTY] = params.termination_penalty
-    c[C_SUCC_P], c[C_SUCC_O] = params.success_position_tolerance, params.success_orientation_tolerance
-    c[C_NEWTON_TOL], c[C_NEWTON_IT] = params.newton_tolerance, params.newton_max_iterations
-    c[C_JUMP], c[C_MAX_SUBSTEP], c[C_MAX_SUBSTEPS] = params.jump_tolerance, params.max_substep, params.max_substeps
-    c[C_OMEGA] = _TWO_PI / params.track_period
-    c[C_MARGIN], c[C_SPACING] = params.stroke_margin, params.segment_spacing
-    c[C_LOW : C_LOW + m] = params.pose_low
-    c[C_HIGH : C_HIGH + m] = params.pose_high
+    c[C_LMIN], c[C_LMAX] = stroke_limits
+    c[C_MARGIN] = stroke_margin
+    c[C_SAFE], c[C_HARD], c[C_SAFE1] = safe_threshold, hard_threshold, actuator_safe_threshold
     c[C_SCALE : C_SCALE + m] = robot.pose_scale
     d = robot.base.shape[1]
     c[C_B : C_B + 3 * n] = np.pad(robot.base, ((0, 0), (0, 3 - d))).ravel()
     c[C_P : C_P + 3 * n] = np.pad(robot.platform, ((0, 0), (0, 3 - d))).ravel()
-    c[C_SLOW : C_SLOW + m] = params.sample_low
-    c[C_SHIGH : C_SHIGH + m] = params.sample_high
-    c[C_HARD_KIND] = 1.0 if params.hard_kind == "ill_conditioned" else 0.0
     c[C_LEGS] = 1.0 if all(kind == "leg" for kind in robot.actuator_kinds) else 0.0
-    c[C_TRANSLATIONAL] = 1.0 if robot.pose_space.name == "translational" else 0.0
     c[C_A : C_A + n] = robot.crank_radii
     axes = robot.crank_axes
     c[C_U : C_U + 3 * n] = np.pad(axes[:, 0], ((0, 0), (0, 3 - d))).ravel()
@@ -242,8 +240,44 @@ def pack_family(params) -> np.ndarray:
     c[C_LAM : C_LAM + n] = [1.0 if kind == "leg" else 0.0 for kind in robot.actuator_kinds]
     c[C_ELL : C_ELL + n] = robot.link_lengths
     c[C_BRANCH : C_BRANCH + n] = robot.branches
+    c.setflags(write=False)
+    return c
+
+
+def pack_family(params) -> np.ndarray:
+    """The constants of ``params`` (an ``envs.params.FamilyParams``) as the kernels' float64 vector, shape (C_SIZE,).
+
+    Args:
+        params: Environment constants with a ``DistanceConstraintMechanism`` as ``robot``.
+
+    Returns:
+        Read-only float64 vector indexed by the ``C_*`` offsets (the certificate's part is ``pack_certificate``).
+    """
+    m = params.robot.n_pose
+    c = pack_certificate(
+        params.robot,
+        params.stroke_limits,
+        params.stroke_margin,
+        params.safe_threshold,
+        params.actuator_safe_threshold,
+        params.hard_threshold,
+    ).copy()
+    c[C_DT], c[C_RATE] = params.dt, params.max_rate
+    c[C_RK4] = 1.0 if params.integrator == "rk4" else 0.0
+    c[C_WP], c[C_WO] = params.position_weight, params.orientation_weight
+    c[C_WS], c[C_WA] = params.singularity_weight, params.action_weight
+    c[C_PENALTY] = params.termination_penalty
+    c[C_SUCC_P], c[C_SUCC_O] = params.success_position_tolerance, params.success_orientation_tolerance
+    c[C_NEWTON_TOL], c[C_NEWTON_IT] = params.newton_tolerance, params.newton_max_iterations
+    c[C_JUMP], c[C_MAX_SUBSTEP], c[C_MAX_SUBSTEPS] = params.jump_tolerance, params.max_substep, params.max_substeps
+    c[C_OMEGA] = _TWO_PI / params.track_period
+    c[C_SPACING] = params.segment_spacing
+    c[C_LOW : C_LOW + m] = params.pose_low
+    c[C_HIGH : C_HIGH + m] = params.pose_high
+    c[C_SLOW : C_SLOW + m] = params.sample_low
+    c[C_SHIGH : C_SHIGH + m] = params.sample_high
+    c[C_HARD_KIND] = 1.0 if params.hard_kind == "ill_conditioned" else 0.0
     c[C_HARD1] = params.actuator_hard_threshold
-    c[C_SAFE1] = params.actuator_safe_threshold
     c[C_WS1] = params.actuator_singularity_weight
     path = np.asarray(params.track_path, dtype=np.float64).reshape(-1, m)
     if len(path):
@@ -1554,46 +1588,58 @@ def _safety(c, strokes, w):
 
 
 @_jit
-def _safe(c, x, w, strokes):
-    """Whether x is in the sampling box, its strokes within the limits less the margin, and safety ≥ safe_threshold."""
-    m = int(c[C_N])
-    for j in range(m):
-        if not (c[C_SLOW + j] <= x[j] <= c[C_SHIGH + j]):
-            return False
+def _pose_safety(c, x, w, strokes):
+    """The certificate of one pose: its ``_safety``, or −1 where an actuator leaves its limits less the margin.
+
+    Every safety decision (the task samplers, the certified grid, the planner's edges) goes through here. The
+    strokes of x (inverse kinematics) are left in ``strokes`` and the rows of A there in w. The sampling box is
+    not checked.
+    """
     _inverse_kinematics(c, x, w, strokes)
     lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
-    for j in range(m):
+    for j in range(int(c[C_N])):
         if not (lo <= strokes[j] <= hi):
-            return False
-    return _safety(c, strokes, w) >= c[C_SAFE]
+            return -1.0
+    return _safety(c, strokes, w)
 
 
 @_jit
-def _segment_min_k(c, start, target, w, strokes, stop_below):
-    """Smallest ``_safety`` along the geodesic start → target (p linear, R along exp).
+def _in_box(c, x):
+    """Whether the pose x lies in the sampling box."""
+    for j in range(int(c[C_N])):
+        if not (c[C_SLOW + j] <= x[j] <= c[C_SHIGH + j]):
+            return False
+    return True
 
-    Checked points are at most ``segment_spacing`` apart. A point outside the safe set's box or stroke limits
-    counts as −1. Stops early once below ``stop_below``.
+
+@_jit
+def _safe(c, x, w, strokes):
+    """Whether x is in the sampling box and its ``_pose_safety`` (strokes with margin, safety) ≥ safe_threshold."""
+    if not _in_box(c, x):
+        return False
+    return _pose_safety(c, x, w, strokes) >= c[C_SAFE]
+
+
+@_jit
+def _segment_min_k(c, start, target, w, strokes, stop_below, spacing, box):
+    """Smallest ``_pose_safety`` along the geodesic start → target (p linear, R along exp).
+
+    Checked points are at most ``spacing`` apart in ‖(δp, ℓ_c δθ)‖ (ends included; at most
+    ``SEGMENT_MAX_POINTS`` intervals). A point whose strokes leave the limits less the margin (or, with ``box``,
+    that leaves the sampling box) makes the segment −1. Stops early once below ``stop_below``.
     """
-    m = int(c[C_N])
     direction, point = w[W_SEG_D], w[W_SEG]
     _difference(c, target, start, direction)
-    count = int(min(max(math.ceil(_metric(c, direction) / c[C_SPACING]), 1), SEGMENT_MAX_POINTS))
-    lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
+    count = int(min(max(math.ceil(_metric(c, direction) / spacing), 1), SEGMENT_MAX_POINTS))
     worst = np.inf
     for s in range(count + 1):
         _retract(c, start, direction, s / count, point)
-        inside = True
-        for j in range(m):
-            if not (c[C_SLOW + j] <= point[j] <= c[C_SHIGH + j]):
-                inside = False
-        _inverse_kinematics(c, point, w, strokes)
-        for j in range(m):
-            if not (lo <= strokes[j] <= hi):
-                inside = False
-        if not inside:
+        if box and not _in_box(c, point):
             return -1.0
-        worst = min(worst, _safety(c, strokes, w))
+        safety = _pose_safety(c, point, w, strokes)
+        if safety < 0.0:
+            return -1.0
+        worst = min(worst, safety)
         if worst < stop_below:
             return worst
     return worst
@@ -1650,18 +1696,18 @@ def _sample_reach_one(c, fn, st, hard, min_distance, w, strokes, start, target, 
         if not _metric(c, step) >= min_distance:
             continue
         if not hard:
-            if _segment_min_k(c, start, target, w, strokes, safe) >= safe:
+            if _segment_min_k(c, start, target, w, strokes, safe, c[C_SPACING], True) >= safe:
                 return True
         elif band:
-            if _segment_min_k(c, start, target, w, strokes, floor) >= floor:
+            if _segment_min_k(c, start, target, w, strokes, floor, c[C_SPACING], True) >= floor:
                 return True
-        elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf) < safe:
+        elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf, c[C_SPACING], True) < safe:
             for _ in range(WAYPOINT_TRIES):
                 if not _draw_safe(c, fn, st, w, strokes, waypoint):
                     return False
                 if (
-                    _segment_min_k(c, start, waypoint, w, strokes, safe) >= safe
-                    and _segment_min_k(c, waypoint, target, w, strokes, safe) >= safe
+                    _segment_min_k(c, start, waypoint, w, strokes, safe, c[C_SPACING], True) >= safe
+                    and _segment_min_k(c, waypoint, target, w, strokes, safe, c[C_SPACING], True) >= safe
                 ):
                     return True
     return False
@@ -1753,6 +1799,7 @@ def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_p
     (the start at the first vertex) and the heading θ_1 = ψ uniform in [0, 2π) (see ``_reference_at``).
     """
     m = int(c[C_N])
+    safe = c[C_SAFE]
     path = c[C_PATH] != 0.0
     shared = streams.shape[0] == 1
     w = _work()
@@ -1776,7 +1823,7 @@ def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_p
             ok = True
             for step in range(n_check + 1):
                 _reference_at(c, _TWO_PI * step / n_check, o_center, o_amplitude, o_phase, i, point, rate)
-                if step > 0 and _segment_min_k(c, previous, point, w, strokes, c[C_SAFE]) < c[C_SAFE]:
+                if step > 0 and _segment_min_k(c, previous, point, w, strokes, safe, c[C_SPACING], True) < safe:
                     ok = False
                     break
                 for j in range(m):
@@ -1816,16 +1863,63 @@ def safe_batch(c, x):
 
 
 @_jit
-def _segment_loop(c, start, target, out):
+def _segment_loop(c, start, target, spacing, box, out):
     w = _work()
     strokes = np.empty(6)
     for i in range(start.shape[0]):
-        out[i] = _segment_min_k(c, start[i], target[i], w, strokes, -np.inf)
+        out[i] = _segment_min_k(c, start[i], target[i], w, strokes, -np.inf, spacing, box)
     return out
 
 
 def segment_batch(c, start, target):
-    """Smallest k along each geodesic start → target (−1 if it leaves the safe box or stroke limits), shape (N,)."""
+    """Smallest safety along each geodesic start → target as the samplers check it, shape (N,).
+
+    Points ``segment_spacing`` apart; −1 if one leaves the sampling box or the stroke limits less the margin.
+    """
     out = np.empty(start.shape[0])
-    _segment_loop(c, start, target, out)
+    _segment_loop(c, start, target, c[C_SPACING], True, out)
+    return out
+
+
+@_jit
+def _safety_loop(c, x, o_safety, o_sign):
+    w = _work()
+    strokes = np.empty(6)
+    m = int(c[C_N])
+    for i in range(x.shape[0]):
+        o_safety[i] = _pose_safety(c, x[i], w, strokes)
+        det = _solve(w, m, W_A, w[W_RHS], w[W_SOL])
+        o_sign[i] = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
+
+
+def safety_batch(c, x):
+    """The certificate at N poses (N, m), ignoring the sampling box: (safety, sign(det J_x)), each shape (N,).
+
+    Safety is ``_pose_safety``: k (with cranks and sliders min(k, k_I · k_safe / k_I,safe)), or −1 where an
+    actuator leaves its limits less the margin; a pose is safe when it is ≥ safe_threshold. The sign is 0 where
+    the inverse kinematics has no solution.
+    """
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    o_safety, o_sign = np.empty(x.shape[0]), np.empty(x.shape[0])
+    _safety_loop(c, x, o_safety, o_sign)
+    return o_safety, o_sign
+
+
+def segment_min_safety_batch(c, start, target, spacing):
+    """Smallest safety (``safety_batch``) along each geodesic start → target, ignoring the sampling box, shape (M,).
+
+    Args:
+        c: Packed constants (``pack_family`` or ``pack_certificate``).
+        start: Poses, shape (M, m).
+        target: Poses, shape (M, m).
+        spacing: Largest gap between checked points (ends included) in ‖(δp, ℓ_c δθ)‖ [m].
+
+    Returns:
+        The smallest safety at the checked points of each segment; −1 where one leaves the stroke limits less
+        the margin.
+    """
+    start = np.ascontiguousarray(start, dtype=np.float64)
+    target = np.ascontiguousarray(target, dtype=np.float64)
+    out = np.empty(start.shape[0])
+    _segment_loop(c, start, target, float(spacing), False, out)
     return out

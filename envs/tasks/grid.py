@@ -2,11 +2,12 @@
 
 A pose is *safe* when every actuator coordinate lies inside its limits with a margin and the homogeneous
 inverse condition number k is at least the safe threshold (for cranks and sliders, the actuator condition
-number k_I also at least its own: safety = min(k, k_I · k_safe / k_I,safe) ≥ k_safe). The safe set is sampled
-on a regular grid over the pose bounds; face-adjacent safe nodes are joined, and the connected components of
-that graph are the regions within which a start and a target may be paired (``task_region="grid"`` of the
-family environments): every component has a single sign of det J_x (one working mode), and neighbouring nodes
-lie a fraction of a cell apart, so a path along safe nodes never meets a singularity.
+number k_I also at least its own: safety = min(k, k_I · k_safe / k_I,safe) ≥ k_safe): the family's one
+certificate, ``envs.kernels.generic.safety_batch``, which the task samplers and the planner use too. The safe
+set is sampled on a regular grid over the pose bounds (not the sampling box); face-adjacent safe nodes are joined,
+and the connected components of that graph are the regions within which a start and a target may be paired
+(``task_region="grid"`` of the family environments): every component has a single sign of det J_x (one working
+mode), and neighbouring nodes lie a fraction of a cell apart, so a path along safe nodes never meets a singularity.
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from envs.kernels import generic as fk
 from envs.tasks.grid_kernels import pack_workspace
 from kinematics import DistanceConstraintMechanism
-from kinematics.linalg import determinant
 
 __all__ = ["WorkspaceMap", "WorkspaceSpec", "certify_workspace"]
 
@@ -51,6 +52,13 @@ class WorkspaceSpec:
     cell: tuple[float, float, float] = (0.025, 0.025, 0.05)
     min_component_fraction: float = 0.02
 
+    @functools.cached_property
+    def constants(self) -> np.ndarray:
+        """The certificate's packed constants (``envs.kernels.generic.pack_certificate``), read-only."""
+        return fk.pack_certificate(
+            self.robot, self.stroke_limits, self.stroke_margin, self.safe_threshold, self.actuator_safe_threshold
+        )
+
 
 @dataclass(frozen=True)
 class WorkspaceMap:
@@ -59,9 +67,9 @@ class WorkspaceMap:
     Attributes:
         spec: What it was computed from.
         axes: Grid coordinates along each pose coordinate; shapes (n_x,), (n_y,), (n_φ,).
-        inverse_condition: The safety measure at every node (k; for cranks and sliders min(k, k_I k_safe /
-            k_I,safe)), shape (n_x, n_y, n_φ).
-        reachable: Strokes within limits (with margin) at every node, shape (n_x, n_y, n_φ).
+        safety: The certificate at every node (``envs.kernels.generic.safety_batch``: k, for cranks and sliders
+            min(k, k_I k_safe / k_I,safe); −1 where a stroke leaves its limits less the margin), shape
+            (n_x, n_y, n_φ).
         labels: Component id of every safe node (0 for unsafe ones), shape (n_x, n_y, n_φ).
         det_sign: sign(det J_x) at every node, shape (n_x, n_y, n_φ).
         component_ids: The ids of the components large enough to sample from, shape (c,).
@@ -70,8 +78,7 @@ class WorkspaceMap:
 
     spec: WorkspaceSpec
     axes: tuple[np.ndarray, np.ndarray, np.ndarray]
-    inverse_condition: np.ndarray
-    reachable: np.ndarray
+    safety: np.ndarray
     labels: np.ndarray
     det_sign: np.ndarray
     component_ids: np.ndarray
@@ -135,29 +142,17 @@ def certify_workspace(spec: WorkspaceSpec) -> WorkspaceMap:
         ValueError: If no safe region is large enough to sample starts and targets from.
     """
     robot = spec.robot
+    if robot.n_pose != 3:
+        raise ValueError(f"a certified grid needs a robot with 3 pose coordinates, got {robot.n_pose}")
     axes = tuple(
         np.linspace(lo, hi, int(round((hi - lo) / step)) + 1)
         for lo, hi, step in zip(spec.pose_low, spec.pose_high, spec.cell)
     )
     nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
-    if robot.n_pose != 3:
-        raise ValueError(f"a certified grid needs a robot with 3 pose coordinates, got {robot.n_pose}")
-    q = robot.inverse_kinematics(nodes, validate=False)
-    lo, hi = spec.stroke_limits
-    with np.errstate(invalid="ignore"):  # NaN where a crank or slider cannot reach: never reachable
-        reachable = (q.min(axis=-1) >= lo + spec.stroke_margin) & (q.max(axis=-1) <= hi - spec.stroke_margin)
-    legs = all(kind == "leg" for kind in robot.actuator_kinds)
-    # A zero-length leg (Type I) or an unreachable crank is never safe; keep J_q regular and finite there.
-    q_safe = (
-        np.maximum(q, 1e-9) if legs else np.where(reachable[..., None], q, robot.inverse_kinematics(robot.home_pose()))
-    )
-    inverse_condition = robot.inverse_condition_number(q_safe, nodes, validate=False)
-    if not legs:
-        k_I = robot.actuator_condition_number(q_safe, nodes, validate=False)
-        inverse_condition = np.minimum(inverse_condition, k_I * spec.safe_threshold / spec.actuator_safe_threshold)
-    _, J_x = robot.jacobians(q_safe, nodes, validate=False)
-    det_sign = np.sign(determinant(J_x)).astype(np.int8)
-    safe = reachable & (inverse_condition >= spec.safe_threshold)
+    safety, sign = fk.safety_batch(spec.constants, nodes.reshape(-1, 3))
+    safety = safety.reshape(nodes.shape[:-1])
+    det_sign = sign.reshape(nodes.shape[:-1]).astype(np.int8)
+    safe = safety >= spec.safe_threshold
     labels, count = ndimage.label(safe)  # face adjacency (6-connectivity)
     sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]
     keep = np.flatnonzero(sizes >= spec.min_component_fraction * max(int(safe.sum()), 1)) + 1
@@ -167,13 +162,12 @@ def certify_workspace(spec: WorkspaceSpec) -> WorkspaceMap:
             f"{spec.stroke_limits} and an inverse condition number ≥ {spec.safe_threshold}"
         )
     weights = sizes[keep - 1] / sizes[keep - 1].sum()
-    for arr in (inverse_condition, reachable, labels, det_sign, keep, weights, *axes):
+    for arr in (safety, labels, det_sign, keep, weights, *axes):
         arr.setflags(write=False)
     return WorkspaceMap(
         spec=spec,
         axes=axes,
-        inverse_condition=inverse_condition,
-        reachable=reachable,
+        safety=safety,
         labels=labels,
         det_sign=det_sign,
         component_ids=keep,

@@ -114,7 +114,7 @@ def best_node(workspace: WorkspaceMap, mask: np.ndarray) -> np.ndarray:
     """Pose of the best-conditioned grid node among ``mask`` (flat boolean over the grid), shape (3,)."""
     candidates = np.flatnonzero(mask)
     assert candidates.size, "no grid node satisfies the mask"
-    best = candidates[np.argmax(workspace.inverse_condition.ravel()[candidates])]
+    best = candidates[np.argmax(workspace.safety.ravel()[candidates])]
     return workspace.nodes.reshape(-1, 3)[best].copy()
 
 
@@ -136,7 +136,7 @@ def component_node(
         box = (np.asarray(spec.pose_low) + margin, np.asarray(spec.pose_high) - margin)
     inside = np.all((poses >= np.asarray(box[0])) & (poses <= np.asarray(box[1])), axis=1)
     flat, poses = flat[inside], poses[inside]
-    order = np.argsort(-workspace.inverse_condition.ravel()[flat], kind="stable")
+    order = np.argsort(-workspace.safety.ravel()[flat], kind="stable")
     return poses[order[rank]].copy()
 
 

@@ -42,7 +42,7 @@ def component_node(workspace: WorkspaceMap, params, component: int, rank: int = 
     poses = workspace.nodes.reshape(-1, 3)[flat]
     inside = fk.safe_batch(params.packed, np.ascontiguousarray(poses))
     flat, poses = flat[inside], poses[inside]
-    order = np.argsort(-workspace.inverse_condition.ravel()[flat], kind="stable")
+    order = np.argsort(-workspace.safety.ravel()[flat], kind="stable")
     return poses[order[rank]].copy()
 
 
