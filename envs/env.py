@@ -405,7 +405,15 @@ class FamilyReachEnv(FamilyEnvBase):
                 what = "hard" if kind else "standard"
                 if start is not None or target is not None:
                     raise ValueError(f"no {what} task exists for the given pose")
-                raise RuntimeError(f"no certified {what} task found in the task box after {fk.SAMPLER_TRIES} tries")
+                hint = (
+                    f" (hard_kind={params.hard_kind!r}: this robot's task box may hold no such pair; try another "
+                    "hard_kind or a wider sample_low / sample_high)"
+                    if kind
+                    else ""
+                )
+                raise RuntimeError(
+                    f"no certified {what} task found in the task box after {fk.SAMPLER_TRIES} tries{hint}"
+                )
             starts[rows], targets[rows], waypoints[rows] = found
         self.last_waypoints = waypoints
         return starts, FamilyReference(targets, np.zeros((n, m)), np.zeros((n, m)))
