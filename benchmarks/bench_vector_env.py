@@ -44,22 +44,35 @@ TARGET_RATE_AT_16384 = 5_000_000.0
 class SteppedVectorEnv:
     """A vector env made and reset once, with pre-generated actions, stepped ``steps`` at a time."""
 
-    def __init__(self, env_id: str, mode: str, n: int, steps: int, rounds: int, seed: int) -> None:
-        """Make, reset and warm up the env and draw all its actions (setup stays out of the timings)."""
+    def __init__(
+        self, env_id: str, mode: str, n: int, steps: int, rounds: int, seed: int, actions: str = "fresh"
+    ) -> None:
+        """Make, reset and warm up the env and draw all its actions (setup stays out of the timings).
+
+        ``actions``: "fresh" (uniform random actions drawn anew every step) or "constant" (one uniform random
+        action per robot, kept for the whole run: a robot driving one way, as a policy heading for its target
+        does, ends its episodes more often).
+        """
+        if actions not in ("fresh", "constant"):
+            raise ValueError(f"actions must be 'fresh' or 'constant', got {actions!r}")
         self.mode, self.n, self.steps = mode, n, steps
         self.env = gym.make_vec(env_id, num_envs=n, vectorization_mode=mode)
         total = WARM_UP_STEPS + steps * rounds
         rng = np.random.default_rng(seed)
         shape = (total, n, *self.env.single_action_space.shape)
-        self.actions = rng.uniform(-1.0, 1.0, size=shape).astype(np.float32)
+        if actions == "fresh":
+            self.actions = rng.uniform(-1.0, 1.0, size=shape).astype(np.float32)
+        else:
+            self.actions = np.broadcast_to(rng.uniform(-1.0, 1.0, size=shape[1:]).astype(np.float32), shape)
         self.cursor = 0
         self.ends = 0
+        self.starts = 0
         self.sampling_seconds = 0.0
         self.env.reset(seed=seed)
         if mode == "vector_entry_point":
             self._time_task_sampling()
         self.run(WARM_UP_STEPS)
-        self.ends, self.sampling_seconds = 0, 0.0
+        self.ends, self.starts, self.sampling_seconds = 0, 0, 0.0
 
     def _time_task_sampling(self) -> None:
         """Accumulate the time the native env spends starting new episodes (an instance-level wrapper)."""
@@ -71,6 +84,7 @@ class SteppedVectorEnv:
                 return inner(rows, options)
             finally:
                 self.sampling_seconds += time.perf_counter() - start
+                self.starts += len(rows)
 
         self.env._start_episodes = timed
 
