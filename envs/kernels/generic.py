@@ -17,6 +17,13 @@ Jacobi SVD for m = 6), accurate near singular matrices. A spatial
 pose stores the rotation vector r; every update of it goes through unit quaternions (R ← exp([δθ]×) R), so
 the integrator and Newton's method work on the rotation group, never on Euler angles.
 
+The kernels take their arrays in a few records (tuples of arrays, built by ``envs.physics``): ``c``, the robot's
+constants (``envs.kernels.layout``); ``state`` = (q, x, t, det_sign, residual); ``reference`` = (center,
+amplitude, phase, strokes); ``observation`` = (low, high, with_velocity), the observation's bounds; ``measured``
+= (q, x, t, k, k_I, residual) and ``outcome`` = (action, reason), what the evaluation reads; ``moved`` = (q, x, k,
+k_I, residual, action, q_rate, reason, jump), what the transition writes. The step's row paths (``_path``: planar
+legs, three actuators, work arrays) share one order, predict, correct, measure, terminate.
+
 Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
 chunk, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD behind their k runs
 on the whole block at once (vectorised across robots, ``envs.kernels.linalg.inverse_condition6_lanes``).
