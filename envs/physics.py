@@ -218,6 +218,11 @@ def check_state(params: FamilyParams, state: FamilyState) -> int:
     return n_rows
 
 
+def _motion(state: FamilyState) -> tuple[np.ndarray, ...]:
+    """The state arrays the transition kernels take: (q, x, t, det_sign, residual)."""
+    return state.q, state.x, state.t, state.det_sign, state.residual
+
+
 def initial_state(params: FamilyParams, start: np.ndarray, reference: FamilyReference) -> FamilyState:
     """State of N robots at rest at ``start`` (shape (N, m)), strokes from the inverse kinematics."""
     start = _rows(start, params.robot.n_pose, "start")
@@ -249,9 +254,7 @@ def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> 
     if not np.isfinite(action).all():
         rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
         raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}", rows)
-    q, x, k, k1, residual, a, q_rate, reason, jump = fk.transition_batch(
-        params.packed, state.q, state.x, state.det_sign, state.residual, action
-    )
+    q, x, k, k1, residual, a, q_rate, reason, jump = fk.transition_batch(params.packed, _motion(state), action)
     new = FamilyState(q, x, state.t + 1, state.det_sign, k, k1, residual, state.reference)
     return new, FamilyOutcome(a, q_rate, reason, jump)
 
@@ -278,24 +281,9 @@ def evaluate(
         raise ValueError(f"action and reason must have {n} rows, got shapes {action.shape} and {reason.shape}")
     low, high = observation_bounds(params, with_velocity)
     ref = with_strokes(params, state.reference)
-    return fk.evaluate_batch(
-        params.packed,
-        low,
-        high,
-        bool(with_velocity),
-        state.q,
-        state.x,
-        state.t,
-        state.inverse_condition,
-        state.actuator_condition,
-        state.residual,
-        ref.center,
-        ref.amplitude,
-        ref.phase,
-        ref.strokes,
-        action,
-        reason,
-    )
+    measured = (state.q, state.x, state.t, state.inverse_condition, state.actuator_condition, state.residual)
+    outcome = (action, reason)
+    return fk.evaluate_batch(params.packed, (low, high, bool(with_velocity)), measured, tuple(ref), outcome)
 
 
 def reward_terms(
@@ -384,23 +372,8 @@ def step(
         raise ValueError(f"out holds buffers of shape (N, m, D) = {out.shape}, the step needs N = {n}")
     ref = with_strokes(params, state.reference)
     low, high = observation_bounds(params, with_velocity)
-    bad = fk.step_batch(
-        params.packed,
-        low,
-        high,
-        bool(with_velocity),
-        state.q,
-        state.x,
-        state.t,
-        state.det_sign,
-        state.residual,
-        ref.center,
-        ref.amplitude,
-        ref.phase,
-        ref.strokes,
-        action,
-        out.arrays,
-    )
+    observation = (low, high, bool(with_velocity))
+    bad = fk.step_batch(params.packed, observation, _motion(state), tuple(ref), action, out.arrays)
     if bad:
         rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
         where = f" (row(s) {rows[:10].tolist()} of {n})" if n > 1 else ""

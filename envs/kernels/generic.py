@@ -17,6 +17,13 @@ Jacobi SVD for m = 6), accurate near singular matrices. A spatial
 pose stores the rotation vector r; every update of it goes through unit quaternions (R ← exp([δθ]×) R), so
 the integrator and Newton's method work on the rotation group, never on Euler angles.
 
+The kernels take their arrays in a few records (tuples of arrays, built by ``envs.physics``): ``c``, the robot's
+constants (``envs.kernels.layout``); ``state`` = (q, x, t, det_sign, residual); ``reference`` = (center,
+amplitude, phase, strokes); ``observation`` = (low, high, with_velocity), the observation's bounds; ``measured``
+= (q, x, t, k, k_I, residual) and ``outcome`` = (action, reason), what the evaluation reads; ``moved`` = (q, x, k,
+k_I, residual, action, q_rate, reason, jump), what the transition writes. The step's row paths (``_path``: planar
+legs, three actuators, work arrays) share one order, predict, correct, measure, terminate.
+
 Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
 chunk, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD behind their k runs
 on the whole block at once (vectorised across robots, ``envs.kernels.linalg.inverse_condition6_lanes``).
@@ -115,6 +122,22 @@ from envs.kernels.layout import (
     C_WP,
     C_WS,
     C_WS1,
+    E_ACTION,
+    E_ACTUATOR,
+    E_COST,
+    E_COST1,
+    E_FIXED,
+    E_K,
+    E_K1,
+    E_ORIENTATION_ERROR,
+    E_POSITION_ERROR,
+    E_RESIDUAL,
+    E_REWARD,
+    E_SINGULARITY,
+    E_SUCCESS,
+    E_TERMINATION,
+    E_TRACKING,
+    EVALUATION,
     PATH_VERTICES,
 )
 
@@ -163,13 +186,6 @@ W_CD = 52  # A_i′(q_i), rows 52..54
 W_CELL = 55  # ℓ_i(q_i)
 W_CSPEED = 56  # ‖(A_i′, ℓ_i′)‖
 W_SIZE = 57
-
-#: Rows of the evaluation that do not depend on m; the target, its velocity and the pose follow (m rows each).
-E_TRACKING, E_SINGULARITY, E_ACTION, E_TERMINATION, E_REWARD = 0, 1, 2, 3, 4
-E_POSITION_ERROR, E_ORIENTATION_ERROR, E_SUCCESS, E_COST, E_K, E_RESIDUAL = 5, 6, 7, 8, 9, 10
-E_ACTUATOR, E_K1 = 11, 12  # the Type I penalty and the actuator condition number (1 for legs)
-E_COST1 = 13  # the Type I cost: 1 while the actuator condition number is below its safe threshold
-E_FIXED = 14
 
 #: Robots per chunk of a batch: each chunk allocates its work arrays once (a multiple of ``LANES``).
 CHUNK = 64
@@ -292,25 +308,13 @@ def pack_family(params) -> np.ndarray:
 
 def evaluation_rows(m: int) -> dict[str, int | slice]:
     """Rows of the evaluation (``evaluate_batch``, ``step_batch``) for m pose coordinates; column i is robot i."""
-    return {
-        "reward_tracking": E_TRACKING,
-        "reward_singularity": E_SINGULARITY,
-        "reward_action": E_ACTION,
-        "reward_termination": E_TERMINATION,
-        "reward": E_REWARD,
-        "position_error": E_POSITION_ERROR,
-        "orientation_error": E_ORIENTATION_ERROR,
-        "is_success": E_SUCCESS,
-        "cost": E_COST,
-        "inverse_condition_number": E_K,
-        "constraint_residual": E_RESIDUAL,
-        "reward_actuator_singularity": E_ACTUATOR,
-        "actuator_condition_number": E_K1,
-        "cost_actuator_singularity": E_COST1,
-        "target": slice(E_FIXED, E_FIXED + m),
-        "target_velocity": slice(E_FIXED + m, E_FIXED + 2 * m),
-        "pose": slice(E_FIXED + 2 * m, E_FIXED + 3 * m),
-    }
+    rows: dict[str, int | slice] = {info: row for row, (_, info) in enumerate(EVALUATION)}
+    rows.update(
+        target=slice(E_FIXED, E_FIXED + m),
+        target_velocity=slice(E_FIXED + m, E_FIXED + 2 * m),
+        pose=slice(E_FIXED + 2 * m, E_FIXED + 3 * m),
+    )
+    return rows
 
 
 #: Width of the pose code and number of pose coordinates m of each pose space: (x, y, cos φ, sin φ) and
@@ -792,12 +796,14 @@ def allocate_lanes():
 
 
 @_jit_inline
-def _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump):
-    """Move spatial robot i through one control period: writes row i of o_q, o_x, o_res, o_a, o_qr, o_jump.
+def _advance_spatial(c, state, action, i, w, moved):
+    """Move robot i through one control period (predict, correct): its rows of ``moved`` but k, k_I, the reason.
 
     Returns (whether the correction failed, whether the pose left its bounds); the rows of A at the new pose
     are left in w.
     """
+    q, x, _, _, residual = state
+    o_q, o_x, _, _, o_res, o_a, o_qr, _, o_jump = moved
     m = int(c[C_N])
     dt = c[C_DT]
     lo, hi = c[C_LMIN], c[C_LMAX]
@@ -876,33 +882,45 @@ def _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr
     return failed, out
 
 
+#: Row paths of the step (``_path``): planar legs in scalars (``envs.kernels.planar``), three actuators of any
+#: kind in scalars (``envs.kernels.three``), any pose space over work arrays (here).
+PLANAR_LEGS, THREE, WORK_ARRAYS = 0, 1, 2
+
+
 @_jit_inline
-def _transition_block(
-    c, q, x, det_sign, residual, action, start, count, w, lanes, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump
-):
+def _path(c):
+    """The row path (``PLANAR_LEGS``, ``THREE`` or ``WORK_ARRAYS``) that steps the robot of ``c``."""
+    if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
+        return PLANAR_LEGS
+    if c[C_N] == 3.0 and c[C_SPATIAL] == 0.0:  # cranks or sliders, planar or translational
+        return THREE
+    return WORK_ARRAYS
+
+
+@_jit_inline
+def _transition_block(c, state, action, start, count, w, lanes, moved):
     """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
 
-    The algorithm of ``envs.family.transition``. A planar robot takes the scalar path of
-    ``envs.kernels.planar`` (its 3 × 3 algebra in registers). Spatial robots are moved one by one, then the
-    k of all of them comes from one ``inverse_condition6_lanes`` call over the block (vectorised across
-    robots, each robot's k bit for bit what it would be alone), then their termination reasons.
+    Every path runs the algorithm of ``envs.physics.transition`` in its order: predict, correct (the row path),
+    measure (k and k_I at the new pose), terminate (``planar.termination_reason``). Args as ``transition_batch``;
+    ``moved`` holds its outputs. Spatial robots in blocks are moved one by one, then the k of all of them comes
+    from one ``inverse_condition6_lanes`` call over the block (vectorised across robots, each robot's k bit for
+    bit what it would be alone), then their termination reasons.
     """
-    if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
+    path = _path(c)
+    if path == PLANAR_LEGS:
         for i in range(start, start + count):
-            planar.transition_row(
-                c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump
-            )
-            o_k1[i] = 1.0
+            planar.transition_row(c, state, action, i, moved)
         return
-    if c[C_N] == 3.0 and c[C_SPATIAL] == 0.0:  # cranks or sliders, planar or translational: in scalars
+    if path == THREE:
         for i in range(start, start + count):
-            three.transition_row(
-                c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump
-            )
+            three.transition_row(c, state, action, i, moved)
         return
+    det_sign = state[3]
+    o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
     if count == 1 or c[C_N] != 6.0:  # one robot (the single env; the plain Jacobi is cheaper) or m = 3
         for i in range(start, start + count):
-            failed, out = _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
+            failed, out = _advance_spatial(c, state, action, i, w, moved)
             k, sign = _singularity(c, o_q[i], w, W_A)
             k1 = _actuator_condition(c, w)
             o_k[i] = k
@@ -912,7 +930,7 @@ def _transition_block(
     H, lane = lanes
     for r in range(count):
         i = start + r
-        failed, out = _advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
+        failed, out = _advance_spatial(c, state, action, i, w, moved)
         lane[L_SIGN, r] = _homogeneous_lane(c, o_q[i], w, W_A, H, r)
         lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if out else 0.0)
         lane[L_K1, r] = _actuator_condition(c, w)
@@ -931,55 +949,31 @@ def _transition_block(
 
 
 @_jit
-def _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump):
+def _transition_serial(c, state, action, moved):
     w = _work()
     lanes = allocate_lanes()
-    n = q.shape[0]
+    n = action.shape[0]
     for start in range(0, n, LANES):
-        count = min(LANES, n - start)
-        _transition_block(
-            c,
-            q,
-            x,
-            det_sign,
-            residual,
-            action,
-            start,
-            count,
-            w,
-            lanes,
-            o_q,
-            o_x,
-            o_k,
-            o_k1,
-            o_res,
-            o_a,
-            o_qr,
-            o_reason,
-            o_jump,
-        )
+        _transition_block(c, state, action, start, min(LANES, n - start), w, lanes, moved)
 
 
-def transition_batch(c, q, x, det_sign, residual, action):
-    """Advance N robots by one control period (the algorithm of ``envs.family.transition``).
+def transition_batch(c, state, action):
+    """Advance N robots by one control period (the algorithm of ``envs.physics.transition``).
 
     Args:
         c: Packed constants (``pack_family``), shape (C_SIZE,).
-        q: Strokes [m], shape (N, n), float64.
-        x: Poses, shape (N, m), float64.
-        det_sign: Working mode sign(det J_x) of each episode, shape (N,).
-        residual: Constraint residual at (q, x) [m²], shape (N,).
+        state: (q, x, t, det_sign, residual): strokes [m] (N, n), poses (N, m), steps (N,) int (not read), the
+            working mode sign(det J_x) of each episode (N,), the constraint residual at (q, x) [m²] (N,).
         action: Normalised stroke rates, shape (N, n), finite.
 
     Returns:
         (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
     """
-    n, m = q.shape
-    o_q, o_x, o_a, o_qr = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
-    o_k, o_k1, o_res, o_jump = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    o_reason = np.empty(n, dtype=np.int64)
-    _transition_serial(c, q, x, det_sign, residual, action, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
-    return o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump
+    n, m = action.shape
+    moved = (np.empty((n, m)), np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n))
+    moved += (np.empty((n, m)), np.empty((n, m)), np.empty(n, dtype=np.int64), np.empty(n))
+    _transition_serial(c, state, action, moved)
+    return moved
 
 
 @_jit
@@ -1148,41 +1142,25 @@ def _encode_pose(c, x, o_obs, i, start, low, high):
 
 
 @_jit_inline
-def _evaluate_row(
-    c,
-    low,
-    high,
-    with_velocity,
-    q,
-    x,
-    t,
-    k,
-    k1,
-    residual,
-    center,
-    amplitude,
-    phase,
-    center_strokes,
-    action,
-    reason,
-    i,
-    w,
-    o_eval,
-    o_obs,
-):
-    """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.family.evaluate``).
+def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
+    """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.physics.evaluate``).
 
-    A planar robot's terms and observation are ``envs.kernels.planar``'s (those of the 3-RPR environments).
+    Args as ``evaluate_batch``; ``out`` is (evaluation, observations). A planar robot's terms and observation are
+    ``envs.kernels.planar``'s.
     """
+    low, high, with_velocity = observation
+    q, x, t, k, k1, residual = measured
+    center, amplitude, phase, center_strokes = reference
+    action, reason = outcome
+    o_eval, o_obs = out
     m = int(c[C_N])
     g, vel, diff = w[W_TGT], w[W_VEL], w[W_DIFF]
     _reference(c, t[i], center, amplitude, phase, i, g, vel)
     xi = x[i]
-    if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
-        a0, a1, a2 = action[i, 0], action[i, 1], action[i, 2]
-        tr, si, ac, te, ep, eo = planar.reward_terms(
-            c, xi[0], xi[1], xi[2], g[0], g[1], g[2], k[i], a0, a1, a2, reason[i]
-        )
+    if _path(c) == PLANAR_LEGS:
+        pose, target = (xi[0], xi[1], xi[2]), (g[0], g[1], g[2])
+        applied = (action[i, 0], action[i, 1], action[i, 2])
+        tr, si, ac, te, ep, eo = planar.reward_terms(c, pose, target, k[i], applied, reason[i])
         o_eval[E_TRACKING, i], o_eval[E_SINGULARITY, i], o_eval[E_ACTION, i], o_eval[E_TERMINATION, i] = tr, si, ac, te
         o_eval[E_REWARD, i] = tr + si + ac + te
         o_eval[E_ACTUATOR, i] = 0.0  # legs: no Type I singularity
@@ -1198,7 +1176,7 @@ def _evaluate_row(
             o_eval[E_FIXED + j, i] = g[j]
             o_eval[E_FIXED + 3 + j, i] = vel[j]
             o_eval[E_FIXED + 6 + j, i] = xi[j]
-        planar.observation_row(c, low, high, with_velocity, q, x, k, g[0], g[1], g[2], vel[0], vel[1], vel[2], i, o_obs)
+        planar.observation_row(c, observation, q, x, k, target, (vel[0], vel[1], vel[2]), i, o_obs)
         return
     position_error, orientation_error = _errors(c, xi, g, diff)
     ki = k[i]
@@ -1268,177 +1246,51 @@ def _evaluate_row(
 
 
 @_jit
-def _evaluate_serial(
-    c,
-    low,
-    high,
-    with_velocity,
-    q,
-    x,
-    t,
-    k,
-    k1,
-    residual,
-    center,
-    amplitude,
-    phase,
-    center_strokes,
-    action,
-    reason,
-    o_eval,
-    o_obs,
-):
+def _evaluate_serial(c, observation, measured, reference, outcome, out):
     w = _work()
-    for i in range(q.shape[0]):
-        _evaluate_row(
-            c,
-            low,
-            high,
-            with_velocity,
-            q,
-            x,
-            t,
-            k,
-            k1,
-            residual,
-            center,
-            amplitude,
-            phase,
-            center_strokes,
-            action,
-            reason,
-            i,
-            w,
-            o_eval,
-            o_obs,
-        )
+    for i in range(outcome[0].shape[0]):
+        _evaluate_row(c, observation, measured, reference, outcome, i, w, out)
 
 
-def evaluate_batch(
-    c, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, center_strokes, action, reason
-):
+def evaluate_batch(c, observation, measured, reference, outcome):
     """Evaluation rows (``evaluation_rows``) and observations of N robots.
 
     Args:
         c: Packed constants.
-        low: Observation lower bounds, float32, shape (D,).
-        high: Observation upper bounds, float32, shape (D,).
-        with_velocity: Whether the observation ends with the target velocity.
-        q: Strokes [m], shape (N, n).
-        x: Poses, shape (N, m).
-        t: Step index, shape (N,) (int).
-        k: Inverse condition numbers, shape (N,).
-        k1: Actuator condition numbers (Type I measure, 1 for legs), shape (N,).
-        residual: Constraint residuals [m²], shape (N,).
-        center: Reference centres, shape (N, m).
-        amplitude: Reference amplitudes, shape (N, m).
-        phase: Reference phases [rad], shape (N, m).
-        center_strokes: Actuator coordinates of the centres (``strokes_batch``), shape (N, n); read for the
+        observation: (low, high, with_velocity): the observation's float32 bounds, shape (D,) each, and whether it
+            ends with the target velocity.
+        measured: (q, x, t, k, k_I, residual): strokes [m] (N, n), poses (N, m), step indices (N,) int, inverse
+            condition numbers (N,), actuator condition numbers (Type I measure, 1 for legs) (N,), constraint
+            residuals [m²] (N,).
+        reference: (center, amplitude, phase, strokes) of the targets (``envs.physics.FamilyReference``), each
+            (N, m); strokes, the actuator coordinates of the centres (``strokes_batch``, (N, n)), are read for the
             robots whose target is fixed (a = 0, C_PATH = 0) instead of solving the inverse kinematics again.
-        action: Applied actions, shape (N, n).
-        reason: Termination reason codes, shape (N,).
+        outcome: (action, reason): applied actions (N, n) and termination reason codes (N,).
 
     Returns:
         (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
     """
-    n, m = x.shape
-    o_eval = np.empty((E_FIXED + 3 * m, n))
-    o_obs = np.empty((n, low.shape[0]), dtype=np.float32)
-    _evaluate_serial(
-        c,
-        low,
-        high,
-        with_velocity,
-        q,
-        x,
-        t,
-        k,
-        k1,
-        residual,
-        center,
-        amplitude,
-        phase,
-        center_strokes,
-        action,
-        reason,
-        o_eval,
-        o_obs,
-    )
-    return o_eval, o_obs
+    n, m = measured[1].shape
+    out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
+    _evaluate_serial(c, observation, measured, reference, outcome, out)
+    return out
 
 
 # -- the fused step: transition then evaluation, on every core for large batches ------------------------
 
 
 @_jit_inline
-def _step_block(
-    c,
-    low,
-    high,
-    with_velocity,
-    q,
-    x,
-    t,
-    det_sign,
-    residual,
-    center,
-    amplitude,
-    phase,
-    center_strokes,
-    action,
-    start,
-    count,
-    w,
-    lanes,
-    out,
-):
+def _step_block(c, observation, state, reference, action, start, count, w, lanes, out):
     """Transition then evaluation of robots start .. start + count − 1 (count ≤ ``LANES``) into ``out``."""
     o_q, o_x, o_t, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
     _transition_block(
-        c,
-        q,
-        x,
-        det_sign,
-        residual,
-        action,
-        start,
-        count,
-        w,
-        lanes,
-        o_q,
-        o_x,
-        o_k,
-        o_k1,
-        o_res,
-        o_a,
-        o_qr,
-        o_reason,
-        o_jump,
+        c, state, action, start, count, w, lanes, (o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
     )
+    t = state[2]
+    measured, outcome = (o_q, o_x, o_t, o_k, o_k1, o_res), (o_a, o_reason)
     for i in range(start, start + count):
         o_t[i] = t[i] + 1
-        _evaluate_row(
-            c,
-            low,
-            high,
-            with_velocity,
-            o_q,
-            o_x,
-            o_t,
-            o_k,
-            o_k1,
-            o_res,
-            center,
-            amplitude,
-            phase,
-            center_strokes,
-            o_a,
-            o_reason,
-            i,
-            w,
-            o_eval,
-            o_obs,
-        )
+        _evaluate_row(c, observation, measured, reference, outcome, i, w, (o_eval, o_obs))
 
 
 @_jit
@@ -1450,93 +1302,41 @@ def _finite_actions(action):
     return True
 
 
-@_jit_inline
-def _step_range(
-    c,
-    low,
-    high,
-    with_velocity,
-    q,
-    x,
-    t,
-    det_sign,
-    residual,
-    center,
-    amplitude,
-    phase,
-    center_strokes,
-    action,
-    span,
-    out,
-):
-    """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own."""
+@_jit
+def _step_range(c, observation, state, reference, action, span, out):
+    """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
+
+    Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's parfor analysis
+    never sees the tuples it unpacks.
+    """
     w = _work()
     lanes = allocate_lanes()
     begin, end = span
     for start in range(begin, end, LANES):
-        count = min(LANES, end - start)
-        _step_block(
-            c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action,
-            start, count, w, lanes, out,
-        )  # fmt: skip
+        _step_block(c, observation, state, reference, action, start, min(LANES, end - start), w, lanes, out)
 
 
 @_jit
 def _step_serial(
-    c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action, out
+    c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, action, out
 ):
+    # Flat, unlike the rest: the single env calls it at every step, and Numba types an array inside a tuple
+    # argument slower than a bare one (about 0.2 µs per array per call).
     if not _finite_actions(action):
         return True
-    span = (0, q.shape[0])
-    _step_range(
-        c,
-        low,
-        high,
-        with_velocity,
-        q,
-        x,
-        t,
-        det_sign,
-        residual,
-        center,
-        amplitude,
-        phase,
-        center_strokes,
-        action,
-        span,
-        out,
-    )
+    state, reference = (q, x, t, det_sign, residual), (center, amplitude, phase, strokes)
+    _step_range(c, (low, high, with_velocity), state, reference, action, (0, q.shape[0]), out)
     return False
 
 
 @_jit_parallel
-def _step_parallel(
-    c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action, out
-):
+def _step_parallel(c, observation, state, reference, action, out):
     if not _finite_actions(action):
         return True
-    n = q.shape[0]
+    n = action.shape[0]
     chunks = (n + CHUNK - 1) // CHUNK
     for chunk in numba.prange(chunks):
-        span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
-        _step_range(
-            c,
-            low,
-            high,
-            with_velocity,
-            q,
-            x,
-            t,
-            det_sign,
-            residual,
-            center,
-            amplitude,
-            phase,
-            center_strokes,
-            action,
-            span,
-            out,
-        )
+        _step_range(c, observation, state, reference, action, (chunk * CHUNK, min(n, (chunk + 1) * CHUNK)), out)
     return False
 
 
@@ -1561,14 +1361,20 @@ def allocate_step(n, m, obs_dim):
     )
 
 
-def step_batch(
-    c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action, out
-):
-    """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite."""
-    kernel = _step_parallel if q.shape[0] >= PARALLEL_MIN_BATCH else _step_serial
-    return kernel(
-        c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, center_strokes, action, out
-    )
+def step_batch(c, observation, state, reference, action, out):
+    """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite.
+
+    Args:
+        c: Packed constants.
+        observation: (low, high, with_velocity), as ``evaluate_batch``.
+        state: (q, x, t, det_sign, residual), as ``transition_batch``.
+        reference: (center, amplitude, phase, strokes), as ``evaluate_batch``.
+        action: Normalised stroke rates, shape (N, n).
+        out: The arrays of ``allocate_step``.
+    """
+    if action.shape[0] >= PARALLEL_MIN_BATCH:
+        return _step_parallel(c, observation, state, reference, action, out)
+    return _step_serial(c, *observation, *state, *reference, action, out)
 
 
 # -- the safe set and the task sampler ------------------------------------------------------------------

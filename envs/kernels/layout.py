@@ -1,66 +1,107 @@
 """Offsets into the packed constants of the distance-constraint family (``envs.kernels.generic.pack_family``).
 
-Shared by the family's kernels: ``envs.kernels.generic`` (any pose space over work arrays), ``envs.kernels.planar``
-(the planar pose space in scalars), ``envs.kernels.three`` (three actuators in registers) and
-``envs.tasks.grid_kernels`` (tasks on a certified grid).
+``LAYOUT`` is the one table: (name, entries, meaning) in order; each name's offset ``C_<name>`` is the sum of the
+entries before it, and ``C_SIZE`` is the total. The ``C_*`` names are module-level integers generated from the
+table, so the compiled kernels read them as constants. Shared by ``envs.kernels.generic`` (any pose space over
+work arrays), ``envs.kernels.planar`` (the planar pose space in scalars), ``envs.kernels.three`` (three actuators
+in registers) and ``envs.tasks.grid_kernels`` (tasks on a certified grid).
 """
 
 from __future__ import annotations
 
-# -- offsets into the packed constants (fixed, sized for up to 6 legs) --------------------------------
-C_N = 0  # number of legs n (= pose coordinates m)
-C_SPATIAL = 1  # 1.0 for the spatial pose space, 0.0 for planar
-C_LC = 2  # characteristic length ℓ_c [m]
-C_LMIN = 3
-C_LMAX = 4
-C_DT = 5
-C_RATE = 6
-C_RK4 = 7
-C_SAFE = 8
-C_HARD = 9
-C_WP = 10
-C_WO = 11
-C_WS = 12
-C_WA = 13
-C_PENALTY = 14
-C_SUCC_P = 15
-C_SUCC_O = 16
-C_NEWTON_TOL = 17
-C_NEWTON_IT = 18
-C_JUMP = 19
-C_MAX_SUBSTEP = 20
-C_MAX_SUBSTEPS = 21
-C_OMEGA = 22  # angular frequency of the Track references [rad/s]
-C_MARGIN = 23  # stroke margin of the safe set [m]
-C_SPACING = 24  # largest distance between checked points of a certified segment [m]
-C_LOW = 25  # pose bounds, 6 entries
-C_HIGH = 31
-C_SCALE = 37  # pose_scale of the homogeneous Jacobian, 6 entries
-C_B = 43  # base anchors B_i (x, y, z) [m], 6 × 3 entries
-C_P = 61  # platform points P_i (x, y, z) in {P} [m], 6 × 3 entries
-C_SLOW = 79  # box tasks are drawn from, 6 entries
-C_SHIGH = 85
-C_HARD_KIND = 91  # 0: the straight path dips below k_safe and a detour is certified; 1: ill-conditioned targets
-# -- the actuation, leg by leg: A_i(q) = B_i + a_i (cos q u_i + sin q v_i) + q e_i, ℓ_i(q) = λ_i q + l_i ---------
-C_LEGS = 92  # 1.0 when every actuator is an extensible leg (A_i = B_i, ℓ_i = q_i): the kernels' fast path
-C_TRANSLATIONAL = 93  # 1.0 for the translational pose space (x = p, R = I)
-C_A = 94  # crank radii a_i [m], 6 entries (0 for other kinds)
-C_U = 100  # crank axes u_i, 6 × 3 entries
-C_V = 118  # crank axes v_i, 6 × 3 entries
-C_E = 136  # rail directions e_i, 6 × 3 entries
-C_LAM = 154  # λ_i: 1 for a leg, 0 otherwise, 6 entries
-C_ELL = 160  # link lengths l_i [m] of cranks and sliders, 6 entries
-C_BRANCH = 166  # inverse-kinematics branch (±1) of each crank and slider, 6 entries
-C_HARD1 = 172  # actuator condition number (Type I measure) below which the episode terminates
-C_SAFE1 = 173  # actuator condition number below which the Type I penalty and the cost start
-C_WS1 = 174  # weight of the Type I penalty
-# -- the Track reference's path: sinusoids (C_PATH = 0) or a closed polyline of up to 8 vertices ----------------
-C_PATH = 175  # number of vertices K of the path (0: x*_j = c_j + a_j sin(ω t + θ_j))
-C_PATH_W = 176  # vertices W_k, normalised (x*_j = c_j + a_j W_kj at vertex k), 8 × 6 entries
-C_PATH_T = 224  # the fraction of the period at which segment k → k + 1 (mod K) ends, 8 entries (the last is 1)
-C_SIZE = 232
+MAX_LEGS = 6  # most actuators (= pose coordinates) a robot of the family has
 PATH_VERTICES = 8  # most vertices of a polyline path
+_ONE, _POSE, _POINTS = 1, MAX_LEGS, 3 * MAX_LEGS  # a scalar, one value per pose coordinate or actuator, n points
 
-# Termination reason codes (the order of ``envs.family.TERMINATION_REASONS``).
+#: (name, entries, meaning) of every block of the packed constants, in order.
+LAYOUT: tuple[tuple[str, int, str], ...] = (
+    ("N", _ONE, "number of actuators n (= pose coordinates m)"),
+    ("SPATIAL", _ONE, "1.0 for the spatial pose space, 0.0 otherwise"),
+    ("LC", _ONE, "characteristic length ℓ_c [m]"),
+    ("LMIN", _ONE, "lower stroke limit"),
+    ("LMAX", _ONE, "upper stroke limit"),
+    ("DT", _ONE, "control period [s]"),
+    ("RATE", _ONE, "largest stroke rate"),
+    ("RK4", _ONE, "1.0 for the RK4 predictor, 0.0 for Euler"),
+    ("SAFE", _ONE, "k below which the singularity penalty and the cost start"),
+    ("HARD", _ONE, "k below which the episode terminates"),
+    ("WP", _ONE, "weight of the position error"),
+    ("WO", _ONE, "weight of the orientation error (times ℓ_c)"),
+    ("WS", _ONE, "weight of the singularity penalty"),
+    ("WA", _ONE, "weight of the action penalty"),
+    ("PENALTY", _ONE, "termination penalty"),
+    ("SUCC_P", _ONE, "position tolerance of success [m]"),
+    ("SUCC_O", _ONE, "orientation tolerance of success [rad]"),
+    ("NEWTON_TOL", _ONE, "tolerance of Newton's correction [m²]"),
+    ("NEWTON_IT", _ONE, "most iterations of Newton's correction"),
+    ("JUMP", _ONE, "largest correction before an assembly-mode change [m]"),
+    ("MAX_SUBSTEP", _ONE, "largest predicted motion of one substep [m]"),
+    ("MAX_SUBSTEPS", _ONE, "most substeps of one control period"),
+    ("OMEGA", _ONE, "angular frequency of the Track references [rad/s]"),
+    ("MARGIN", _ONE, "stroke margin of the safe set [m]"),
+    ("SPACING", _ONE, "largest distance between checked points of a certified segment [m]"),
+    ("LOW", _POSE, "lower pose bounds"),
+    ("HIGH", _POSE, "upper pose bounds"),
+    ("SCALE", _POSE, "pose_scale of the homogeneous Jacobian"),
+    ("B", _POINTS, "base anchors B_i (x, y, z) [m]"),
+    ("P", _POINTS, "platform points P_i (x, y, z) in {P} [m]"),
+    ("SLOW", _POSE, "lower corner of the box tasks are drawn from"),
+    ("SHIGH", _POSE, "upper corner of the box tasks are drawn from"),
+    ("HARD_KIND", _ONE, "0: the straight path dips below k_safe and a detour is certified; 1: ill-conditioned"),
+    # the actuation, leg by leg: A_i(q) = B_i + a_i (cos q u_i + sin q v_i) + q e_i, ℓ_i(q) = λ_i q + l_i
+    ("LEGS", _ONE, "1.0 when every actuator is an extensible leg (A_i = B_i, ℓ_i = q_i): the fast path"),
+    ("TRANSLATIONAL", _ONE, "1.0 for the translational pose space (x = p, R = I)"),
+    ("A", _POSE, "crank radii a_i [m] (0 for other kinds)"),
+    ("U", _POINTS, "crank axes u_i"),
+    ("V", _POINTS, "crank axes v_i"),
+    ("E", _POINTS, "rail directions e_i"),
+    ("LAM", _POSE, "λ_i: 1 for a leg, 0 otherwise"),
+    ("ELL", _POSE, "link lengths l_i [m] of cranks and sliders"),
+    ("BRANCH", _POSE, "inverse-kinematics branch (±1) of each crank and slider"),
+    ("HARD1", _ONE, "actuator condition number (Type I measure) below which the episode terminates"),
+    ("SAFE1", _ONE, "actuator condition number below which the Type I penalty and the cost start"),
+    ("WS1", _ONE, "weight of the Type I penalty"),
+    # the Track reference's path: sinusoids (C_PATH = 0) or a closed polyline of up to PATH_VERTICES vertices
+    ("PATH", _ONE, "number of vertices K of the path (0: x*_j = c_j + a_j sin(ω t + θ_j))"),
+    ("PATH_W", PATH_VERTICES * _POSE, "vertices W_k, normalised (x*_j = c_j + a_j W_kj at vertex k)"),
+    ("PATH_T", PATH_VERTICES, "fraction of the period at which segment k → k + 1 (mod K) ends (the last is 1)"),
+)
+
+
+def offsets(table: tuple[tuple[str, int, str], ...]) -> tuple[dict[str, int], int]:
+    """({"C_<name>": offset}, total size) of a layout table: each offset is the sum of the entries before it."""
+    out, start = {}, 0
+    for name, size, _ in table:
+        out["C_" + name] = start
+        start += size
+    return out, start
+
+
+OFFSETS, C_SIZE = offsets(LAYOUT)
+globals().update(OFFSETS)  # C_N, C_SPATIAL, …: the names the kernels import
+
+#: (name, info key) of the rows of the evaluation (``generic.evaluate_batch``) that do not depend on m, in order;
+#: row ``E_<name>`` holds the info key's value of every robot. The target, its velocity and the pose follow from
+#: row ``E_FIXED`` (m rows each).
+EVALUATION: tuple[tuple[str, str], ...] = (
+    ("TRACKING", "reward_tracking"),
+    ("SINGULARITY", "reward_singularity"),
+    ("ACTION", "reward_action"),
+    ("TERMINATION", "reward_termination"),
+    ("REWARD", "reward"),
+    ("POSITION_ERROR", "position_error"),
+    ("ORIENTATION_ERROR", "orientation_error"),
+    ("SUCCESS", "is_success"),
+    ("COST", "cost"),
+    ("K", "inverse_condition_number"),
+    ("RESIDUAL", "constraint_residual"),
+    ("ACTUATOR", "reward_actuator_singularity"),  # the Type I penalty
+    ("K1", "actuator_condition_number"),  # the Type I measure (1 for legs)
+    ("COST1", "cost_actuator_singularity"),  # 1 while the actuator condition number is below its safe threshold
+)
+E_FIXED = len(EVALUATION)
+globals().update({"E_" + name: row for row, (name, _) in enumerate(EVALUATION)})  # E_TRACKING, …
+
+# Termination reason codes (the order of ``envs.physics.TERMINATION_REASONS``).
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
 _ACTUATOR_SINGULAR = 6  # a Type I singularity (J_q singular): a crank's link in line with its arm

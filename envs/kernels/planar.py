@@ -247,8 +247,13 @@ def termination_reason(c, failed, jump, sign, mode, k, out, k1):
 
 
 @_jit_inline
-def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res, o_a, o_qr, o_reason, o_jump):
-    """Advance robot i by one control period (``generic.transition_batch``); writes row i of the outputs."""
+def transition_row(c, state, action, i, moved):
+    """Advance robot i by one control period (predict, correct, measure, terminate); writes its row of ``moved``.
+
+    ``state`` and ``moved`` as the input and the output of ``generic.transition_batch``.
+    """
+    q, x, _, det_sign, residual = state
+    o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump = moved
     dt = c[C_DT]
     lo, hi = c[C_LMIN], c[C_LMAX]
     lc = c[C_LC]
@@ -314,6 +319,7 @@ def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_res,
     o_q[i, 0], o_q[i, 1], o_q[i, 2] = kq0, kq1, kq2
     o_x[i, 0], o_x[i, 1], o_x[i, 2] = kx0, kx1, kx2
     o_k[i] = k_new
+    o_k1[i] = 1.0  # legs: no Type I singularity
     o_res[i] = res
     o_a[i, 0], o_a[i, 1], o_a[i, 2] = a0, a1, a2
     o_qr[i, 0], o_qr[i, 1], o_qr[i, 2] = r0, r1, r2
@@ -343,8 +349,14 @@ def is_success(c, position_error, orientation_error):
 
 
 @_jit_inline
-def reward_terms(c, x0, x1, x2, g0, g1, g2, k, a0, a1, a2, reason):
-    """(tracking, singularity, action, termination) reward terms and the two errors."""
+def reward_terms(c, pose, target, k, action, reason):
+    """(tracking, singularity, action, termination) reward terms and the two errors.
+
+    ``pose`` and ``target`` are (x, y, φ), ``action`` the three applied actions, each a tuple of floats.
+    """
+    x0, x1, x2 = pose
+    g0, g1, g2 = target
+    a0, a1, a2 = action
     ep, eo = errors(x0, x1, x2, g0, g1, g2)
     tracking = -(c[C_WP] * ep + c[C_WO] * c[C_LC] * eo)
     gap = max(c[C_SAFE] - k, 0.0) / c[C_SAFE]
@@ -361,11 +373,16 @@ def clip32(o_obs, i, j, value, low, high):
 
 
 @_jit_inline
-def observation_row(c, low, high, with_velocity, q, x, k, g0, g1, g2, v0, v1, v2, i, o_obs):
+def observation_row(c, observation, q, x, k, target, velocity, i, o_obs):
     """Row i of the observation, clipped to [low, high], float32.
 
-    The planar layout of ``envs.kernels.generic.observation_layout``.
+    The planar layout of ``envs.kernels.generic.observation_layout``. ``observation`` is (low, high,
+    with_velocity) (``generic.evaluate_batch``); ``target`` and ``velocity`` are the target's (x, y, φ) and its
+    rate, tuples of floats.
     """
+    low, high, with_velocity = observation
+    g0, g1, g2 = target
+    v0, v1, v2 = velocity
     x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
     lo, hi = c[C_LMIN], c[C_LMAX]
     span = hi - lo

@@ -224,8 +224,13 @@ def singularity(c, anc, a):
 
 
 @_jit
-def transition_row(c, q, x, det_sign, residual, action, i, o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump):
-    """Advance robot i by one control period (``generic.transition_batch``); writes row i of the outputs."""
+def transition_row(c, state, action, i, moved):
+    """Advance robot i by one control period (predict, correct, measure, terminate); writes its row of ``moved``.
+
+    ``state`` and ``moved`` as the input and the output of ``generic.transition_batch``.
+    """
+    q, x, _, det_sign, residual = state
+    o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump = moved
     translational = c[C_TRANSLATIONAL] != 0.0
     dt = c[C_DT]
     lo, hi = c[C_LMIN], c[C_LMAX]

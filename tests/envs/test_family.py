@@ -149,11 +149,11 @@ def test_parallel_step_equals_serial_step_bit_for_bit(hexapod):
     state = physics.initial_state(hexapod, start, reference)
     action = np.random.default_rng(1).uniform(-1, 1, size=(n, 6))
     low, high = physics.observation_bounds(hexapod, False)
-    args = (hexapod.packed, low, high, False, state.q, state.x, state.t, state.det_sign, state.residual)
-    ref = (*state.reference, action)
+    motion = (state.q, state.x, state.t, state.det_sign, state.residual)
+    grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 6, low.shape[0]) for _ in range(2)]
-    assert not fk._step_parallel(*args, *ref, outs[0])
-    assert not fk._step_serial(*args, *ref, outs[1])
+    assert not fk._step_parallel(hexapod.packed, *grouped, outs[0])
+    assert not fk._step_serial(hexapod.packed, low, high, False, *motion, *state.reference, action, outs[1])
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
 

@@ -117,11 +117,11 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
     state = physics.initial_state(params, start, reference)
     action = np.random.default_rng(1).uniform(-1, 1, size=(n, 3))
     low, high = physics.observation_bounds(params, False)
-    args = (params.packed, low, high, False, state.q, state.x, state.t, state.det_sign, state.residual)
-    ref = (*state.reference, action)
+    motion = (state.q, state.x, state.t, state.det_sign, state.residual)
+    grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 3, low.shape[0]) for _ in range(2)]
-    assert not fk._step_parallel(*args, *ref, outs[0])
-    assert not fk._step_serial(*args, *ref, outs[1])
+    assert not fk._step_parallel(params.packed, *grouped, outs[0])
+    assert not fk._step_serial(params.packed, low, high, False, *motion, *state.reference, action, outs[1])
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
 
@@ -146,13 +146,15 @@ def test_scalar_transition_equals_the_work_array_algorithm_bit_for_bit(env_id, i
     reasons = []
     for _ in range(40):
         action = rng.uniform(-1.5, 1.5, size=(n, 3))
-        new = fk.transition_batch(c, q, x, state.det_sign, residual, action)
+        motion = (q, x, state.t, state.det_sign, residual)
+        new = fk.transition_batch(c, motion, action)
         ref = [np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)]
         o_q, o_x, o_res, o_a, o_qr, o_jump = ref
         w = fk._work()
         k, k1 = np.empty(n), np.empty(n)
+        moved = (o_q, o_x, np.empty(n), np.empty(n), o_res, o_a, o_qr, np.empty(n, dtype=np.int64), o_jump)
         for i in range(n):
-            fk._advance_spatial(c, q, x, residual, action, i, w, o_q, o_x, o_res, o_a, o_qr, o_jump)
+            fk._advance_spatial(c, motion, action, i, w, moved)
             k[i] = fk._singularity(c, o_q[i], w, fk.W_A)[0]
             k1[i] = fk._actuator_condition(c, w)
         for got, want in zip(
