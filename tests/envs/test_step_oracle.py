@@ -291,7 +291,7 @@ def test_pose_bounds_on_both_sides(case):
     """A pose bound just inside the oracle's pose ends the episode "out_of_bounds" at that step; just outside, not."""
     entry = CASES[case][0]
     params = make(entry[0]).params
-    grid = not hasattr(params, "sample_low")  # the 3-RPR certifies a grid within its bounds: its task is given
+    grid = params.task_region == "grid"  # a grid is certified within the pose bounds: the task is given
     chosen: list[tuple[str, int]] = []
 
     def pick(start, outcomes):
@@ -319,7 +319,18 @@ def test_pose_bounds_on_both_sides(case):
         inside, outside = list(getattr(params, name)), list(getattr(params, name))
         inside[j] = float(outcomes[t].x[j] + sign * 1e-7)
         outside[j] = float(outcomes[t].x[j] - sign * 1e-7)
-        return (({name: tuple(inside)}, [""] * (t + 1)), ({name: tuple(outside)}, [""] * t + ["out_of_bounds"]))
+        box = {}
+        if grid:  # the sampling box must stay inside the bounds; the task itself is given
+            low, high = list(params.sample_low), list(params.sample_high)
+            if name == "pose_high":
+                high[j] = min(high[j], outside[j])
+            else:
+                low[j] = max(low[j], outside[j])
+            box = {"sample_low": tuple(low), "sample_high": tuple(high)}
+        return (
+            ({name: tuple(inside), **box}, [""] * (t + 1)),
+            ({name: tuple(outside), **box}, [""] * t + ["out_of_bounds"]),
+        )
 
     def options(start):
         return {"start": start.x, "target": start.target} if grid else None
