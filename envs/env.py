@@ -372,51 +372,50 @@ class FamilyReachEnv(FamilyEnvBase):
                 )
             self.last_waypoints = np.tile(target, (n, 1))
             return np.tile(start, (n, 1)), FamilyReference(np.tile(target, (n, 1)), np.zeros((n, m)), np.zeros((n, m)))
-        hard = np.array([g.random() < 0.5 for g in generators]) if mode == "mixed" else np.full(n, mode == "hard")
         if streams is None:
             streams = fk.random_streams(generators)
-        starts, targets, waypoints = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
-        for kind in (False, True):
-            rows = np.flatnonzero(hard == kind)
-            if rows.size == 0:
-                continue
-            rows_streams = streams if rows.size == n else streams[rows]
-            if params.workspace is not None:
-                fixed_kind, fixed = (
-                    (1, start) if start is not None else ((2, target) if target is not None else (0, None))
-                )
-                found = grid_kernels.sample_reach_batch(
-                    params.packed,
-                    params.workspace.packed,
-                    rows_streams,
-                    rows.size,
-                    kind,
-                    params.min_distance,
-                    fixed_kind,
-                    fixed,
-                )
-                if found is not None:
-                    found = (*found, found[1])
-            elif start is not None or target is not None:
-                raise ValueError("reset options 'start' and 'target' alone need task_region='grid'; give both")
-            else:
-                found = fk.sample_reach_batch(params.packed, rows_streams, rows.size, m, kind, params.min_distance)
-            if found is None:
-                what = "hard" if kind else "standard"
-                if start is not None or target is not None:
-                    raise ValueError(f"no {what} task exists for the given pose")
-                hint = (
-                    f" (hard_kind={params.hard_kind!r}: this robot's task box may hold no such pair; try another "
-                    "hard_kind or a wider sample_low / sample_high)"
-                    if kind
-                    else ""
-                )
-                raise RuntimeError(
-                    f"no certified {what} task found in the task box after {fk.SAMPLER_TRIES} tries{hint}"
-                )
-            starts[rows], targets[rows], waypoints[rows] = found
+        if mode != "mixed":
+            starts, targets, waypoints = self._draw(streams, n, mode == "hard", start, target)
+        else:  # each episode draws its kind first, from its own generator
+            hard = np.array([g.random() < 0.5 for g in generators])
+            starts, targets, waypoints = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+            for kind in (False, True):
+                rows = np.flatnonzero(hard == kind)
+                if rows.size:
+                    starts[rows], targets[rows], waypoints[rows] = self._draw(
+                        streams[rows], rows.size, kind, start, target
+                    )
         self.last_waypoints = waypoints
         return starts, FamilyReference(targets, np.zeros((n, m)), np.zeros((n, m)))
+
+    def _draw(
+        self, streams: np.ndarray, n: int, hard: bool, start: np.ndarray | None, target: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Certified pairs of one kind, one per stream: (starts, targets, waypoints), each (n, m)."""
+        params = self.params
+        if params.workspace is not None:
+            fixed_kind, fixed = (1, start) if start is not None else ((2, target) if target is not None else (0, None))
+            found = grid_kernels.sample_reach_batch(
+                params.packed, params.workspace.packed, streams, n, hard, params.min_distance, fixed_kind, fixed
+            )
+            if found is not None:
+                found = (*found, found[1])
+        elif start is not None or target is not None:
+            raise ValueError("reset options 'start' and 'target' alone need task_region='grid'; give both")
+        else:
+            found = fk.sample_reach_batch(params.packed, streams, n, params.robot.n_pose, hard, params.min_distance)
+        if found is None:
+            what = "hard" if hard else "standard"
+            if start is not None or target is not None:
+                raise ValueError(f"no {what} task exists for the given pose")
+            hint = (
+                f" (hard_kind={params.hard_kind!r}: this robot's task box may hold no such pair; try another "
+                "hard_kind or a wider sample_low / sample_high)"
+                if hard
+                else ""
+            )
+            raise RuntimeError(f"no certified {what} task found in the task box after {fk.SAMPLER_TRIES} tries{hint}")
+        return found
 
     def _fixed_pose(self, name: str, value: Any) -> np.ndarray:
         """A start or target pose given in ``reset`` options, checked to be finite and safe."""
