@@ -28,7 +28,7 @@ __all__ = [
 
 
 def decode_observation(params: FamilyParams, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pose, exact error and target velocity from observations (the layout of ``envs.family``'s docstring).
+    """Pose, exact error and target velocity from observations (the layout of ``envs.FamilyReachEnv``'s docstring).
 
     Args:
         params: Environment constants.
@@ -68,7 +68,7 @@ class ResolvedRateController:
     direction. J_i comes from the kinematics library.
 
     Args:
-        params: Environment constants (``envs.family.FamilyParams``).
+        params: Environment constants (``envs.params.FamilyParams``).
         gain: K [1/s].
         max_speed: Cap on the scaled feedback speed [m/s].
     """
@@ -224,6 +224,10 @@ class PlannerController(ResolvedRateController):
         pose, error, velocity = decode_observation(self.params, obs)
         target = pose + error
         carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
+        return self.steer(pose, carrot, velocity)
+
+    def steer(self, pose: np.ndarray, carrot: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Resolved-rate actions from ``pose`` toward ``carrot`` (each (N, 3)) with feed-forward ``velocity``."""
         toward = carrot - pose
         toward[:, 2] = wrap_angle(toward[:, 2])
         return self.act(pose, toward, velocity)

@@ -323,7 +323,7 @@ POSE_CODES = {"planar": (4, 3), "spatial": (7, 6), "translational": (3, 3)}
 
 
 def observation_layout(pose_space: str, n: int, with_velocity: bool) -> dict[str, slice]:
-    """Slices of the observation vector (see ``envs.family.FamilyReachEnv``).
+    """Slices of the observation vector (see ``envs.FamilyReachEnv``).
 
     Args:
         pose_space: "planar", "spatial" or "translational" (a ``PoseSpace.name``).
@@ -1031,7 +1031,7 @@ def initial_batch(c, x):
 
 @_jit
 def _reference_at(c, tau, center, amplitude, phase, i, o_pose, o_velocity):
-    """Target pose and rate of robot i at the angle τ = ω t [rad] of its reference (``envs.family.FamilyReference``).
+    """Target pose and rate of robot i at the angle τ = ω t [rad] of its reference (``envs.physics.FamilyReference``).
 
     Sinusoids (C_PATH = 0): x*_j = c_j + a_j sin(τ + θ_j). A polyline path of K vertices W_k: the period is cut
     into K segments (W_k → W_k+1 mod K, ending at the fractions C_PATH_T of the period, shifted by θ_0 / 2π);
@@ -1576,7 +1576,7 @@ def _sample_reach_parallel(c, streams, hard, min_distance, o_start, o_target, o_
 
 
 def sample_reach_batch(c, streams, n, m, hard, min_distance):
-    """Draw n certified start/target pairs (see ``envs.family.sample_reach``), or None if one could not be found.
+    """Draw n certified start/target pairs (``FamilyReachEnv.sample_tasks``), or None if one could not be found.
 
     Args:
         c: Packed constants.

@@ -128,7 +128,6 @@ class GoalReachWrapper(gym.Wrapper):
         action = np.array([i["reward_action"] for i in infos], dtype=np.float64)
         termination = np.array([i["reward_termination"] for i in infos], dtype=np.float64)
         terms = reward_terms(self.params, achieved, desired, k, np.zeros((n, self._n)), np.zeros(n, dtype=np.int64))
-        reward = terms["reward_tracking"] + terms["reward_singularity"] + action + termination
-        if "reward_actuator_singularity" in infos[0]:  # the family's Type I term (0 for legs), goal-free
-            reward = reward + np.array([i["reward_actuator_singularity"] for i in infos], dtype=np.float64)
+        actuator = np.array([i["reward_actuator_singularity"] for i in infos], dtype=np.float64)  # goal-free Type I
+        reward = terms["reward_tracking"] + terms["reward_singularity"] + action + termination + actuator
         return float(reward[0]) if single else reward

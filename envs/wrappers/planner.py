@@ -16,7 +16,6 @@ from gymnasium import spaces
 from envs.controllers import PlannerController
 from envs.kernels.generic import observation_layout
 from envs.params import FamilyParams
-from envs.physics import wrap_angle
 from envs.planner import PathFollower
 
 __all__ = ["PlannerResidualWrapper", "PlannerWaypointWrapper"]
@@ -118,9 +117,7 @@ class PlannerResidualWrapper(_PlannerWrapper):
 
     def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
         pose, carrot = self._offset(info)
-        toward = carrot - pose
-        toward[2] = wrap_angle(toward[2])
-        self._planner_action = self.controller.act(pose[None], toward[None], np.zeros((1, 3)))[0]
+        self._planner_action = self.controller.steer(pose[None], carrot[None], np.zeros((1, 3)))[0]
         offset = np.clip(carrot - pose, self._low, self._high)
         return np.concatenate([obs, offset, self._planner_action]).astype(np.float32)
 

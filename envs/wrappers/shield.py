@@ -5,7 +5,7 @@ cross a Type II singularity within a single control period (the inverse conditio
 about 0.1 to 1e-5 inside the step). No integrator setting prevents that: the commanded strokes have no
 solution on the robot's branch. The shield (Alshiekh et al., *Safe reinforcement learning via shielding*,
 AAAI 2018) tries the proposed action on a copy of the state with the environment's own pure
-``envs.family.transition`` before it is applied, and replaces it when the step would terminate or would
+``envs.physics.transition`` before it is applied, and replaces it when the step would terminate or would
 leave the robot below a guard level of the inverse condition number:
 
     a, a/2, a/4, a/8, 0 — the first candidate that does not terminate and ends with k' ≥ min(k_guard, k).
