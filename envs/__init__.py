@@ -49,9 +49,10 @@ _SPECS = {
     "Planar3PRRReach-v0": (*_REACH, 200, {"robot": "planar_3prr"}),
     # Any robot of the family: ``robot=`` a preset name or a ``kinematics.DistanceConstraintMechanism`` (whose
     # bounds, task box and strokes are derived from its size unless given). The default robot is the hexapod;
-    # for hard (detour) targets, whose hexapod workspace has none, the 3-RRR.
+    # for hard targets that need a detour, which only the 3-RPR's workspace holds (``docs/results/detour_survey``),
+    # the 3-RPR.
     "ParallelRobotReach-v0": (*_REACH, 200, {}),
-    "ParallelRobotReachHard-v0": (*_REACH, 200, {"targets": "hard", "robot": "planar_3rrr"}),
+    "ParallelRobotReachHard-v0": (*_REACH, 200, {"targets": "hard", "robot": "planar_3rpr"}),
     "ParallelRobotTrack-v0": (*_TRACK, 400, {}),
 }
 

@@ -1,7 +1,7 @@
 """Classical controllers: resolved-rate, singularity-aware resolved-rate and the planner (NumPy only).
 
 They read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, n), for
-any robot of the family (the planner: planar robots with a certified grid).
+any robot of the family.
 They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here. They
 live in ``envs`` (NumPy only, no SB3) because ``envs.PlannerResidualWrapper`` builds on the planner
 controller; the evaluation finds them by name through ``training.controllers``.
@@ -24,6 +24,7 @@ __all__ = [
     "ResolvedRateController",
     "SingularityAwareController",
     "decode_observation",
+    "pose_error",
 ]
 
 
@@ -56,6 +57,18 @@ def decode_observation(params: FamilyParams, obs: np.ndarray) -> tuple[np.ndarra
     velocity_slice = layout["target_velocity"]
     velocity = obs[:, velocity_slice] if obs.shape[1] >= velocity_slice.stop else np.zeros_like(pose)
     return pose, error, velocity
+
+
+def pose_error(params: FamilyParams, pose: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """The twist error from ``pose`` to ``goal`` (each (N, m), the env's pose coordinates), shape (N, m).
+
+    As the observation's error block: the kinematics library's ``pose_difference`` (spatial (δp, δθ) with δθ the
+    rotation vector of R_goal Rᵀ in {B}, translational δp), with planar δφ wrapped to (−π, π].
+    """
+    error = params.robot.pose_difference(np.asarray(goal, dtype=float), np.asarray(pose, dtype=float), validate=False)
+    if params.robot.pose_space.name == "planar":
+        error[..., 2] = wrap_angle(error[..., 2])
+    return error
 
 
 class ResolvedRateController:
@@ -199,20 +212,29 @@ class PlannerController(ResolvedRateController):
     target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
 
     Args:
-        params: Environment constants of a planar robot with ``task_region="grid"``.
+        params: Environment constants.
         gain: K [1/s].
         max_speed: Cap on the scaled platform speed [m/s].
         lookahead: Distance of the carrot ahead of the closest point of the path, in z [m].
-        follower: An ``envs.planner.PathFollower`` to share (its own lookahead then applies); default a new one.
+        follower: An ``envs.planner.PathFollower`` to share (its own lookahead and planner then apply); default a
+            new one.
+        planner: The follower's planner: "auto" (the certified grid's graph where there is one, else OMPL),
+            "ompl" or "grid".
     """
 
     name = "planner"
 
     def __init__(
-        self, params: FamilyParams, gain: float = 2.0, max_speed: float = 0.25, lookahead: float = 0.1, follower=None
+        self,
+        params: FamilyParams,
+        gain: float = 2.0,
+        max_speed: float = 0.25,
+        lookahead: float = 0.1,
+        follower=None,
+        planner: str = "auto",
     ) -> None:
         super().__init__(params, gain, max_speed)
-        self.follower = PathFollower(params, lookahead) if follower is None else follower
+        self.follower = PathFollower(params, lookahead, planner) if follower is None else follower
 
     @property
     def log(self) -> Sequence:
@@ -220,22 +242,26 @@ class PlannerController(ResolvedRateController):
         return self.follower.log
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Actions for a batch of observations (row i is followed along its own plan), shape (N, 3), float32."""
+        """Actions for a batch of observations (row i is followed along its own plan), shape (N, n), float32."""
         pose, error, velocity = decode_observation(self.params, obs)
-        target = pose + error
+        target = self._target(pose, error)
         carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
         return self.steer(pose, carrot, velocity)
 
+    def _target(self, pose: np.ndarray, error: np.ndarray) -> np.ndarray:
+        """The target pose from the pose and the observation's error block (each (N, m))."""
+        if self.params.robot.pose_space.name != "spatial":
+            return pose + error
+        return self.params.robot.retract(pose, error, validate=False)
+
     def steer(self, pose: np.ndarray, carrot: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Resolved-rate actions from ``pose`` toward ``carrot`` (each (N, 3)) with feed-forward ``velocity``."""
-        toward = carrot - pose
-        toward[:, 2] = wrap_angle(toward[:, 2])
-        return self.act(pose, toward, velocity)
+        """Resolved-rate actions from ``pose`` toward ``carrot`` (each (N, m)) with feed-forward ``velocity``."""
+        return self.act(pose, pose_error(self.params, pose, carrot), velocity)
 
     def episode_metrics(self) -> dict[str, float] | None:
         """The last plan's figures (path found, planned / straight length, min k, planning time), or None."""
         return self.follower.last_plan_metrics()
 
 
-#: Controllers by command-line name (the planner needs a planar robot with a certified grid).
+#: Controllers by command-line name.
 CONTROLLERS = {cls.name: cls for cls in (ResolvedRateController, SingularityAwareController, PlannerController)}

@@ -305,12 +305,15 @@ class FamilyReachEnv(FamilyEnvBase):
     uniformly in the task box (`sample_low`–`sample_high`, rotation-vector coordinates), each *safe* (strokes
     within the limits less 2 cm, k ≥ k_safe), at least `min_distance` apart in (δp, ℓ_c δθ). A *standard*
     target is kept only when the geodesic from the start (p linear, R along one rotation) is safe at points
-    at most `segment_spacing` (1 cm) apart, so a singularity-free path is known. A *hard* target is kept
+    at most `segment_spacing` apart with one sign of det J_x at all of them, so a singularity-free path is known
+    (the spacing, 1 cm by default, is capped per robot so that the safety cannot fall by more than half the
+    margin k_safe − k_hard between two checked points: `envs.presets.certificate_spacing`; 0.5 mm on the
+    3-RRR, 1.1 mm on the 3-PRR). A *hard* target is kept
     only when that geodesic dips below `safe_threshold` (staying inside the box and the stroke limits) and a
     waypoint is found whose two geodesics
     start → waypoint → target are safe at the same spacing: a detour is known, the straight line is not safe.
-    With `hard_kind="ill_conditioned"` (the hexapod's `StewartGoughReachHard-v0` and the Delta's
-    `DeltaReachHard-v0`, whose workspaces have no detour tasks) a hard target lies in the ill-conditioned band
+    With `hard_kind="ill_conditioned"` (the hard ids of the hexapod, the Delta and the 3-RRR, whose workspaces
+    have no detour tasks: `docs/results/detour_survey`) a hard target lies in the ill-conditioned band
     2 `hard_threshold` ≤ k < `safe_threshold` (toward Fichter's singularity; for the Delta, at the outer, lower edge
     of its workspace), on a geodesic from a safe start that keeps k ≥ 2 `hard_threshold`. For cranks and sliders
     "safe" and the path's k are min(k, k_I k_safe / k_I,safe), both kinds of singularity (the band is on k).

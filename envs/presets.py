@@ -78,7 +78,9 @@ _DELTA: dict[str, Any] = {
 _PLANAR_3RRR: dict[str, Any] = {
     # ``kinematics.Planar3RRR()`` (base radius 0.25 m, cranks and links 0.14 m, elbows "−−−"): cranks turn
     # 0.5 rad/s at a unit action within −2.2 to 0.6 rad. Tasks within ±0.1 m and φ ±0.7 rad, where a band of
-    # Type II singularities (the links' lines concurrent) lies near φ ≈ 0.3–0.6 rad.
+    # Type II singularities (the links' lines concurrent) lies near φ ≈ 0.3–0.6 rad. The band separates the two
+    # signs of det J_x, so a pair across it has no safe path at all, and a pair on one side whose straight path
+    # dips below k_safe is rare (``docs/results/detour_survey``): hard targets are ill-conditioned ones.
     "robot": "planar_3rrr",
     "stroke_limits": (-2.2, 0.6),
     "max_rate": 0.5,
@@ -87,6 +89,7 @@ _PLANAR_3RRR: dict[str, Any] = {
     "sample_low": (-0.1, -0.1, -0.7),
     "sample_high": (0.1, 0.1, 0.7),
     "stroke_margin": 0.05,
+    "hard_kind": "ill_conditioned",
 }
 
 _PLANAR_3RPR: dict[str, Any] = {
@@ -200,6 +203,8 @@ _LENGTHS_PER_REACH = {
 _SHAPE_KEYS = ("pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude", "stroke_limits")
 #: Poses of the task box checked for safety, and the safe share of them a derived task box must reach.
 _BOX_CHECKS = 512
+#: Poses of the task box at which the certificate's slope is estimated (``certificate_spacing``).
+_SLOPE_CHECKS = 4096
 _BOX_SAFE_FRACTION = 0.5
 #: Factor by which a derived task box shrinks around the home pose while it is not safe enough, and how often.
 _BOX_SHRINK = 0.8
@@ -297,6 +302,47 @@ def _fit_task_box(
     return tuple(map(float, best[0])), tuple(map(float, best[1]))
 
 
+def certificate_spacing(
+    certificate: np.ndarray,
+    robot: DistanceConstraintMechanism,
+    low: tuple[float, ...],
+    high: tuple[float, ...],
+    margin: float,
+) -> float:
+    """The spacing [m] of checked points at which a certified segment cannot dip by ``margin`` between two of them.
+
+    Between checked points h apart (in z = (p, ℓ_c θ)) the safety can fall by at most L h / 2, with L its
+    largest slope in z. L is estimated as the 99th percentile of ‖∇_z safety‖ (central differences, 10⁻⁴ m)
+    at ``_SLOPE_CHECKS`` fixed random poses of the task box where the safety is defined on both sides, and the
+    spacing is ``margin`` / L: half the margin between the safe and the hard thresholds, for the steepest 1 %
+    of the box. Small planar robots with cranks or sliders, whose safety changes by about 1.5 per radian of
+    platform rotation on ℓ_c = 5 cm, need about 1 mm; the hexapod and the 3-RPR keep their 1 cm.
+
+    Args:
+        certificate: Packed constants of the certificate (``envs.kernels.generic.pack_certificate``).
+        robot: The mechanism (its ``pose_scale`` gives ℓ_c).
+        low: Task box lower corner, shape (m,).
+        high: Task box upper corner, shape (m,).
+        margin: Safety the segment may lose between checked points.
+    """
+    lo, hi = np.asarray(low), np.asarray(high)
+    x = lo + np.random.default_rng(1).uniform(size=(_SLOPE_CHECKS, len(lo))) * (hi - lo)
+    step = 1e-4
+    gradient = np.zeros_like(x)
+    defined = np.ones(len(x), dtype=bool)
+    for j in range(len(lo)):
+        dx = np.zeros(len(lo))
+        dx[j] = step * robot.pose_scale[j]
+        up, _ = fk.safety_batch(certificate, x + dx)
+        down, _ = fk.safety_batch(certificate, x - dx)
+        defined &= (up >= 0.0) & (down >= 0.0)
+        gradient[:, j] = (up - down) / (2.0 * step)
+    if not defined.any():
+        return np.inf
+    slope = float(np.quantile(np.linalg.norm(gradient[defined], axis=-1), 0.99))
+    return margin / slope if slope > 0.0 else np.inf
+
+
 def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwargs: Any) -> FamilyParams:
     """Validate constructor arguments into ``FamilyParams``; a robot without bounds gets ones around its home pose.
 
@@ -317,6 +363,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         TypeError: On a robot that is not a ``DistanceConstraintMechanism`` or an argument of the wrong type.
         ValueError: On an argument out of its range, naming the expected and the actual value.
     """
+    caller_keys = set(kwargs)
     if robot is None:
         robot = "stewart_gough"
     named = isinstance(robot, str)
@@ -438,6 +485,13 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     if box_derived:
         values["sample_low"], values["sample_high"] = _fit_task_box(
             robot, values["sample_low"], values["sample_high"], (lo, hi), scalars["stroke_margin"], safe, safe1
+        )
+    if "segment_spacing" not in caller_keys:
+        certificate = fk.pack_certificate(robot, (lo, hi), scalars["stroke_margin"], safe, safe1)
+        margin = min(safe - hard, (safe1 - hard1) * safe / safe1)
+        scalars["segment_spacing"] = min(
+            scalars["segment_spacing"],
+            certificate_spacing(certificate, robot, values["sample_low"], values["sample_high"], margin),
         )
     return FamilyParams(
         robot=robot,

@@ -196,7 +196,7 @@ PARALLEL_MIN_SAMPLES = 8
 #: Waypoints tried per hard pair to certify a detour.
 WAYPOINT_TRIES = 64
 #: Most points checked along one segment.
-SEGMENT_MAX_POINTS = 400
+SEGMENT_MAX_POINTS = 2000
 
 _TWO_PI = 2.0 * math.pi
 
@@ -1432,12 +1432,15 @@ def _segment_min_k(c, start, target, w, strokes, stop_below, spacing, box):
 
     Checked points are at most ``spacing`` apart in ‖(δp, ℓ_c δθ)‖ (ends included; at most
     ``SEGMENT_MAX_POINTS`` intervals). A point whose strokes leave the limits less the margin (or, with ``box``,
-    that leaves the sampling box) makes the segment −1. Stops early once below ``stop_below``.
+    that leaves the sampling box) makes the segment −1; a point where sign(det J_x) differs from the start's
+    counts as safety 0 (the segment crossed a Type II singularity between checked points). Stops early once
+    below ``stop_below``.
     """
     direction, point = w[W_SEG_D], w[W_SEG]
     _difference(c, target, start, direction)
     count = int(min(max(math.ceil(_metric(c, direction) / spacing), 1), SEGMENT_MAX_POINTS))
     worst = np.inf
+    first_sign = 0.0
     for s in range(count + 1):
         _retract(c, start, direction, s / count, point)
         if box and not _in_box(c, point):
@@ -1445,6 +1448,12 @@ def _segment_min_k(c, start, target, w, strokes, stop_below, spacing, box):
         safety = _pose_safety(c, point, w, strokes)
         if safety < 0.0:
             return -1.0
+        det = _solve(w, int(c[C_N]), W_A, w[W_RHS], w[W_SOL])
+        sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
+        if s == 0:
+            first_sign = sign
+        elif sign != first_sign:
+            safety = 0.0
         worst = min(worst, safety)
         if worst < stop_below:
             return worst

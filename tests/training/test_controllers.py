@@ -110,14 +110,17 @@ def test_unknown_controller_lists_choices(make_env):
         load_controller("pid", make_env(REACH))
 
 
-def test_planner_refuses_a_robot_without_a_certified_grid():
-    """The planner needs a planar robot with task_region="grid"; on the hexapod load_controller says why."""
+def test_the_grid_planner_refuses_a_robot_without_a_certified_grid():
+    """planner="grid" needs a planar robot with task_region="grid"; on the hexapod it says why ("auto" takes OMPL)."""
+    params = gym.make("StewartGoughReach-v0").unwrapped.params
     with pytest.raises(
-        EvaluationError,
-        match=r"controller 'planner' cannot drive StewartGoughReach-v0: the planner needs a planar robot with "
-        r"task_region='grid', got spatial with task_region='box'",
+        ValueError,
+        match=r"the planner needs a planar robot with task_region='grid', got spatial with task_region='box'",
     ):
-        load_controller("planner", gym.make("StewartGoughReach-v0"))
+        PlannerController(params, planner="grid")
+    with pytest.raises(ValueError, match=r"planner must be one of \('auto', 'ompl', 'grid'\), got 'rrt'"):
+        PlannerController(params, planner="rrt")
+    assert type(PlannerController(params).follower.graph).__name__ == "SafePlanner"
 
 
 @pytest.mark.parametrize("targets", ["standard", "hard"])
