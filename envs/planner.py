@@ -448,11 +448,23 @@ class PathFollower:
         params: Environment constants.
         lookahead: Distance of the carrot ahead of the closest point of the path, in z [m].
         planner: "auto" (the grid graph where the env has a certified grid, else OMPL), "ompl" or "grid".
+        replan_distance: If given, a row whose pose is farther than this from its path (in z [m]) is planned
+            afresh from the pose: the carrot is then a function of the pose and the target alone, as an expert
+            that relabels the states a learner visits must be (``training.distill``). None: plan once per episode.
     """
 
-    def __init__(self, params: FamilyParams, lookahead: float = 0.1, planner: str = "auto") -> None:
+    def __init__(
+        self,
+        params: FamilyParams,
+        lookahead: float = 0.1,
+        planner: str = "auto",
+        replan_distance: float | None = None,
+    ) -> None:
         if not (np.isfinite(lookahead) and lookahead > 0.0):
             raise ValueError(f"lookahead must be a positive distance [m], got {lookahead!r}")
+        if replan_distance is not None and not (np.isfinite(replan_distance) and replan_distance > 0.0):
+            raise ValueError(f"replan_distance must be None or a positive distance [m], got {replan_distance!r}")
+        self.replan_distance = None if replan_distance is None else float(replan_distance)
         self.params = params
         self.lookahead = float(lookahead)
         self.metric = params.pose_metric
@@ -484,6 +496,7 @@ class PathFollower:
             entry is None
             or not np.allclose(entry[0], target, rtol=0.0, atol=1e-4)
             or np.linalg.norm((pose - entry[4]) * self.metric) > self._jump
+            or (self.replan_distance is not None and self._gap(entry[1].waypoints, pose) > self.replan_distance)
         ):
             self.reset_row(row, pose, target)
             entry = self._rows[row]
@@ -510,6 +523,13 @@ class PathFollower:
         if self.planar:
             out[2] = pose[2] + wrap_angle(out[2] - pose[2])
         return out
+
+    def _gap(self, waypoints: np.ndarray, pose: np.ndarray) -> float:
+        """Distance in z [m] from ``pose`` (m,) to the closest point of the polyline ``waypoints`` (P, m)."""
+        a, b, z = waypoints[:-1] * self.metric, waypoints[1:] * self.metric, pose * self.metric
+        d = b - a
+        t = np.clip(np.sum((z - a) * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-18), 0.0, 1.0)
+        return float(np.min(np.linalg.norm(a + t[:, None] * d - z, axis=-1)))
 
     def last_plan_metrics(self) -> dict[str, float] | None:
         """The last plan's figures (for the evaluation's per-episode record), or None before any."""

@@ -98,19 +98,12 @@ _HEXAPOD_LONG = {"stroke_limits": (0.3, 1.1)}
 _PRR_BAND = {"stroke_limits": (0.0, 0.52), "pose_low": (-0.2, -0.2, 0.0), "pose_high": (0.2, 0.2, 3.0)}
 SURVEY_BOXES: tuple[SurveyBox, ...] = (
     SurveyBox("planar_3rpr", "preset", "the preset's box (x −0.15–1.15, y −0.25–1.15, φ ±1.47)", _BOX_TASKS),
-    SurveyBox(
-        "planar_3rpr",
-        "preset, fine",
-        "the preset's box, paths checked every 1 mm",
-        {**_BOX_TASKS, "segment_spacing": 0.001},
-    ),
     SurveyBox("planar_3rrr", "preset", "the preset's box (±0.1 m, φ ±0.7)"),
-    SurveyBox("planar_3rrr", "preset, fine", "the preset's box, paths checked every 1 mm", {"segment_spacing": 0.001}),
     SurveyBox(
         "planar_3rrr",
-        "bounds, fine",
-        "the pose bounds (±0.125 m, φ ±0.9), every 1 mm",
-        {"segment_spacing": 0.001, "sample_low": (-0.125, -0.125, -0.9), "sample_high": (0.125, 0.125, 0.9)},
+        "bounds",
+        "the pose bounds (±0.125 m, φ ±0.9)",
+        {"sample_low": (-0.125, -0.125, -0.9), "sample_high": (0.125, 0.125, 0.9)},
     ),
     SurveyBox("planar_3prr", "preset", "the derived box (±0.09 m, φ ±0.36)"),
     SurveyBox(
@@ -118,12 +111,6 @@ SURVEY_BOXES: tuple[SurveyBox, ...] = (
         "band",
         "±0.15 m, φ 1.4–2.6 across its Type II band (φ ≈ 2), rails 0–0.52 m",
         {**_PRR_BAND, "sample_low": (-0.15, -0.15, 1.4), "sample_high": (0.15, 0.15, 2.6)},
-    ),
-    SurveyBox(
-        "planar_3prr",
-        "band, fine",
-        "the band box, paths checked every 1 mm",
-        {**_PRR_BAND, "segment_spacing": 0.001, "sample_low": (-0.15, -0.15, 1.4), "sample_high": (0.15, 0.15, 2.6)},
     ),
     SurveyBox(
         "planar_3prr",

@@ -2,9 +2,9 @@
 
 Usage::
 
-    python -m training.evaluate --run DIR | --controller resolved-rate|singularity-aware
+    python -m training.evaluate --run DIR | --controller resolved-rate|singularity-aware|planner
                                 [--env ID] [--episodes 100] [--seed 0] [--targets standard|hard]
-                                [--video] [--out DIR] [--model final|best]
+                                [--video] [--out DIR] [--model final|best] [--planner auto|ompl|grid]
 
 Writes ``metrics.json`` (aggregates), ``episodes.csv`` (one row per episode), ``trajectories.png``
 (paths over the inverse-condition-number map), ``condition_number.png`` (k over time) and, with
@@ -120,15 +120,16 @@ def tracking_metrics(
 # -- agents ----------------------------------------------------------------------------------------
 
 
-def load_controller(name: str, env: gym.Env) -> Agent:
+def load_controller(name: str, env: gym.Env, planner: str | None = None) -> Agent:
     """A classical controller for an environment.
 
     Args:
-        name: "resolved-rate" or "singularity-aware".
+        name: "resolved-rate", "singularity-aware" or "planner".
         env: The environment (its parameters configure the controller).
+        planner: The planner controller's planner ("auto", "ompl" or "grid"); None: "auto".
 
     Returns:
-        A batched agent: observations (N, D) → actions (N, 3).
+        A batched agent: observations (N, D) → actions (N, n).
 
     Raises:
         EvaluationError: For an unknown name, listing the valid ones.
@@ -137,8 +138,8 @@ def load_controller(name: str, env: gym.Env) -> Agent:
     if name not in CONTROLLERS:
         raise EvaluationError(f"unknown controller {name!r}; valid choices: {sorted(CONTROLLERS)}")
     try:
-        return CONTROLLERS[name](params)
-    except ValueError as exc:  # the planner on a robot without a certified grid
+        return CONTROLLERS[name](params, planner=planner) if planner else CONTROLLERS[name](params)
+    except ValueError as exc:  # the grid planner on a robot without a certified grid
         raise EvaluationError(
             f"controller {name!r} cannot drive {env.spec.id if env.spec else 'this env'}: {exc}"
         ) from exc
@@ -584,6 +585,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", default=None, help="output folder; default: <run>/eval-<targets> or evals/...")
     parser.add_argument("--model", default="final", help="final (model.zip) or best (best_model.zip)")
     parser.add_argument(
+        "--planner",
+        default=None,
+        choices=("auto", "ompl", "grid"),
+        help="the planner controller's planner (default auto: the certified grid where the env has one, else OMPL)",
+    )
+    parser.add_argument(
         "--shield",
         type=float,
         default=None,
@@ -625,8 +632,10 @@ def main(argv: list[str] | None = None) -> int:
             name = f"{config['algo']} ({Path(args.run).name}){shielded}"
             out = Path(args.out) if args.out else Path(args.run) / f"eval-{env_id}-{targets}"
         else:
-            agent = load_controller(args.controller, env)
-            name = args.controller + shielded
+            if args.planner is not None and args.controller != "planner":
+                raise EvaluationError(f"--planner applies to --controller planner, not {args.controller!r}")
+            agent = load_controller(args.controller, env, planner=args.planner)
+            name = args.controller + (f" ({args.planner})" if args.planner else "") + shielded
             out = Path(args.out) if args.out else Path("evals") / f"{args.controller}-{env_id}-{targets}"
         if shielded and args.out is None:
             out = out.with_name(f"{out.name}-shield")

@@ -122,7 +122,9 @@ def main(argv: list[str] | None = None) -> int:
         metrics = json.loads((Path(folder) / "metrics.json").read_text())
         agent, targets = metrics["label"].rsplit(" @ ", 1)
         shielded = " + shield" in agent or "shield" in Path(folder).name
-        agent = agent.replace(" + shield", "").split(" (")[0]  # "ppo (run-s0)" → "ppo": seeds are grouped
+        agent = agent.replace(" + shield", "")
+        if not agent.endswith(("(ompl)", "(grid)", "(auto)")):  # the planner's kind stays in the label
+            agent = agent.split(" (")[0]  # "ppo (run-s0)" → "ppo": seeds are grouped
         label = f"{agent}{' + shield' if shielded else ''} @ {targets}"
         if args.by_env:
             label = f"{agent}{' + shield' if shielded else ''} @ {metrics.get('env_id')} ({targets})"

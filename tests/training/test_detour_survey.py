@@ -34,7 +34,12 @@ def _oracle_straight_min(params, start: np.ndarray, target: np.ndarray) -> float
     count = int(min(max(np.ceil(length / params.segment_spacing), 1), fk.SEGMENT_MAX_POINTS))
     points = robot.retract(np.tile(start, (count + 1, 1)), np.arange(count + 1)[:, None] / count * step)
     safety = _oracle_safety(params, points)
-    return -1.0 if np.any(safety < 0.0) else float(safety.min())
+    if np.any(safety < 0.0):
+        return -1.0
+    # a change of sign(det J_x) between checked points is a crossed singularity: safety 0 there
+    q = params.robot.inverse_kinematics(points, validate=False)
+    sign = np.sign(np.linalg.det(params.robot.link_jacobian(q, points, validate=False)))
+    return float(np.where(sign != sign[0], 0.0, safety).min())
 
 
 @pytest.mark.parametrize("robot", ["planar_3rrr", "planar_3prr", "stewart_gough", "delta"])

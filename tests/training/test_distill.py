@@ -1,0 +1,88 @@
+"""training.distill: the expert's labels, the fit, and a tiny run that training.evaluate scores."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from envs.controllers import PlannerController
+from envs.planner import PathFollower
+from training import distill
+from training.distill import DistillConfig, collect, fit
+from training.evaluate import evaluate_agent, load_run
+
+ENV = "Planar3RPRReachMixed-v0"
+
+
+def test_the_follower_replans_when_pushed_off_its_path():
+    """With replan_distance, a pose 5 cm off the path gets a new plan from it; without, the old plan stays."""
+    env = gym.make("Planar3RPRReachHard-v0")
+    _, info = env.reset(seed=3)
+    params = env.unwrapped.params
+    pose, target = info["pose"], info["target"]
+    for distance, plans in ((None, 1), (0.03, 2)):
+        follower = PathFollower(params, replan_distance=distance)
+        follower.carrot(0, pose, target)
+        off = pose + np.array([0.0, 0.05, 0.0])  # 5 cm off a path that starts at the pose, within one jump
+        follower._jump = 1.0  # the push is not a new episode
+        follower.carrot(0, off, target)
+        assert len(follower.log) == plans
+        if distance is not None:
+            np.testing.assert_array_equal(follower.log[-1].waypoints[0], off)
+    with pytest.raises(ValueError, match=r"replan_distance must be None or a positive distance \[m\], got -1"):
+        PathFollower(params, replan_distance=-1)
+
+
+def test_the_labels_are_the_planner_controllers_actions():
+    """Every recorded label equals a fresh PlannerController's action at the recorded observation (same plans)."""
+    env = gym.make(ENV)
+    config = DistillConfig(replan_distance=1e9)  # plan once per episode, as the plain controller does
+    expert = distill._expert(env, config)
+    obs, act, figures = collect(env, expert, None, 2, 1.0, 123, np.random.default_rng(0))
+    assert obs.shape == (400, 18) and act.shape == (400, 3)
+    reference = PlannerController(env.unwrapped.params)
+    np.testing.assert_allclose(np.stack([reference(o[None])[0] for o in obs]), act, atol=1e-6)
+    assert figures["success_rate"] == 1.0 and figures["singular_terminations"] == 0.0
+
+
+def test_fit_lowers_the_error_to_a_known_linear_expert():
+    """The policy's mean learns a fixed linear map of the observation (an expert whose answer is known)."""
+    import torch
+    from stable_baselines3 import PPO
+
+    torch.manual_seed(0)
+    env = gym.make(ENV)
+    model = PPO("MlpPolicy", env, device="cpu", policy_kwargs={"net_arch": [64, 64]}, seed=0)
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(4000, 18)).astype(np.float32)
+    y = np.tanh(x[:, :3] - 0.5 * x[:, 3:6]).astype(np.float32)
+    config = DistillConfig(epochs=1, learning_rate=1e-3)
+    first = fit(model.policy, x, y, config, 0)
+    last = fit(model.policy, x, y, DistillConfig(epochs=20, learning_rate=1e-3), 1)
+    assert last < 0.2 * first and last < 0.02
+
+
+def test_a_tiny_run_is_a_run_folder_the_evaluation_scores(tmp_path):
+    """A tiny distillation writes a run folder; training.evaluate loads it and runs episodes with it."""
+    config = DistillConfig(expert_episodes=3, iterations=1, episodes=2, epochs=1)
+    result = distill.distill(config, tmp_path, log=lambda _: None)
+    assert [r["round"] for r in result["rounds"]] == [0, 1]
+    assert result["rounds"][1]["pairs"] == result["rounds"][0]["pairs"] + 400
+    assert json.loads((tmp_path / "distill.json").read_text())["config"]["env_id"] == ENV
+    agent, run_config = load_run(tmp_path)
+    assert run_config["algo"] == "ppo" and run_config["hyperparams"]["normalize"]
+    records = evaluate_agent(agent, gym.make("Planar3RPRReach-v0"), 2, 5000, "hard")
+    assert len(records) == 2
+
+
+def test_bad_options_are_refused(capsys):
+    """Unknown ids and out-of-range options are named."""
+    with pytest.raises(SystemExit):
+        distill.main(["--run-dir", "x", "--env", "Planar3RPRTrack-v0"])
+    assert "--env must be a Reach id" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        distill.main(["--run-dir", "x", "--beta", "2"])
+    assert "--beta must be in [0, 1], got 2.0" in capsys.readouterr().err

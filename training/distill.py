@@ -1,0 +1,289 @@
+"""Plan-free policies: the planner distilled into an SB3 policy by behaviour cloning, then DAgger.
+
+Usage::
+
+    python -m training.distill --env Planar3RPRReachMixed-v0 --seed 1 --run-dir runs/distill-3rpr-s1
+    python -m training.evaluate --run runs/distill-3rpr-s1 --env Planar3RPRReach-v0 --targets hard --episodes 100
+
+The *expert* is ``envs.controllers.PlannerController`` whose ``envs.planner.PathFollower`` plans afresh whenever
+the platform is more than ``replan_distance`` from its path, so that its action is a function of the pose and
+the target alone (what a policy that sees only the observation can learn). The *learner* is Stable-Baselines3
+PPO's ``MlpPolicy`` on the env's own observation, normalised by fixed statistics of the expert's data (no planner
+at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on SB3's policy class because the
+``imitation`` library pins Gymnasium 0.29):
+
+1. Behaviour cloning: ``expert_episodes`` episodes driven by the expert; the learner's Gaussian mean is fitted to
+   the expert's actions (mean squared error, Adam) on the (observation, action) pairs.
+2. DAgger: ``iterations`` rounds of ``episodes`` episodes in which the learner acts (the expert instead, per
+   step, with probability β: ``beta`` in the first round, 0 after) and the expert labels every state visited;
+   the learner is refitted on all pairs gathered so far.
+3. Optionally ``ppo_steps`` of PPO from the distilled weights (the normalisation stays fixed).
+
+The run folder is a ``training.train`` run folder (``config.yml``, ``model.zip``, ``vecnormalize.pkl``), so
+``training.evaluate --run`` scores it like any other; ``distill.json`` holds the per-round figures and the time
+per decision of the learner against the expert's planning time. Episodes reset with seeds from
+``1_000_000 · (seed + 1)`` on, away from the evaluation seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+
+import envs
+from envs.controllers import PlannerController
+from envs.planner import PathFollower
+
+__all__ = ["DistillConfig", "collect", "distill", "fit", "main"]
+
+
+@dataclass(frozen=True)
+class DistillConfig:
+    """Settings of one distillation run (the command-line options of ``main``)."""
+
+    env_id: str = "Planar3RPRReachMixed-v0"
+    seed: int = 0
+    expert_episodes: int = 200
+    iterations: int = 6
+    episodes: int = 100
+    beta: float = 0.5
+    epochs: int = 15
+    batch_size: int = 256
+    learning_rate: float = 1e-3
+    net_arch: tuple[int, ...] = (256, 256)
+    planner: str = "auto"
+    replan_distance: float = 0.03
+    lookahead: float = 0.1
+    ppo_steps: int = 0
+
+
+def _expert(env: gym.Env, config: DistillConfig) -> PlannerController:
+    params = env.unwrapped.params
+    follower = PathFollower(params, config.lookahead, config.planner, config.replan_distance)
+    return PlannerController(params, follower=follower)
+
+
+def collect(
+    env: gym.Env,
+    expert: PlannerController,
+    learner: Any | None,
+    episodes: int,
+    beta: float,
+    first_seed: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+    """Run episodes, acting with the learner (or the expert with probability ``beta``), labelled by the expert.
+
+    Args:
+        env: A ``gym.make`` Reach environment.
+        expert: The labelling planner controller.
+        learner: A function of one observation (D,) to an action (n,), or None (the expert acts).
+        episodes: Number of episodes; episode i resets with seed ``first_seed + i``.
+        beta: Probability that the expert's action is executed at a step.
+        first_seed: Reset seed of the first episode.
+        rng: The generator of the β draws.
+
+    Returns:
+        (observations (S, D) float32, expert actions (S, n) float32, figures: success rate, singularity
+        terminations per episode, mean episode length, mean planning time [s]).
+    """
+    observations, actions = [], []
+    successes = singular = steps = 0
+    plans_before = len(expert.log)
+    for i in range(episodes):
+        obs, _ = env.reset(seed=first_seed + i)
+        while True:
+            label = expert(obs[None])[0]
+            observations.append(obs)
+            actions.append(label)
+            act = label if learner is None or rng.random() < beta else learner(obs)
+            obs, _, terminated, truncated, info = env.step(act)
+            steps += 1
+            if terminated or truncated:
+                successes += bool(info.get("is_success", False))
+                singular += info.get("termination_reason") in ("singular", "singularity_crossed", "actuator_singular")
+                break
+    plans = list(expert.log)[plans_before:] if len(expert.log) < expert.log.maxlen else list(expert.log)
+    figures = {
+        "success_rate": successes / episodes,
+        "singular_terminations": singular / episodes,
+        "mean_length": steps / episodes,
+        "mean_planning_s": float(np.mean([p.seconds for p in plans])) if plans else 0.0,
+        "plans_per_episode": len(plans) / episodes,
+    }
+    return np.asarray(observations, dtype=np.float32), np.asarray(actions, dtype=np.float32), figures
+
+
+def fit(policy: Any, observations: np.ndarray, actions: np.ndarray, config: DistillConfig, seed: int) -> float:
+    """Fit the policy's Gaussian mean to ``actions`` (S, n) at normalised ``observations`` (S, D); final MSE."""
+    import torch
+
+    generator = torch.Generator().manual_seed(seed)
+    obs_t = torch.as_tensor(observations)
+    act_t = torch.as_tensor(np.clip(actions, -1.0, 1.0))
+    optimizer = torch.optim.Adam(policy.parameters(), lr=config.learning_rate)
+    loss_value = float("nan")
+    for _ in range(config.epochs):
+        order = torch.randperm(len(obs_t), generator=generator)
+        total = 0.0
+        for start in range(0, len(order), config.batch_size):
+            index = order[start : start + config.batch_size]
+            mean = policy.get_distribution(obs_t[index]).distribution.mean
+            loss = torch.mean((mean - act_t[index]) ** 2)
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            total += float(loss.detach()) * len(index)
+        loss_value = total / len(order)
+    return loss_value
+
+
+def _normalizer(env_id: str, observations: np.ndarray):
+    """A frozen ``VecNormalize`` (observations only) with the mean and variance of ``observations``."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    vec = VecNormalize(DummyVecEnv([lambda: gym.make(env_id)]), norm_obs=True, norm_reward=False)
+    vec.obs_rms.mean = observations.mean(axis=0).astype(np.float64)
+    vec.obs_rms.var = observations.var(axis=0).astype(np.float64)
+    vec.obs_rms.count = float(len(observations))
+    vec.training = False
+    return vec
+
+
+def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
+    """Train a plan-free policy (see the module docstring) and write its run folder; returns the figures."""
+    import torch
+    from stable_baselines3 import PPO
+
+    torch.manual_seed(config.seed)
+    torch.set_num_threads(1)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(config.seed)
+    env = gym.make(config.env_id)
+    expert = _expert(env, config)
+    seed = 1_000_000 * (config.seed + 1)
+    clock = time.perf_counter()
+    obs, act, figures = collect(env, expert, None, config.expert_episodes, 1.0, seed, rng)
+    seed += config.expert_episodes
+    rounds = [{"round": 0, "beta": 1.0, "pairs": len(obs), **figures, "seconds": time.perf_counter() - clock}]
+    log(f"expert: {figures['success_rate']:.0%} success, {len(obs)} pairs")
+    normalizer = _normalizer(config.env_id, obs)
+    model = PPO(
+        "MlpPolicy",
+        normalizer,
+        seed=config.seed,
+        device="cpu",
+        policy_kwargs={"net_arch": list(config.net_arch), "log_std_init": -1.0},
+        verbose=0,
+    )
+    policy = model.policy
+
+    def learner(o: np.ndarray) -> np.ndarray:
+        action, _ = model.predict(normalizer.normalize_obs(o[None]), deterministic=True)
+        return np.clip(action[0], -1.0, 1.0)
+
+    all_obs, all_act = [obs], [act]
+    rounds[0]["mse"] = fit(policy, normalizer.normalize_obs(obs), act, config, config.seed)
+    for r in range(1, config.iterations + 1):
+        clock = time.perf_counter()
+        beta = config.beta if r == 1 else 0.0
+        obs, act, figures = collect(env, expert, learner, config.episodes, beta, seed, rng)
+        seed += config.episodes
+        all_obs.append(obs)
+        all_act.append(act)
+        data_obs, data_act = np.concatenate(all_obs), np.concatenate(all_act)
+        mse = fit(policy, normalizer.normalize_obs(data_obs), data_act, config, config.seed + r)
+        rounds.append(
+            {"round": r, "beta": beta, "pairs": len(data_obs), **figures, "mse": mse,
+             "seconds": time.perf_counter() - clock}
+        )  # fmt: skip
+        log(
+            f"round {r} (β {beta}): learner {figures['success_rate']:.0%} success, "
+            f"{figures['singular_terminations']:.2f} singular/episode; {len(data_obs)} pairs, MSE {mse:.4f}"
+        )
+    if config.ppo_steps > 0:
+        model.learn(config.ppo_steps)
+    model.save(run_dir / "model.zip")
+    normalizer.save(str(run_dir / "vecnormalize.pkl"))
+    # time per decision of the learner (one observation) against the expert's planning time per episode
+    sample = np.concatenate(all_obs)[:200]
+    clock = time.perf_counter()
+    for o in sample:
+        learner(o)
+    decision_s = (time.perf_counter() - clock) / len(sample)
+    planning = [p["mean_planning_s"] for p in rounds if p["mean_planning_s"] > 0]
+    result = {
+        "config": asdict(config),
+        "rounds": rounds,
+        "decision_s": decision_s,
+        "expert_planning_s": float(np.mean(planning)) if planning else 0.0,
+    }
+    (run_dir / "distill.json").write_text(json.dumps(result, indent=2))
+    hyperparams = {
+        "policy": "MlpPolicy",
+        "normalize": {"norm_obs": True, "norm_reward": False},
+        "policy_kwargs": {"net_arch": list(config.net_arch), "log_std_init": -1.0},
+    }
+    run_config = {
+        "algo": "ppo",
+        "env_id": config.env_id,
+        "seed": config.seed,
+        "vec": "dummy",
+        "hyperparams": hyperparams,
+        "distilled_from": "planner",
+    }
+    (run_dir / "config.yml").write_text(yaml.safe_dump(run_config, sort_keys=False))
+    (run_dir / "command.txt").write_text(" ".join(["python -m training.distill", *sys.argv[1:]]) + "\n")
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry point (see the module docstring)."""
+    defaults = DistillConfig()
+    parser = argparse.ArgumentParser(prog="python -m training.distill", description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default=defaults.env_id, help="a Reach id (default %(default)s)")
+    parser.add_argument("--seed", type=int, default=defaults.seed)
+    parser.add_argument("--run-dir", required=True)
+    for name in ("expert_episodes", "iterations", "episodes", "epochs", "batch_size", "ppo_steps"):
+        parser.add_argument("--" + name.replace("_", "-"), type=int, default=getattr(defaults, name))
+    for name in ("beta", "learning_rate", "replan_distance", "lookahead"):
+        parser.add_argument("--" + name.replace("_", "-"), type=float, default=getattr(defaults, name))
+    parser.add_argument("--planner", default=defaults.planner, choices=("auto", "ompl", "grid"))
+    args = parser.parse_args(argv)
+    if args.env not in envs.ENV_IDS or "Reach" not in args.env:
+        parser.error(f"--env must be a Reach id of {envs.ENV_IDS}, got {args.env!r}")
+    for name in ("expert_episodes", "epochs", "batch_size"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
+    if not 0.0 <= args.beta <= 1.0:
+        parser.error(f"--beta must be in [0, 1], got {args.beta}")
+    config = DistillConfig(
+        env_id=args.env,
+        seed=args.seed,
+        expert_episodes=args.expert_episodes,
+        iterations=args.iterations,
+        episodes=args.episodes,
+        beta=args.beta,
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        learning_rate=args.learning_rate,
+        planner=args.planner,
+        replan_distance=args.replan_distance,
+        lookahead=args.lookahead,
+        ppo_steps=args.ppo_steps,
+    )
+    distill(config, Path(args.run_dir))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,95 @@
+r"""Results of the plan-free policies: every agent on standard and hard targets, a table, a picture, timings.
+
+Usage::
+
+    python -m training.plan_free_report --runs runs/distill-3rpr-s0 runs/distill-3rpr-s1 runs/distill-3rpr-s2 \\
+        --env Planar3RPRReach-v0 --residual training/pretrained/ppo-Planar3RPRReachMixed-v0 \\
+        --out docs/results/plan_free_planar3rpr
+
+Evaluates (``training.evaluate``, ``--episodes`` from reset seed ``--seed``, held out from training) on the env's
+standard and hard targets: the planner, the distilled plan-free runs (each seed), the residual policy over the
+planner, resolved-rate and singularity-aware control, and the plan-free runs behind ``envs.SingularityShield``.
+Writes each evaluation's folder, ``table.md`` (``training.family_report``: mean ± std over seeds),
+``timing.md`` (the plan-free policy's time per decision against the planner's planning time per episode, from
+the runs' ``distill.json``) and ``paths_hard.png`` (the planner's and the first plan-free run's paths on the
+same hard episodes over the map of k; robots with a certified grid).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+
+import envs  # noqa: F401  (registers the ids)
+from training import evaluate, family_report, plots
+
+__all__ = ["main"]
+
+
+def _evaluate(out: Path, args: list[str]) -> Path:
+    if not (out / "metrics.json").is_file():
+        evaluate.main([*args, "--out", str(out)])
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry point (see the module docstring)."""
+    parser = argparse.ArgumentParser(prog="python -m training.plan_free_report", description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", nargs="+", required=True, help="run folders of training.distill")
+    parser.add_argument("--env", required=True, help="the Reach id to evaluate on")
+    parser.add_argument("--residual", default=None, help="run folder of a residual policy over the planner")
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=5000)
+    parser.add_argument("--shield", type=float, default=0.05, help="k_guard of the shielded plan-free runs")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    common = ["--env", args.env, "--episodes", str(args.episodes), "--seed", str(args.seed)]
+    folders = []
+    for targets in ("standard", "hard"):
+        tail = [*common, "--targets", targets]
+        for controller in ("planner", "resolved-rate", "singularity-aware"):
+            folders.append(_evaluate(out / f"{controller}-{targets}", ["--controller", controller, *tail]))
+        for run in args.runs:
+            name = Path(run).name
+            folders.append(_evaluate(out / f"{name}-{targets}", ["--run", run, *tail]))
+            shield = ["--shield", str(args.shield)]
+            folders.append(_evaluate(out / f"{name}-{targets}-shield", ["--run", run, *tail, *shield]))
+        if args.residual:
+            folders.append(_evaluate(out / f"residual-{targets}", ["--run", args.residual, *tail]))
+    family_report.main([str(out / "table.md"), *map(str, folders)])
+
+    # timings from the distillation runs
+    results = [json.loads((Path(run) / "distill.json").read_text()) for run in args.runs]
+    decision = [1e3 * r["decision_s"] for r in results]
+    planning = [1e3 * r["expert_planning_s"] for r in results]
+    spread = lambda v: f" ± {statistics.stdev(v):.3f}" if len(v) > 1 else ""  # noqa: E731
+    (out / "timing.md").write_text(
+        "| plan-free decision [ms] (mean ± std over runs) | planner: planning per plan [ms] | ratio |\n"
+        "|---|---|---|\n"
+        f"| {statistics.mean(decision):.3f}{spread(decision)} | {statistics.mean(planning):.2f}{spread(planning)} "
+        f"| {statistics.mean(planning) / statistics.mean(decision):.0f}× |\n"
+    )
+
+    # the planner's and the first plan-free run's paths on the same hard episodes
+    env = gym.make(args.env)
+    workspace = getattr(env.unwrapped, "workspace", None)
+    if workspace is not None:
+        runs = {}
+        planner = evaluate.load_controller("planner", env)
+        runs["planner"] = evaluate.evaluate_agent(planner, env, 4, args.seed, "hard")
+        agent, _ = evaluate.load_run(args.runs[0])
+        runs["plan-free"] = evaluate.evaluate_agent(agent, env, 4, args.seed, "hard")
+        plots.trajectories_figure(runs, env.unwrapped.params, workspace, out / "paths_hard.png")
+    print((out / "table.md").read_text())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
