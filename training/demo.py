@@ -59,6 +59,11 @@ PRETRAINED_HARD_RUN = Path(str(resources.files("training").joinpath("pretrained"
 #: The shipped policy for both kinds of target (Planar3RPRReachMixed-v0, with the planner's waypoint in its
 #: observation), shown in place of the hard-trained one when present.
 PRETRAINED_MIXED_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRReachMixed-v0")))
+#: The shipped plan-free policy (``training.distill``: the planner distilled by DAgger; no planner at run time),
+#: shown beside the others when present.
+PRETRAINED_PLAN_FREE_RUN = Path(
+    str(resources.files("training").joinpath("pretrained", "distill-Planar3RPRReachMixed-v0"))
+)
 #: The shipped Track policy (Planar3RPRTrack-v0), compared with resolved-rate in ``track.md`` when present.
 PRETRAINED_TRACK_RUN = Path(str(resources.files("training").joinpath("pretrained", "ppo-Planar3RPRTrack-v0")))
 
@@ -133,6 +138,9 @@ def run_demo(
             kind = f"{trained_on}, waypoint"
         filmed = f"{hard_config['algo'].upper()} policy ({kind})"
         agents[filmed] = (hard_policy, hard_config)
+    if PRETRAINED_PLAN_FREE_RUN.is_dir() and PRETRAINED_PLAN_FREE_RUN != run:
+        plan_free, plan_free_config = load_run(PRETRAINED_PLAN_FREE_RUN)
+        agents["plan-free policy (distilled planner)"] = (plan_free, plan_free_config)
     for name in ("resolved-rate", "singularity-aware", "planner"):
         agents[name] = (load_controller(name, env), {})
     metrics, records = {}, {}
@@ -201,7 +209,7 @@ FAMILY_TRACK_DEMOS: dict[str, Path] = {"delta": _pretrained("ppo-DeltaTrack-v0")
 def run_family_demo(
     name: str, out: Path, episodes: int, seed: int = 1000, shield: float | None = DEMO_SHIELD
 ) -> dict | None:
-    """Evaluate a family robot's shipped policies and resolved-rate on its targets; write ``<name>.md``.
+    """Evaluate a family robot's shipped policies, resolved-rate and the planner on its targets; write ``<name>.md``.
 
     Standard targets come from the robot's Reach id, hard ones (where it has them) from its ReachHard id; every
     agent is also evaluated behind the shield when ``shield`` is set.
@@ -231,7 +239,11 @@ def run_family_demo(
     frames: list[np.ndarray] = []
     for targets, env_id in ids.items():
         env = gym.make(env_id, render_mode="rgb_array")
-        agents = {**policies, "resolved-rate": load_controller("resolved-rate", env)}
+        agents = {
+            **policies,
+            "resolved-rate": load_controller("resolved-rate", env),
+            "planner": load_controller("planner", env),
+        }
         for label, agent in agents.items():
             film = frames if (targets == "standard" and label == next(iter(policies))) else None
             recs = evaluate_agent(agent, env, episodes, seed, targets, film, 2)
