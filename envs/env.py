@@ -31,14 +31,37 @@ from envs.physics import (
     step,
 )
 from envs.presets import build_family_params
-from envs.rendering import HumanWindow
+from envs.rendering import HumanWindow, render_family_frame
 from envs.tasks import grid_kernels
 from envs.tasks.grid import WorkspaceMap
 
-__all__ = ["TRAIL_LENGTH", "FamilyEnvBase", "FamilyReachEnv", "FamilyTrackEnv"]
+__all__ = ["TRAIL_LENGTH", "FamilyEnvBase", "FamilyReachEnv", "FamilyTrackEnv", "render_frames"]
 
 #: Poses kept for the drawn trail.
 TRAIL_LENGTH = 200
+
+
+def render_frames(params: FamilyParams, state: FamilyState, trails: Sequence[Sequence[np.ndarray]]) -> list[np.ndarray]:
+    """The frames (``envs.rendering.render_family_frame``) of the N robots of ``state``, robot i with ``trails[i]``."""
+    n = state.q.shape[0]
+    evaluation, _ = evaluate(params, state, np.zeros_like(state.q), np.zeros(n, dtype=np.int64), False)
+    target = evaluation[params.evaluation_rows["target"]].T
+    return [
+        render_family_frame(
+            params.robot,
+            state.x[i],
+            target[i],
+            float(state.inverse_condition[i]),
+            safe_threshold=params.safe_threshold,
+            hard_threshold=params.hard_threshold,
+            view_low=params.pose_low,
+            view_high=params.pose_high,
+            trail=list(trails[i]),
+            step=int(state.t[i]),
+            q=state.q[i],
+        )
+        for i in range(n)
+    ]
 
 
 class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
@@ -128,7 +151,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             return None
         if self._state is None:
             raise gym.error.ResetNeeded("Cannot call render() before reset()")
-        frame = self._frame()
+        frame = render_frames(self.params, self._state, [self._trail])[0]
         if self.render_mode == "rgb_array":
             return frame
         if self._window is None:
@@ -142,27 +165,6 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             self._window.close()
             self._window = None
         super().close()
-
-    def _frame(self) -> np.ndarray:
-        from envs.rendering import render_family_frame
-
-        evaluation, _ = evaluate(
-            self.params, self._state, np.zeros_like(self._state.q), np.zeros(1, dtype=np.int64), False
-        )
-        target = evaluation[self.params.evaluation_rows["target"], 0]
-        return render_family_frame(
-            self.params.robot,
-            self._state.x[0],
-            target,
-            float(self._state.inverse_condition[0]),
-            safe_threshold=self.params.safe_threshold,
-            hard_threshold=self.params.hard_threshold,
-            view_low=self.params.pose_low,
-            view_high=self.params.pose_high,
-            trail=list(self._trail),
-            step=int(self._state.t[0]),
-            q=self._state.q[0],
-        )
 
     @property
     def workspace(self) -> WorkspaceMap | None:
@@ -366,9 +368,8 @@ class FamilyReachEnv(FamilyEnvBase):
         start = self._fixed_pose("start", options["start"]) if "start" in options else None
         target = self._fixed_pose("target", options["target"]) if "target" in options else None
         if start is not None and target is not None:
-            if params.workspace is not None and params.workspace.component_of(start) != params.workspace.component_of(
-                target
-            ):
+            workspace = params.workspace
+            if workspace is not None and workspace.component_of(start) != workspace.component_of(target):
                 raise ValueError(
                     f"start {start.tolist()} and target {target.tolist()} lie in different safe regions "
                     "(different working modes): no singularity-free path joins them"
@@ -485,25 +486,22 @@ class FamilyTrackEnv(FamilyEnvBase):
         streams: np.ndarray | None = None,
     ) -> tuple[np.ndarray, FamilyReference]:
         """References whose whole period is safe, one per generator; the start is the reference at t = 0."""
-        n, m = len(generators), self.params.robot.n_pose
+        params = self.params
+        n, m = len(generators), params.robot.n_pose
         if streams is None:
             streams = fk.random_streams(generators)
-        if self.params.track_shape == "circle":
+        if params.track_shape == "circle":
+            steps = int(np.ceil(params.track_period / params.dt))
+            radii, angles = params.track_radius_range, params.track_angle_range
             found = grid_kernels.sample_circle_batch(
-                self.params.packed,
-                self.params.workspace.packed,
-                streams,
-                n,
-                self.params.track_radius_range,
-                self.params.track_angle_range,
-                int(np.ceil(self.params.track_period / self.params.dt)),
+                params.packed, params.workspace.packed, streams, n, radii, angles, steps
             )
         else:
-            found = fk.sample_track_batch(self.params.packed, streams, n, m, self.params.track_amplitude, 64)
+            found = fk.sample_track_batch(params.packed, streams, n, m, params.track_amplitude, 64)
         if found is None:
             raise RuntimeError(f"no safe reference found in the task box after {fk.SAMPLER_TRIES} tries")
         center, amplitude, phase = found
-        start, _ = fk.reference_batch(self.params.packed, np.zeros(n, dtype=np.int64), center, amplitude, phase)
+        start, _ = fk.reference_batch(params.packed, np.zeros(n, dtype=np.int64), center, amplitude, phase)
         return start, FamilyReference(center, amplitude, phase)
 
 

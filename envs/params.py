@@ -145,11 +145,6 @@ class FamilyParams:
         return fk.pack_family(self)
 
     @functools.cached_property
-    def spatial(self) -> bool:
-        """Whether the pose space is spatial (else planar)."""
-        return self.robot.pose_space.name == "spatial"
-
-    @functools.cached_property
     def evaluation_rows(self) -> dict[str, int | slice]:
         """Rows of ``evaluate`` / ``step``'s evaluation array."""
         return fk.evaluation_rows(self.robot.n_pose)

@@ -196,21 +196,9 @@ def check_state(params: FamilyParams, state: FamilyState) -> int:
     n_rows = state.q.shape[0]
     n, m = params.robot.n_actuators, params.robot.n_pose
     ref = state.reference
-    rows, flat = (n_rows, n), (n_rows,)
-    got = (
-        state.q.shape,
-        state.x.shape,
-        state.t.shape,
-        state.det_sign.shape,
-        state.inverse_condition.shape,
-        state.actuator_condition.shape,
-        state.residual.shape,
-        ref.center.shape,
-        ref.amplitude.shape,
-        ref.phase.shape,
-        rows if ref.strokes is None else ref.strokes.shape,
-    )
-    pose = (n_rows, m)
+    rows, pose, flat = (n_rows, n), (n_rows, m), (n_rows,)
+    strokes = rows if ref.strokes is None else ref.strokes.shape
+    got = (*(field.shape for field in state[:-1]), ref.center.shape, ref.amplitude.shape, ref.phase.shape, strokes)
     if got != (rows, pose, flat, flat, flat, flat, flat, pose, pose, pose, rows):
         shapes = {name: np.shape(v) for name, v in zip(FamilyState._fields, state) if name != "reference"}
         shapes.update({f"reference.{name}": np.shape(v) for name, v in zip(FamilyReference._fields, ref)})
@@ -395,9 +383,8 @@ def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) 
     entries last.
     """
     rows = params.evaluation_rows
-    info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS[:8]}
-    info["is_success"] = evaluation[rows["is_success"]] != 0.0
-    info["cost"] = evaluation[rows["cost"]].copy()
+    info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS if name not in TYPE_I_INFO}
+    info["is_success"] = info["is_success"] != 0.0
     info["termination_reason"] = _REASON_NAMES[reason]
     info["pose"] = evaluation[rows["pose"]].T.copy()
     info["target"] = evaluation[rows["target"]].T.copy()

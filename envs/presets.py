@@ -391,10 +391,11 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     unknown = set(kwargs) - set(defaults)
     if unknown:
         raise TypeError(f"unknown argument(s) {sorted(unknown)}")
+    args = {name: spec.default for name, spec in defaults.items()} | kwargs  # the given values, else the defaults
     values: dict[str, Any] = {}
     for name in ("pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude"):
-        values[name] = _vector(name, kwargs.get(name, defaults[name].default), m)
-    lo, hi = _vector("stroke_limits", kwargs.get("stroke_limits", defaults["stroke_limits"].default), 2)
+        values[name] = _vector(name, args[name], m)
+    lo, hi = _vector("stroke_limits", args["stroke_limits"], 2)
     has_legs = "leg" in robot.actuator_kinds
     if not (0 < lo < hi if has_legs else lo < hi):
         bound = "0 < q_min < q_max (leg lengths)" if has_legs else "q_min < q_max"
@@ -412,53 +413,44 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         )
     if robot.pose_space.name == "spatial" and max(map(abs, values["pose_low"][3:] + values["pose_high"][3:])) >= 2.5:
         raise ValueError("rotation-vector bounds must stay within ±2.5 rad, away from the wrap at |r| = π")
-    values["track_path"], values["track_path_times"] = _track_path(
-        kwargs.get("track_path", ()), kwargs.get("track_path_times", ()), m
-    )
-    options = {}
+    values["track_path"], values["track_path_times"] = _track_path(args["track_path"], args["track_path_times"], m)
     for name, valid in (("hard_kind", HARD_KINDS), ("task_region", TASK_REGIONS), ("track_shape", TRACK_SHAPES)):
-        options[name] = kwargs.get(name, defaults[name].default)
-        if options[name] not in valid:
-            raise ValueError(f"{name} must be one of {valid}, got {options[name]!r}")
-    if options["task_region"] == "grid" and m != 3:
+        values[name] = args[name]
+        if values[name] not in valid:
+            raise ValueError(f"{name} must be one of {valid}, got {values[name]!r}")
+    if values["task_region"] == "grid" and m != 3:
         raise ValueError(f"task_region='grid' needs a robot with 3 pose coordinates, got {m} ({robot.pose_space.name})")
-    if options["hard_kind"] == "crossing" and options["task_region"] != "grid":
-        raise ValueError(f"hard_kind='crossing' needs task_region='grid', got {options['task_region']!r}")
-    if options["track_shape"] == "circle" and (options["task_region"] != "grid" or values["track_path"]):
+    if values["hard_kind"] == "crossing" and values["task_region"] != "grid":
+        raise ValueError(f"hard_kind='crossing' needs task_region='grid', got {values['task_region']!r}")
+    if values["track_shape"] == "circle" and (values["task_region"] != "grid" or values["track_path"]):
         raise ValueError("track_shape='circle' needs task_region='grid' and no track_path")
-    values["grid_cell"] = _vector("grid_cell", kwargs.get("grid_cell", defaults["grid_cell"].default), 3)
+    values["grid_cell"] = _vector("grid_cell", args["grid_cell"], 3)
     if not all(v > 0 for v in values["grid_cell"]):
         raise ValueError(f"grid_cell must be 3 positive spacings, got {values['grid_cell']}")
     for name in ("track_radius_range", "track_angle_range"):
-        values[name] = _vector(name, kwargs.get(name, defaults[name].default), 2)
+        values[name] = _vector(name, args[name], 2)
         if not 0 <= values[name][0] <= values[name][1]:
             raise ValueError(f"{name} must satisfy 0 ≤ low ≤ high, got {values[name]}")
-    integrator = kwargs.get("integrator", "euler")
-    if integrator not in INTEGRATORS:
-        raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
-    safe = _number("safe_threshold", kwargs.get("safe_threshold", defaults["safe_threshold"].default))
-    hard = _number("hard_threshold", kwargs.get("hard_threshold", defaults["hard_threshold"].default))
+    values["integrator"] = args["integrator"]
+    if values["integrator"] not in INTEGRATORS:
+        raise ValueError(f"integrator must be one of {INTEGRATORS}, got {values['integrator']!r}")
+    safe = values["safe_threshold"] = _number("safe_threshold", args["safe_threshold"])
+    hard = values["hard_threshold"] = _number("hard_threshold", args["hard_threshold"])
     if not 0 < hard < safe < 1:
         raise ValueError(f"thresholds must satisfy 0 < hard_threshold < safe_threshold < 1, got {hard} and {safe}")
-    hard1 = _number(
-        "actuator_hard_threshold",
-        kwargs.get("actuator_hard_threshold", defaults["actuator_hard_threshold"].default),
-        allow_zero=True,
+    hard1 = values["actuator_hard_threshold"] = _number(
+        "actuator_hard_threshold", args["actuator_hard_threshold"], allow_zero=True
     )
-    safe1 = _number(
-        "actuator_safe_threshold", kwargs.get("actuator_safe_threshold", defaults["actuator_safe_threshold"].default)
-    )
+    safe1 = values["actuator_safe_threshold"] = _number("actuator_safe_threshold", args["actuator_safe_threshold"])
     if not hard1 < safe1 < 1:
         raise ValueError(
             f"thresholds must satisfy actuator_hard_threshold < actuator_safe_threshold < 1, got {hard1} and {safe1}"
         )
-    iterations = kwargs.get("newton_max_iterations", defaults["newton_max_iterations"].default)
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
-        raise ValueError(f"newton_max_iterations must be an int ≥ 1, got {iterations!r}")
-    substeps = kwargs.get("max_substeps", defaults["max_substeps"].default)
-    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
-        raise ValueError(f"max_substeps must be an int ≥ 1, got {substeps!r}")
-    scalars = {}
+    for name in ("newton_max_iterations", "max_substeps"):
+        count = args[name]
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+            raise ValueError(f"{name} must be an int ≥ 1, got {count!r}")
+        values[name] = int(count)
     for name in (
         "dt",
         "max_rate",
@@ -470,7 +462,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         "track_period",
         "segment_spacing",
     ):
-        scalars[name] = _number(name, kwargs.get(name, defaults[name].default))
+        values[name] = _number(name, args[name])
     for name in (
         "position_weight",
         "orientation_weight",
@@ -481,29 +473,16 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         "stroke_margin",
         "min_distance",
     ):
-        scalars[name] = _number(name, kwargs.get(name, defaults[name].default), allow_zero=True)
+        values[name] = _number(name, args[name], allow_zero=True)
     if box_derived:
         values["sample_low"], values["sample_high"] = _fit_task_box(
-            robot, values["sample_low"], values["sample_high"], (lo, hi), scalars["stroke_margin"], safe, safe1
+            robot, values["sample_low"], values["sample_high"], (lo, hi), values["stroke_margin"], safe, safe1
         )
     if "segment_spacing" not in caller_keys:
-        certificate = fk.pack_certificate(robot, (lo, hi), scalars["stroke_margin"], safe, safe1)
+        certificate = fk.pack_certificate(robot, (lo, hi), values["stroke_margin"], safe, safe1)
         margin = min(safe - hard, (safe1 - hard1) * safe / safe1)
-        scalars["segment_spacing"] = min(
-            scalars["segment_spacing"],
+        values["segment_spacing"] = min(
+            values["segment_spacing"],
             certificate_spacing(certificate, robot, values["sample_low"], values["sample_high"], margin),
         )
-    return FamilyParams(
-        robot=robot,
-        stroke_limits=(lo, hi),
-        integrator=integrator,
-        **options,
-        safe_threshold=safe,
-        hard_threshold=hard,
-        actuator_hard_threshold=hard1,
-        actuator_safe_threshold=safe1,
-        newton_max_iterations=int(iterations),
-        max_substeps=int(substeps),
-        **values,
-        **scalars,
-    )
+    return FamilyParams(robot=robot, stroke_limits=(lo, hi), **values)

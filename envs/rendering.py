@@ -85,9 +85,7 @@ class HumanWindow:
             self._figure = None
 
 
-__all__ = ["leg_color", "render_family_frame"]
-
-# The palette of the 3-RPR's renderer (``envs.rendering``), plus the fills and grid of the 3-D view.
+# Fills and grid of the drawings.
 _GRID = (226, 226, 220)
 _BASE_FILL = (232, 232, 226)
 _PLATFORM_FILL = (168, 194, 234)

@@ -13,7 +13,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from envs import physics
-from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv
+from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv, render_frames
 from envs.kernels.setup import random_streams
 from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate, initial_state, step_info
 
@@ -26,12 +26,6 @@ def _positive_int(name: str, value: Any) -> int:
     if value < 1:
         raise ValueError(f"{name} must be ≥ 1, got {value}")
     return int(value)
-
-
-def _take(state: FamilyState, rows: np.ndarray) -> FamilyState:
-    """The rows ``rows`` of a batched state (copies); works for any state NamedTuple ending with its reference."""
-    reference = type(state.reference)(*(field[rows] for field in state.reference))
-    return type(state)(*(field[rows] for field in state[:-1]), reference)
 
 
 def _put(state: FamilyState, rows: np.ndarray, values: FamilyState) -> None:
@@ -174,7 +168,7 @@ class FamilyVectorEnv(VectorEnv):
         self._observations: np.ndarray | None = None
         # Two sets of step outputs, used in turn (a step never writes over the state it starts from),
         # so that stepping allocates no large arrays.
-        self._buffers = (self._new_buffers(), self._new_buffers())
+        self._buffers = tuple(StepBuffers(self.params, self.num_envs, self.with_velocity) for _ in range(2))
         self._next = 0
         self._ended = np.zeros(self.num_envs, dtype=bool)
         self._trails: list[deque[np.ndarray]] = []
@@ -221,9 +215,7 @@ class FamilyVectorEnv(VectorEnv):
         else:
             _put(self._state, rows, fresh)
         self._ended[rows] = False
-        observations, info = self._evaluate(
-            fresh, np.zeros((rows.size, self._n_actions)), np.zeros(rows.size, dtype=np.int64)
-        )
+        observations, info = self._evaluate(fresh)
         if self._observations is None:
             self._observations = observations
         else:
@@ -262,8 +254,8 @@ class FamilyVectorEnv(VectorEnv):
             ) from None
         self._next ^= 1
         self._state = state
-        info = self._step_info(state, evaluation, outcome.reason)
-        rewards = evaluation[self._reward_row].copy()
+        info = step_info(self.params, evaluation, outcome.reason)
+        rewards = evaluation[self.params.evaluation_rows["reward"]].copy()
         terminations = outcome.reason != 0
         truncations = state.t >= self.max_episode_steps
         extra: dict[str, Any] = {}
@@ -309,48 +301,10 @@ class FamilyVectorEnv(VectorEnv):
             return None
         if self._state is None:
             raise gym.error.ResetNeeded("Cannot call render() before reset()")
-        return self._frames()
-
-    @property
-    def _reward_row(self) -> int:
-        return self.params.evaluation_rows["reward"]
-
-    def _new_buffers(self) -> StepBuffers:
-        return StepBuffers(self.params, self.num_envs, self.with_velocity)
-
-    def _initial_state(self, start: np.ndarray, reference: physics.FamilyReference) -> FamilyState:
-        return initial_state(self.params, start, reference)
-
-    def _step_info(self, state: FamilyState, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
-        return step_info(self.params, evaluation, reason)
+        return tuple(render_frames(self.params, self._state, self._trails))
 
     def _trail_point(self, i: int) -> np.ndarray:
         return self.params.robot.pose_space.position(self._state.x[i]).copy()
-
-    def _frames(self) -> tuple[np.ndarray, ...]:
-        from envs.rendering import render_family_frame
-
-        state = self._state
-        evaluation, _ = evaluate(
-            self.params, state, np.zeros_like(state.q), np.zeros(self.num_envs, dtype=np.int64), False
-        )
-        target = evaluation[self.params.evaluation_rows["target"]].T
-        return tuple(
-            render_family_frame(
-                self.params.robot,
-                state.x[i],
-                target[i],
-                float(state.inverse_condition[i]),
-                safe_threshold=self.params.safe_threshold,
-                hard_threshold=self.params.hard_threshold,
-                view_low=self.params.pose_low,
-                view_high=self.params.pose_high,
-                trail=list(self._trails[i]),
-                step=int(state.t[i]),
-                q=state.q[i],
-            )
-            for i in range(self.num_envs)
-        )
 
     def close_extras(self, **kwargs: Any) -> None:
         """Release the task sampler (nothing else holds resources)."""
@@ -449,12 +403,12 @@ class FamilyVectorEnv(VectorEnv):
 
     # -- helpers ----------------------------------------------------------------------------------
 
-    def _evaluate(
-        self, state: FamilyState, action: np.ndarray, reason: np.ndarray
-    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """Observations and per-robot info arrays (fresh, writable) of a batched state."""
+    def _evaluate(self, state: FamilyState) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Observations and per-robot info arrays (fresh, writable) of robots starting an episode (action 0)."""
+        n = state.q.shape[0]
+        action, reason = np.zeros((n, self._n_actions)), np.zeros(n, dtype=np.int64)
         evaluation, observations = evaluate(self.params, state, action, reason, self.with_velocity)
-        return observations, self._step_info(state, evaluation, reason)
+        return observations, step_info(self.params, evaluation, reason)
 
     def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> FamilyState:
         """Draw a task for each sub-environment of ``rows`` with its own generator; their state at t = 0.
@@ -463,7 +417,7 @@ class FamilyVectorEnv(VectorEnv):
         """
         generators = [self._generators[i] for i in rows.tolist()]
         start, reference = self._sampler.sample_tasks(generators, options, self._streams[rows])
-        return self._initial_state(start, reference)
+        return initial_state(self.params, start, reference)
 
     def _new_generator(self, i: int, seed: int | None) -> None:
         """Give sub-environment i a new generator (seeded with ``seed``, or from entropy) and its stream."""
@@ -477,9 +431,7 @@ class FamilyVectorEnv(VectorEnv):
                 self._new_generator(i, None)
         fresh = self._start_episodes(rows, {})
         _put(self._state, rows, fresh)
-        new_obs, new_info = self._evaluate(
-            fresh, np.zeros((rows.size, self._n_actions)), np.zeros(rows.size, dtype=np.int64)
-        )
+        new_obs, new_info = self._evaluate(fresh)
         observations[rows] = new_obs
         for key, value in new_info.items():
             info[key][rows] = value

@@ -45,7 +45,7 @@ from envs.kernels.linalg import (
     solve3,
     solve6,
 )
-from envs.kernels.setup import PARALLEL_MIN_BATCH, _next_double, random_streams  # noqa: F401  (re-exported streams)
+from envs.kernels.setup import PARALLEL_MIN_BATCH, _next_double, jit, jit_inline, jit_parallel, random_streams
 
 __all__ = [
     "C_SIZE",
@@ -59,6 +59,7 @@ __all__ = [
     "observation_layout",
     "pack_certificate",
     "pack_family",
+    "random_streams",
     "reference_batch",
     "safe_batch",
     "safety_batch",
@@ -201,20 +202,6 @@ SEGMENT_MAX_POINTS = 2000
 _TWO_PI = 2.0 * math.pi
 
 
-def _jit(fn):
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
-
-
-def _jit_inline(fn):
-    # Inlined into its callers at Numba's IR level, so a per-robot call does not pass its many array
-    # arguments field by field.
-    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
-
-
-def _jit_parallel(fn):
-    return numba.njit(cache=True, nogil=True, error_model="numpy", parallel=True)(fn)
-
-
 def pack_certificate(
     robot, stroke_limits, stroke_margin, safe_threshold, actuator_safe_threshold, hard_threshold=0.0
 ) -> np.ndarray:
@@ -349,7 +336,7 @@ def observation_layout(pose_space: str, n: int, with_velocity: bool) -> dict[str
 # -- rotations: quaternions (w, x, y, z) and rotation vectors ------------------------------------------
 
 
-@_jit
+@jit
 def _quat_from_rotvec(r0, r1, r2):
     """Unit quaternion of the rotation vector r (exp([r]×)), with the series near r = 0."""
     t2 = r0 * r0 + r1 * r1 + r2 * r2
@@ -363,7 +350,7 @@ def _quat_from_rotvec(r0, r1, r2):
     return w, s * r0, s * r1, s * r2
 
 
-@_jit
+@jit
 def _rotvec_from_quat(w, x, y, z):
     """Rotation vector (|r| ≤ π) of a unit quaternion (either sign)."""
     if w < 0.0:
@@ -375,7 +362,7 @@ def _rotvec_from_quat(w, x, y, z):
     return scale * x, scale * y, scale * z
 
 
-@_jit
+@jit
 def _quat_mul(a0, a1, a2, a3, b0, b1, b2, b3):
     """Hamilton product a ⊗ b (the rotation b, then a)."""
     return (
@@ -386,7 +373,7 @@ def _quat_mul(a0, a1, a2, a3, b0, b1, b2, b3):
     )
 
 
-@_jit
+@jit
 def _compose_rotvec(s0, s1, s2, r0, r1, r2):
     """Rotation vector of exp([s]×) exp([r]×)."""
     a0, a1, a2, a3 = _quat_from_rotvec(s0, s1, s2)
@@ -395,7 +382,7 @@ def _compose_rotvec(s0, s1, s2, r0, r1, r2):
     return _rotvec_from_quat(w, x, y, z)
 
 
-@_jit
+@jit
 def _relative_rotvec(a0, a1, a2, b0, b1, b2):
     """Rotation vector δθ with exp([δθ]×) exp([b]×) = exp([a]×)."""
     qa0, qa1, qa2, qa3 = _quat_from_rotvec(a0, a1, a2)
@@ -404,7 +391,7 @@ def _relative_rotvec(a0, a1, a2, b0, b1, b2):
     return _rotvec_from_quat(w, x, y, z)
 
 
-@_jit
+@jit
 def _wrap(angle):
     """Wrap an angle to [−π, π)."""
     return (angle + math.pi) % _TWO_PI - math.pi
@@ -413,56 +400,40 @@ def _wrap(angle):
 # -- pose-space operations -----------------------------------------------------------------------------
 
 
-@_jit
+@jit
 def _frame(c, x):
     """Position p of {P} and the rotation R (row by row) of the pose x: (p0, p1, p2, r00, …, r22)."""
     if c[C_SPATIAL] != 0.0:
         w, a, b, d = _quat_from_rotvec(x[3], x[4], x[5])
-        return (
-            x[0],
-            x[1],
-            x[2],
-            1.0 - 2.0 * (b * b + d * d),
-            2.0 * (a * b - d * w),
-            2.0 * (a * d + b * w),
-            2.0 * (a * b + d * w),
-            1.0 - 2.0 * (a * a + d * d),
-            2.0 * (b * d - a * w),
-            2.0 * (a * d - b * w),
-            2.0 * (b * d + a * w),
-            1.0 - 2.0 * (a * a + b * b),
-        )
+        r00, r01, r02 = 1.0 - 2.0 * (b * b + d * d), 2.0 * (a * b - d * w), 2.0 * (a * d + b * w)
+        r10, r11, r12 = 2.0 * (a * b + d * w), 1.0 - 2.0 * (a * a + d * d), 2.0 * (b * d - a * w)
+        r20, r21, r22 = 2.0 * (a * d - b * w), 2.0 * (b * d + a * w), 1.0 - 2.0 * (a * a + b * b)
+        return x[0], x[1], x[2], r00, r01, r02, r10, r11, r12, r20, r21, r22
     if c[C_TRANSLATIONAL] != 0.0:
         return x[0], x[1], x[2], 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     cs, sn = math.cos(x[2]), math.sin(x[2])
     return x[0], x[1], 0.0, cs, -sn, 0.0, sn, cs, 0.0, 0.0, 0.0, 1.0
 
 
-@_jit
+@jit
 def _retract(c, x, step, scale, out):
     """Out = x ⊕ scale · step: p + scale δp and R ← exp([scale δθ]×) R (planar: x + scale · step)."""
+    out[0] = x[0] + scale * step[0]
+    out[1] = x[1] + scale * step[1]
+    out[2] = x[2] + scale * step[2]
     if c[C_SPATIAL] != 0.0:
-        out[0] = x[0] + scale * step[0]
-        out[1] = x[1] + scale * step[1]
-        out[2] = x[2] + scale * step[2]
         out[3], out[4], out[5] = _compose_rotvec(scale * step[3], scale * step[4], scale * step[5], x[3], x[4], x[5])
-    else:
-        out[0] = x[0] + scale * step[0]
-        out[1] = x[1] + scale * step[1]
-        out[2] = x[2] + scale * step[2]
 
 
-@_jit
+@jit
 def _difference(c, x, y, out):
     """Out = the twist step from y to x ((p_x − p_y, δθ) with exp([δθ]×) R_y = R_x; planar: x − y)."""
+    out[0], out[1], out[2] = x[0] - y[0], x[1] - y[1], x[2] - y[2]
     if c[C_SPATIAL] != 0.0:
-        out[0], out[1], out[2] = x[0] - y[0], x[1] - y[1], x[2] - y[2]
         out[3], out[4], out[5] = _relative_rotvec(x[3], x[4], x[5], y[3], y[4], y[5])
-    else:
-        out[0], out[1], out[2] = x[0] - y[0], x[1] - y[1], x[2] - y[2]
 
 
-@_jit
+@jit
 def _metric(c, step):
     """‖(δp, ℓ_c δθ)‖ of a twist step [m]."""
     lc = c[C_LC]
@@ -475,7 +446,7 @@ def _metric(c, step):
     return math.sqrt(step[0] * step[0] + step[1] * step[1] + lc * lc * step[2] * step[2])
 
 
-@_jit
+@jit
 def _all_finite(v, m):
     for j in range(m):
         if not math.isfinite(v[j]):
@@ -486,7 +457,7 @@ def _all_finite(v, m):
 # -- the constraint-level math -------------------------------------------------------------------------
 
 
-@_jit
+@jit
 def _work():
     """A work array of the kernels (rows ``W_*``, 6 columns), its anchor cache marked empty."""
     w = np.empty((W_SIZE, 6))
@@ -494,7 +465,7 @@ def _work():
     return w
 
 
-@_jit_inline
+@jit_inline
 def _rows_legs(c, q, x, w):
     """``_rows`` of a leg-actuated robot: the anchors are the B_i; ℓ_i = q_i and −(J_q)_ii / 2 = q_i."""
     n = int(c[C_N])
@@ -523,7 +494,7 @@ def _rows_legs(c, q, x, w):
         w[W_DQ, i] = q[i]
 
 
-@_jit
+@jit
 def _rows_actuated(c, q, x, w):
     """``_rows`` of a robot with cranks or sliders: the anchors A_i(q_i) move with q (see ``_rows``)."""
     n = int(c[C_N])
@@ -566,7 +537,7 @@ def _rows_actuated(c, q, x, w):
         sq[i] = d0 * d0 + d1 * d1 + d2 * d2
 
 
-@_jit_inline
+@jit_inline
 def _rows(c, q, x, w):
     """Rows of A = J_x / 2 at (q, x) into w[W_A:], and d_iᵀ d_i into w[W_SQ].
 
@@ -579,13 +550,13 @@ def _rows(c, q, x, w):
         _rows_actuated(c, q, x, w)
 
 
-@_jit_inline
+@jit_inline
 def _link_length(c, q, w, i):
     """ℓ_i(q_i) at the rows last computed (q_i for a leg)."""
     return w[W_ELL, i]
 
 
-@_jit
+@jit
 def _ik_leg(c, i, w0, w1, w2):
     """Closed-form q_i of leg i whose platform point is at B_i + w (NaN where a crank or slider cannot reach)."""
     ww = w0 * w0 + w1 * w1 + w2 * w2
@@ -611,7 +582,7 @@ def _ik_leg(c, i, w0, w1, w2):
     return _wrap(math.atan2(wv, wu) + branch * math.acos(ratio))
 
 
-@_jit
+@jit
 def _leg_lengths(c, x, out):
     """Actuator coordinates of the pose x (the closed-form inverse kinematics) into out (n,), without rows.
 
@@ -628,7 +599,7 @@ def _leg_lengths(c, x, out):
         out[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) if legs else _ik_leg(c, i, d0, d1, d2)
 
 
-@_jit
+@jit
 def _inverse_kinematics(c, x, w, out):
     """Actuator coordinates of the pose x into out (n,), and the rows of A there into w."""
     if c[C_LEGS] != 0.0:
@@ -642,7 +613,7 @@ def _inverse_kinematics(c, x, w, out):
     _rows(c, out, x, w)
 
 
-@_jit
+@jit
 def _solve(w, m, src, rhs, sol):
     """Solve (rows ``src`` of w) u = rhs into sol (m = 3: adjugate; m = 6: pivoted elimination); returns det.
 
@@ -658,7 +629,7 @@ def _solve(w, m, src, rhs, sol):
     return solve6(w[src : src + 6], rhs, w[W_LU : W_LU + 6], sol)
 
 
-@_jit
+@jit
 def _twist_rate(c, q, rate, w, src, out):
     """Out = J_f(q, x) q̇ = A⁻¹ (−J_q / 2) q̇ from the rows ``src`` of A at (q, x); NaN where J_x is singular."""
     m = int(c[C_N])
@@ -668,7 +639,7 @@ def _twist_rate(c, q, rate, w, src, out):
     _solve(w, m, src, rhs, out)
 
 
-@_jit
+@jit
 def _homogeneous_lane(c, q, w, src, H, lane):
     """Lane ``lane`` of H (see ``inverse_condition6_lanes``) = J_i diag(pose_scale) from the rows ``src`` of A (m = 6).
 
@@ -684,7 +655,7 @@ def _homogeneous_lane(c, q, w, src, H, lane):
     return 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
 
 
-@_jit
+@jit
 def _singularity(c, q, w, src):
     """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``src`` of A.
 
@@ -711,7 +682,7 @@ def _singularity(c, q, w, src):
     return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
 
 
-@_jit
+@jit
 def _actuator_condition(c, w):
     """Type I measure at the rows last computed: min_i |d_iᵀ A_i′ + ℓ_i ℓ_i′| / (ℓ_i ‖(A_i′, ℓ_i′)‖); 1 for legs."""
     if c[C_LEGS] != 0.0:
@@ -725,7 +696,7 @@ def _actuator_condition(c, w):
     return k1
 
 
-@_jit
+@jit
 def _residual(c, q, w):
     """max_i |d_iᵀ d_i − ℓ_i²| at the rows last computed (NaN if any is NaN)."""
     res = 0.0
@@ -738,7 +709,7 @@ def _residual(c, q, w):
     return res
 
 
-@_jit
+@jit
 def _newton(c, q, guess, w, out, tolerance, max_iterations):
     """Newton's method on Φ(q, x) = 0 from ``guess`` into ``out`` (on the rotation group); returns the residual.
 
@@ -768,7 +739,7 @@ def _newton(c, q, guess, w, out, tolerance, max_iterations):
     return residual
 
 
-@_jit
+@jit
 def _substeps(c, v):
     """Substeps so that each predicts at most ``max_substep`` of motion ‖(δp, ℓ_c δθ)‖ [m]."""
     count = np.ceil(_metric(c, v) * c[C_DT] / c[C_MAX_SUBSTEP])
@@ -778,7 +749,7 @@ def _substeps(c, v):
     return int(min(max(count, 1.0), cap))
 
 
-@_jit
+@jit
 def _rate_at(c, q, x, rate, w, out):
     """Out = J_f(q, x) q̇ at an arbitrary (q, x) (computes the rows of A there)."""
     _rows(c, q, x, w)
@@ -789,13 +760,13 @@ def _rate_at(c, q, x, rate, w, out):
 L_K, L_WORST, L_ACTIVE, L_SIGN, L_FLAGS, L_K1 = 0, 1, 2, 3, 4, 5
 
 
-@_jit
+@jit
 def allocate_lanes():
     """Work arrays of one block of up to ``LANES`` spatial robots: (H (6, 6, LANES), lane rows (6, LANES))."""
     return np.empty((6, 6, LANES)), np.empty((6, LANES))
 
 
-@_jit_inline
+@jit_inline
 def _advance_spatial(c, state, action, i, w, moved):
     """Move robot i through one control period (predict, correct): its rows of ``moved`` but k, k_I, the reason.
 
@@ -887,7 +858,7 @@ def _advance_spatial(c, state, action, i, w, moved):
 PLANAR_LEGS, THREE, WORK_ARRAYS = 0, 1, 2
 
 
-@_jit_inline
+@jit_inline
 def _path(c):
     """The row path (``PLANAR_LEGS``, ``THREE`` or ``WORK_ARRAYS``) that steps the robot of ``c``."""
     if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
@@ -897,7 +868,7 @@ def _path(c):
     return WORK_ARRAYS
 
 
-@_jit_inline
+@jit_inline
 def _transition_block(c, state, action, start, count, w, lanes, moved):
     """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
 
@@ -948,15 +919,15 @@ def _transition_block(c, state, action, start, count, w, lanes, moved):
         )
 
 
-@_jit
-def _transition_serial(c, state, action, moved):
-    w = _work()
-    lanes = allocate_lanes()
-    n = action.shape[0]
-    for start in range(0, n, LANES):
-        _transition_block(c, state, action, start, min(LANES, n - start), w, lanes, moved)
+@jit
+def _allocate_moved(n, m):
+    """The outputs of ``transition_batch`` for n robots with m pose coordinates (see its Returns)."""
+    q, x, action, q_rate = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    k, k1, residual, jump = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    return q, x, k, k1, residual, action, q_rate, np.empty(n, dtype=np.int64), jump
 
 
+@jit
 def transition_batch(c, state, action):
     """Advance N robots by one control period (the algorithm of ``envs.physics.transition``).
 
@@ -970,18 +941,15 @@ def transition_batch(c, state, action):
         (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
     """
     n, m = action.shape
-    moved = (np.empty((n, m)), np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n))
-    moved += (np.empty((n, m)), np.empty((n, m)), np.empty(n, dtype=np.int64), np.empty(n))
-    _transition_serial(c, state, action, moved)
+    moved = _allocate_moved(n, m)
+    w = _work()
+    lanes = allocate_lanes()
+    for start in range(0, n, LANES):
+        _transition_block(c, state, action, start, min(LANES, n - start), w, lanes, moved)
     return moved
 
 
-@_jit
-def _strokes_loop(c, x, out):
-    for i in range(x.shape[0]):
-        _leg_lengths(c, x[i], out[i])
-
-
+@jit
 def strokes_batch(c, x):
     """Actuator coordinates of N poses x (N, m) by the closed-form inverse kinematics (NaN where out of reach).
 
@@ -989,47 +957,40 @@ def strokes_batch(c, x):
     the observation's stroke errors compare q with (``FamilyReference.strokes`` keeps those of a fixed target).
     """
     out = np.empty(x.shape)
-    _strokes_loop(c, x, out)
+    for i in range(x.shape[0]):
+        _leg_lengths(c, x[i], out[i])
     return out
 
 
-@_jit
-def _singularity_loop(c, q, x, o_k, o_sign):
+@jit
+def singularity_batch(c, q, x):
+    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) of N configurations, each shape (N,)."""
+    o_k, o_sign = np.empty(q.shape[0]), np.empty(q.shape[0])
     w = _work()
     for i in range(q.shape[0]):
         _rows(c, q[i], x[i], w)
         o_k[i], o_sign[i] = _singularity(c, q[i], w, W_A)
-
-
-def singularity_batch(c, q, x):
-    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) of N configurations, each shape (N,)."""
-    o_k, o_sign = np.empty(q.shape[0]), np.empty(q.shape[0])
-    _singularity_loop(c, q, x, o_k, o_sign)
     return o_k, o_sign
 
 
-@_jit
-def _initial_loop(c, x, o_q, o_k, o_k1, o_sign, o_res):
-    w = _work()
-    for i in range(x.shape[0]):
-        _inverse_kinematics(c, x[i], w, o_q[i])
-        o_k[i], o_sign[i] = _singularity(c, o_q[i], w, W_A)
-        o_k1[i] = _actuator_condition(c, w)
-        o_res[i] = _residual(c, o_q[i], w)
-
-
+@jit
 def initial_batch(c, x):
     """Strokes (inverse kinematics), k, k_I, sign(det J_x) and residual of N robots at rest at poses x (N, m)."""
     n, m = x.shape
     o_q, o_k, o_k1, o_sign, o_res = np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    _initial_loop(c, x, o_q, o_k, o_k1, o_sign, o_res)
+    w = _work()
+    for i in range(n):
+        _inverse_kinematics(c, x[i], w, o_q[i])
+        o_k[i], o_sign[i] = _singularity(c, o_q[i], w, W_A)
+        o_k1[i] = _actuator_condition(c, w)
+        o_res[i] = _residual(c, o_q[i], w)
     return o_q, o_k, o_k1, o_sign, o_res
 
 
 # -- reference, errors, reward, observation -------------------------------------------------------------
 
 
-@_jit
+@jit
 def _reference_at(c, tau, center, amplitude, phase, i, o_pose, o_velocity):
     """Target pose and rate of robot i at the angle τ = ω t [rad] of its reference (``envs.physics.FamilyReference``).
 
@@ -1078,13 +1039,13 @@ def _reference_at(c, tau, center, amplitude, phase, i, o_pose, o_velocity):
         o_pose[j] += center[i, j]
 
 
-@_jit
+@jit
 def _reference(c, t, center, amplitude, phase, i, o_pose, o_velocity):
     """Target pose and its rate of robot i at step t (``_reference_at`` at τ = ω t dt)."""
     _reference_at(c, c[C_OMEGA] * t * c[C_DT], center, amplitude, phase, i, o_pose, o_velocity)
 
 
-@_jit
+@jit
 def _reference_loop(c, t, center, amplitude, phase, o_pose, o_velocity):
     for i in range(center.shape[0]):
         _reference(c, t[i], center, amplitude, phase, i, o_pose[i], o_velocity[i])
@@ -1097,7 +1058,7 @@ def reference_batch(c, t, center, amplitude, phase):
     return o_pose, o_velocity
 
 
-@_jit
+@jit
 def _errors(c, x, g, diff):
     """(‖p* − p‖ [m], orientation error [rad]) of pose x against target g; diff gets the error vector."""
     if c[C_SPATIAL] != 0.0:
@@ -1114,12 +1075,12 @@ def _errors(c, x, g, diff):
     return math.sqrt(diff[0] * diff[0] + diff[1] * diff[1]), abs(diff[2])
 
 
-@_jit
+@jit
 def _clip32(o_obs, i, j, value, low, high):
     o_obs[i, j] = min(max(value, low[j]), high[j])
 
 
-@_jit
+@jit
 def _encode_pose(c, x, o_obs, i, start, low, high):
     """Position and a continuous rotation code, (x, y, cos φ, sin φ), (p, quaternion, w ≥ 0) or p; next column."""
     if c[C_SPATIAL] != 0.0:
@@ -1141,7 +1102,7 @@ def _encode_pose(c, x, o_obs, i, start, low, high):
     return start + 4
 
 
-@_jit_inline
+@jit_inline
 def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
     """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.physics.evaluate``).
 
@@ -1245,13 +1206,7 @@ def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
             _clip32(o_obs, i, col + j, vel[j], low, high)
 
 
-@_jit
-def _evaluate_serial(c, observation, measured, reference, outcome, out):
-    w = _work()
-    for i in range(outcome[0].shape[0]):
-        _evaluate_row(c, observation, measured, reference, outcome, i, w, out)
-
-
+@jit
 def evaluate_batch(c, observation, measured, reference, outcome):
     """Evaluation rows (``evaluation_rows``) and observations of N robots.
 
@@ -1272,14 +1227,16 @@ def evaluate_batch(c, observation, measured, reference, outcome):
     """
     n, m = measured[1].shape
     out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
-    _evaluate_serial(c, observation, measured, reference, outcome, out)
+    w = _work()
+    for i in range(n):
+        _evaluate_row(c, observation, measured, reference, outcome, i, w, out)
     return out
 
 
 # -- the fused step: transition then evaluation, on every core for large batches ------------------------
 
 
-@_jit_inline
+@jit_inline
 def _step_block(c, observation, state, reference, action, start, count, w, lanes, out):
     """Transition then evaluation of robots start .. start + count − 1 (count ≤ ``LANES``) into ``out``."""
     o_q, o_x, o_t, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
@@ -1293,7 +1250,7 @@ def _step_block(c, observation, state, reference, action, start, count, w, lanes
         _evaluate_row(c, observation, measured, reference, outcome, i, w, (o_eval, o_obs))
 
 
-@_jit
+@jit
 def _finite_actions(action):
     for i in range(action.shape[0]):
         for j in range(action.shape[1]):
@@ -1302,7 +1259,7 @@ def _finite_actions(action):
     return True
 
 
-@_jit
+@jit
 def _step_range(c, observation, state, reference, action, span, out):
     """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
 
@@ -1316,7 +1273,7 @@ def _step_range(c, observation, state, reference, action, span, out):
         _step_block(c, observation, state, reference, action, start, min(LANES, end - start), w, lanes, out)
 
 
-@_jit
+@jit
 def _step_serial(
     c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, action, out
 ):
@@ -1329,7 +1286,7 @@ def _step_serial(
     return False
 
 
-@_jit_parallel
+@jit_parallel
 def _step_parallel(c, observation, state, reference, action, out):
     if not _finite_actions(action):
         return True
@@ -1345,20 +1302,10 @@ def allocate_step(n, m, obs_dim):
 
     (q, x, t, k, k_I, residual, action, stroke rates, reasons, jumps, evaluation, observations).
     """
-    return (
-        np.empty((n, m)),
-        np.empty((n, m)),
-        np.empty(n, dtype=np.int64),
-        np.empty(n),
-        np.empty(n),
-        np.empty(n),
-        np.empty((n, m)),
-        np.empty((n, m)),
-        np.empty(n, dtype=np.int64),
-        np.empty(n),
-        np.empty((E_FIXED + 3 * m, n)),
-        np.empty((n, obs_dim), dtype=np.float32),
-    )
+    q, x, k, k1, residual, action, q_rate, reason, jump = _allocate_moved(n, m)
+    t = np.empty(n, dtype=np.int64)
+    evaluation, observations = np.empty((E_FIXED + 3 * m, n)), np.empty((n, obs_dim), dtype=np.float32)
+    return q, x, t, k, k1, residual, action, q_rate, reason, jump, evaluation, observations
 
 
 def step_batch(c, observation, state, reference, action, out):
@@ -1380,7 +1327,7 @@ def step_batch(c, observation, state, reference, action, out):
 # -- the safe set and the task sampler ------------------------------------------------------------------
 
 
-@_jit
+@jit
 def _safety(c, strokes, w):
     """The measure tasks are certified on, on k's scale: k, or with cranks and sliders min(k, k_I · s / s_I).
 
@@ -1393,7 +1340,7 @@ def _safety(c, strokes, w):
     return min(k, _actuator_condition(c, w) * c[C_SAFE] / c[C_SAFE1])
 
 
-@_jit
+@jit
 def _pose_safety(c, x, w, strokes):
     """The certificate of one pose: its ``_safety``, or −1 where an actuator leaves its limits less the margin.
 
@@ -1409,7 +1356,7 @@ def _pose_safety(c, x, w, strokes):
     return _safety(c, strokes, w)
 
 
-@_jit
+@jit
 def _in_box(c, x):
     """Whether the pose x lies in the sampling box."""
     for j in range(int(c[C_N])):
@@ -1418,7 +1365,7 @@ def _in_box(c, x):
     return True
 
 
-@_jit
+@jit
 def _safe(c, x, w, strokes):
     """Whether x is in the sampling box and its ``_pose_safety`` (strokes with margin, safety) ≥ safe_threshold."""
     if not _in_box(c, x):
@@ -1426,7 +1373,7 @@ def _safe(c, x, w, strokes):
     return _pose_safety(c, x, w, strokes) >= c[C_SAFE]
 
 
-@_jit
+@jit
 def _segment_min_k(c, start, target, w, strokes, stop_below, spacing, box):
     """Smallest ``_pose_safety`` along the geodesic start → target (p linear, R along exp).
 
@@ -1460,7 +1407,7 @@ def _segment_min_k(c, start, target, w, strokes, stop_below, spacing, box):
     return worst
 
 
-@_jit
+@jit
 def _draw_safe(c, fn, st, w, strokes, out):
     """A pose drawn uniformly in the sampling box until it is safe; False after ``SAMPLER_TRIES`` rejections."""
     m = int(c[C_N])
@@ -1473,7 +1420,7 @@ def _draw_safe(c, fn, st, w, strokes, out):
     return False
 
 
-@_jit
+@jit
 def _draw_band(c, fn, st, w, strokes, low, high, out):
     """A pose of the sampling box with strokes within the margin and low ≤ k < high; False after the tries."""
     m = int(c[C_N])
@@ -1493,7 +1440,7 @@ def _draw_band(c, fn, st, w, strokes, low, high, out):
     return False
 
 
-@_jit_inline
+@jit_inline
 def _sample_reach_one(c, fn, st, hard, min_distance, w, strokes, start, target, waypoint, step):
     """One certified pair from the stream (fn, st) into start, target, waypoint (see ``_sample_reach``); success."""
     safe = c[C_SAFE]
@@ -1528,7 +1475,7 @@ def _sample_reach_one(c, fn, st, hard, min_distance, w, strokes, start, target, 
     return False
 
 
-@_jit_inline
+@jit_inline
 def _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint):
     band = hard and c[C_HARD_KIND] != 0.0
     for j in range(int(c[C_N])):
@@ -1537,7 +1484,7 @@ def _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint
         o_waypoint[i, j] = waypoint[j] if hard and not band else target[j]
 
 
-@_jit
+@jit
 def _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
     """Fill o_start, o_target, o_waypoint (M, m) with certified pairs; −1 on success, else the failing pair.
 
@@ -1561,7 +1508,7 @@ def _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint)
     return -1
 
 
-@_jit_parallel
+@jit_parallel
 def _sample_reach_parallel(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
     """``_sample_reach`` on every core, for one stream per robot (each robot's pair depends on its stream only).
 
@@ -1606,7 +1553,7 @@ def sample_reach_batch(c, streams, n, m, hard, min_distance):
     return o_start, o_target, o_waypoint
 
 
-@_jit
+@jit
 def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
     """Fill references (centre, amplitude, phase) whose poses at ``n_check`` times of a period are all safe.
 
@@ -1662,22 +1609,18 @@ def sample_track_batch(c, streams, n, m, max_amplitude, n_check):
     return o_center, o_amplitude, o_phase
 
 
-@_jit
-def _safe_loop(c, x, out):
+@jit
+def safe_batch(c, x):
+    """Whether each pose (N, m) is in the safe set (sampling box, strokes with margin, k ≥ safe_threshold)."""
+    out = np.empty(x.shape[0], dtype=np.bool_)
     w = _work()
     strokes = np.empty(6)
     for i in range(x.shape[0]):
         out[i] = _safe(c, x[i], w, strokes)
-
-
-def safe_batch(c, x):
-    """Whether each pose (N, m) is in the safe set (sampling box, strokes with margin, k ≥ safe_threshold)."""
-    out = np.empty(x.shape[0], dtype=np.bool_)
-    _safe_loop(c, x, out)
     return out
 
 
-@_jit
+@jit
 def _segment_loop(c, start, target, spacing, box, out):
     w = _work()
     strokes = np.empty(6)
@@ -1696,7 +1639,7 @@ def segment_batch(c, start, target):
     return out
 
 
-@_jit
+@jit
 def _safety_loop(c, x, o_safety, o_sign):
     w = _work()
     strokes = np.empty(6)

@@ -14,39 +14,26 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from envs.kernels.setup import jit, jit_inline
 
 __all__ = ["LANES", "inverse_condition6", "inverse_condition6_lanes", "singular_value_ratio3", "solve3", "solve6"]
 
 _SIX = 6
 #: Tournament (round-robin) order of the 15 column pairs of a 6-column matrix: 5 rounds of 3 disjoint pairs.
 _PAIRS6 = (
-    (0, 5),
-    (1, 4),
-    (2, 3),
-    (0, 4),
-    (5, 3),
-    (1, 2),
-    (0, 3),
-    (4, 2),
-    (5, 1),
-    (0, 2),
-    (3, 1),
-    (4, 5),
-    (0, 1),
-    (2, 5),
-    (3, 4),
-)
+    (0, 5), (1, 4), (2, 3),
+    (0, 4), (5, 3), (1, 2),
+    (0, 3), (4, 2), (5, 1),
+    (0, 2), (3, 1), (4, 5),
+    (0, 1), (2, 5), (3, 4),
+)  # fmt: skip
 _EPS2 = 2.220446049250313e-16**2
 _CONVERGED = 1e-10
 
 
-def _jit(fn):
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
-
-
-@_jit
+@jit
 def solve3(a00, a01, a02, a10, a11, a12, a20, a21, a22, r0, r1, r2):
     """Solve A u = r by the adjugate; returns (u0, u1, u2, det A); u is NaN when det A = 0."""
     c00 = a11 * a22 - a12 * a21
@@ -61,15 +48,25 @@ def solve3(a00, a01, a02, a10, a11, a12, a20, a21, a22, r0, r1, r2):
     c20 = a01 * a12 - a02 * a11
     c21 = a02 * a10 - a00 * a12
     c22 = a00 * a11 - a01 * a10
-    return (
-        (c00 * r0 + c10 * r1 + c20 * r2) / det,
-        (c01 * r0 + c11 * r1 + c21 * r2) / det,
-        (c02 * r0 + c12 * r1 + c22 * r2) / det,
-        det,
-    )
+    u0 = (c00 * r0 + c10 * r1 + c20 * r2) / det
+    u1 = (c01 * r0 + c11 * r1 + c21 * r2) / det
+    u2 = (c02 * r0 + c12 * r1 + c22 * r2) / det
+    return u0, u1, u2, det
 
 
-@_jit
+@jit_inline
+def _jacobi_rotation(alpha, beta, gamma):
+    """(cos, sin) of the Hestenes rotation of two columns with squared norms α, β and inner product γ ≠ 0."""
+    zeta = (beta - alpha) / (2.0 * gamma)
+    if abs(zeta) > 1e150:
+        t = 0.5 / zeta
+    else:
+        t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+    cs = 1.0 / math.sqrt(1.0 + t * t)
+    return cs, cs * t
+
+
+@jit
 def _jacobi_pair(a0, a1, a2, b0, b1, b2):
     """One Hestenes rotation making columns a and b orthogonal; returns the new columns and whether it rotated."""
     alpha = a0 * a0 + a1 * a1 + a2 * a2
@@ -77,25 +74,13 @@ def _jacobi_pair(a0, a1, a2, b0, b1, b2):
     gamma = a0 * b0 + a1 * b1 + a2 * b2
     if abs(gamma) <= 2.220446049250313e-16 * math.sqrt(alpha * beta):
         return a0, a1, a2, b0, b1, b2, False
-    zeta = (beta - alpha) / (2.0 * gamma)
-    if abs(zeta) > 1e150:
-        t = 0.5 / zeta
-    else:
-        t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
-    cs = 1.0 / math.sqrt(1.0 + t * t)
-    sn = cs * t
-    return (
-        cs * a0 - sn * b0,
-        cs * a1 - sn * b1,
-        cs * a2 - sn * b2,
-        sn * a0 + cs * b0,
-        sn * a1 + cs * b1,
-        sn * a2 + cs * b2,
-        True,
-    )
+    cs, sn = _jacobi_rotation(alpha, beta, gamma)
+    u0, u1, u2 = cs * a0 - sn * b0, cs * a1 - sn * b1, cs * a2 - sn * b2
+    v0, v1, v2 = sn * a0 + cs * b0, sn * a1 + cs * b1, sn * a2 + cs * b2
+    return u0, u1, u2, v0, v1, v2, True
 
 
-@_jit
+@jit
 def _singular_value_ratio(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     """σ_min/σ_max of a 3 × 3 matrix by one-sided Jacobi SVD; 0 for the zero matrix, NaN if not finite."""
     u0, u1, u2 = m00, m10, m20
@@ -118,7 +103,7 @@ def _singular_value_ratio(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     return min(s0, min(s1, s2)) / top
 
 
-@_jit
+@jit
 def singular_value_ratio3(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     """σ_min/σ_max of a 3 × 3 matrix M in closed form; 0 for a singular or zero M, NaN if not finite.
 
@@ -155,7 +140,7 @@ def singular_value_ratio3(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     return min(abs(det) / (top * math.sqrt(mid)), 1.0)
 
 
-@_jit
+@jit
 def solve6(A, b, lu, x):
     """Solve A x = b for a 6 × 6 A (rows of ``A``) by elimination with partial pivoting; returns det A.
 
@@ -207,11 +192,7 @@ def solve6(A, b, lu, x):
 LANES = 16
 
 
-def _jit_inline(fn):
-    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
-
-
-@_jit_inline
+@jit_inline
 def _rotate_pair(H, j, k, count, worst, active):
     """One Jacobi rotation of columns j and k of each of ``count`` matrices, lane by lane, without branches.
 
@@ -247,7 +228,7 @@ def _rotate_pair(H, j, k, count, worst, active):
         H[j, 5, lane], H[k, 5, lane] = cs * a5 - sn * b5, sn * a5 + cs * b5
 
 
-@_jit
+@jit
 def inverse_condition6_lanes(H, count, out, worst, active):
     """σ_min/σ_max of ``count`` 6 × 6 matrices side by side (H overwritten); 0 for zero, NaN if not finite.
 
@@ -308,15 +289,12 @@ def inverse_condition6_lanes(H, count, out, worst, active):
         out[lane] = (0.0 if top == 0.0 else math.sqrt(low / top)) if finite else np.nan
 
 
-@_jit
+@jit
 def inverse_condition6(H):
     """σ_min/σ_max of a 6 × 6 matrix whose *columns* are the rows of ``H`` (overwritten); 0 for zero, NaN if not finite.
 
-    The algorithm of ``inverse_condition6_lanes`` for one matrix, in its plain form (the lanes' form costs more
-    than it saves for a single matrix: 1.95 against 1.39 µs); a test holds the two equal bit for bit. One-sided
-    Jacobi (Hestenes) on the columns in tournament order, until a sweep meets no pair of columns with
-    cos² ≥ 1e-10; the singular values are the final column norms (high relative accuracy, as LAPACK's: 1e-15
-    against it on the hexapod's Jacobians).
+    The algorithm of ``inverse_condition6_lanes`` (see there) for one matrix, in its plain form (the lanes' form
+    costs more than it saves for a single matrix: 1.95 against 1.39 µs); a test holds the two equal bit for bit.
     """
     for _ in range(40):
         worst = 0.0  # largest cos² of the angle between two columns met in this sweep
@@ -334,13 +312,7 @@ def inverse_condition6(H):
             if not gamma * gamma > _EPS2 * alpha * beta:
                 continue
             worst = max(worst, gamma * gamma / (alpha * beta))
-            zeta = (beta - alpha) / (2.0 * gamma)
-            if abs(zeta) > 1e150:
-                t = 0.5 / zeta
-            else:
-                t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
-            cs = 1.0 / math.sqrt(1.0 + t * t)
-            sn = cs * t
+            cs, sn = _jacobi_rotation(alpha, beta, gamma)
             for i in range(_SIX):
                 a = H[j, i]
                 b = H[l2, i]

@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-from envs.kernels import layout, linalg
+from envs.kernels import layout, linalg, setup
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
@@ -58,41 +57,16 @@ from envs.kernels.layout import (
     C_WS,
 )
 from envs.kernels.linalg import singular_value_ratio3, solve3
+from envs.kernels.setup import jit, jit_inline
 
-__all__ = [
-    "clip32",
-    "errors",
-    "is_success",
-    "max_abs3",
-    "newton",
-    "observation_row",
-    "pose_rate",
-    "pose_rate_rows",
-    "reward_terms",
-    "rows",
-    "singularity",
-    "singularity_rows",
-    "substeps",
-    "termination_reason",
-    "transition_row",
-    "wrap",
-]
+__all__ = ["is_success", "observation_row", "reward_terms", "termination_reason", "transition_row"]
 
 _TWO_PI = 2.0 * math.pi
 
-drop_stale_caches(__file__, [layout.__file__, linalg.__file__])
+drop_stale_caches(__file__, [layout.__file__, linalg.__file__, setup.__file__])
 
 
-def _jit(fn):
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
-
-
-def _jit_inline(fn):
-    # Inlined into its callers at Numba's IR level: per-robot helpers take many array arguments.
-    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
-
-
-@_jit
+@jit
 def rows(c, px, py, phi):
     """Rows of A = J_x / 2 and the squared leg lengths d_iᵀ d_i at the pose (px, py, phi)."""
     cs = math.cos(phi)
@@ -112,23 +86,11 @@ def rows(c, px, py, phi):
     dx2 = px + rpx - c[C_B + 6]
     dy2 = py + rpy - c[C_B + 7]
     m2 = dy2 * rpx - dx2 * rpy
-    return (
-        dx0,
-        dy0,
-        m0,
-        dx1,
-        dy1,
-        m1,
-        dx2,
-        dy2,
-        m2,
-        dx0 * dx0 + dy0 * dy0,
-        dx1 * dx1 + dy1 * dy1,
-        dx2 * dx2 + dy2 * dy2,
-    )
+    sq0, sq1, sq2 = dx0 * dx0 + dy0 * dy0, dx1 * dx1 + dy1 * dy1, dx2 * dx2 + dy2 * dy2
+    return dx0, dy0, m0, dx1, dy1, m1, dx2, dy2, m2, sq0, sq1, sq2
 
 
-@_jit
+@jit
 def max_abs3(a, b, c):
     """max(|a|, |b|, |c|), NaN if any is NaN (as ``np.max``)."""
     a, b, c = abs(a), abs(b), abs(c)
@@ -137,46 +99,34 @@ def max_abs3(a, b, c):
     return max(a, max(b, c))
 
 
-@_jit
+@jit
 def pose_rate_rows(a, q0, q1, q2, r0, r1, r2):
     """ẋ = J_f q̇ = A⁻¹ (L ∘ q̇) from the rows ``a`` of A at x (as ``rows``); NaN where J_x is singular."""
     u0, u1, u2, _ = solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], q0 * r0, q1 * r1, q2 * r2)
     return u0, u1, u2
 
 
-@_jit
+@jit
 def pose_rate(c, q0, q1, q2, x0, x1, x2, r0, r1, r2):
     """ẋ = J_f(q, x) q̇ = A⁻¹ (L ∘ q̇) [m/s, m/s, rad/s]; NaN where J_x is exactly singular."""
     return pose_rate_rows(rows(c, x0, x1, x2), q0, q1, q2, r0, r1, r2)
 
 
-@_jit
+@jit
 def singularity_rows(c, q0, q1, q2, a):
     """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``a`` of A at x."""
     s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
     k = singular_value_ratio3(
-        a[0] / q0 * s0,
-        a[1] / q0 * s1,
-        a[2] / q0 * s2,
-        a[3] / q1 * s0,
-        a[4] / q1 * s1,
-        a[5] / q1 * s2,
-        a[6] / q2 * s0,
-        a[7] / q2 * s1,
-        a[8] / q2 * s2,
-    )
+        a[0] / q0 * s0, a[1] / q0 * s1, a[2] / q0 * s2,
+        a[3] / q1 * s0, a[4] / q1 * s1, a[5] / q1 * s2,
+        a[6] / q2 * s0, a[7] / q2 * s1, a[8] / q2 * s2,
+    )  # fmt: skip
     det = a[0] * (a[4] * a[8] - a[5] * a[7]) + a[1] * (a[5] * a[6] - a[3] * a[8]) + a[2] * (a[3] * a[7] - a[4] * a[6])
     sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
     return k, sign
 
 
-@_jit
-def singularity(c, q0, q1, q2, x0, x1, x2):
-    """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) at (q, x)."""
-    return singularity_rows(c, q0, q1, q2, rows(c, x0, x1, x2))
-
-
-@_jit
+@jit
 def newton(c, q0, q1, q2, x0, x1, x2, tolerance, max_iterations):
     """Newton's method on Φ(q, x) = 0 from x (as ``Planar3RPR.forward_kinematics``).
 
@@ -203,7 +153,7 @@ def newton(c, q0, q1, q2, x0, x1, x2, tolerance, max_iterations):
     return x0, x1, x2, residual, a
 
 
-@_jit
+@jit
 def substeps(c, r0, r1, r2):
     """Substeps so that each predicts at most ``max_substep`` of motion ‖(Δx, Δy, ℓ_c Δφ)‖ [m]."""
     dt = c[C_DT]
@@ -217,7 +167,7 @@ def substeps(c, r0, r1, r2):
     return int(min(max(count, 1.0), cap))
 
 
-@_jit_inline
+@jit_inline
 def termination_reason(c, failed, jump, sign, mode, k, out, k1):
     """The step's termination reason code (0: none), first match in the order of ``TERMINATION_REASONS``.
 
@@ -246,7 +196,7 @@ def termination_reason(c, failed, jump, sign, mode, k, out, k1):
     return 0
 
 
-@_jit_inline
+@jit_inline
 def transition_row(c, state, action, i, moved):
     """Advance robot i by one control period (predict, correct, measure, terminate); writes its row of ``moved``.
 
@@ -330,25 +280,25 @@ def transition_row(c, state, action, i, moved):
 # -- reward terms and the observation of a planar robot -----------------------------------------------
 
 
-@_jit
+@jit
 def wrap(angle):
     """Wrap to [−π, π) (Python's floating modulo, as ``np.mod``)."""
     return (angle + math.pi) % _TWO_PI - math.pi
 
 
-@_jit
+@jit
 def errors(x0, x1, x2, g0, g1, g2):
     """(‖p* − p‖ [m], |wrap(φ* − φ)| [rad])."""
     return math.hypot(g0 - x0, g1 - x1), abs(wrap(g2 - x2))
 
 
-@_jit
+@jit
 def is_success(c, position_error, orientation_error):
     """Whether the errors are within the success tolerances."""
     return position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
 
 
-@_jit_inline
+@jit_inline
 def reward_terms(c, pose, target, k, action, reason):
     """(tracking, singularity, action, termination) reward terms and the two errors.
 
@@ -366,13 +316,13 @@ def reward_terms(c, pose, target, k, action, reason):
     return tracking, singular, act, term, ep, eo
 
 
-@_jit_inline
+@jit_inline
 def clip32(o_obs, i, j, value, low, high):
     """o_obs[i, j] = float32(clip(value, low[j], high[j])) (the clip in float64, as ``np.clip``)."""
     o_obs[i, j] = np.float32(min(max(value, np.float64(low[j])), np.float64(high[j])))
 
 
-@_jit_inline
+@jit_inline
 def observation_row(c, observation, q, x, k, target, velocity, i, o_obs):
     """Row i of the observation, clipped to [low, high], float32.
 

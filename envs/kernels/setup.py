@@ -13,13 +13,32 @@ from numba.extending import intrinsic
 
 from envs.kernels.cache import drop_stale_caches
 
-__all__ = ["PARALLEL_MIN_BATCH", "THREADING_LAYER", "random_streams", "uniform_batch"]
+__all__ = [
+    "PARALLEL_MIN_BATCH",
+    "THREADING_LAYER",
+    "jit",
+    "jit_inline",
+    "jit_parallel",
+    "random_streams",
+    "uniform_batch",
+]
 
 drop_stale_caches(__file__, [])
 
 
-def _jit(fn):
+def jit(fn):
+    """Compile ``fn`` as every kernel is: Numba's nopython mode, cached on disk, without the GIL, NumPy's errors."""
     return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+
+
+def jit_inline(fn):
+    """``jit``, inlined into its callers at Numba's IR level (per-robot helpers that take many array arguments)."""
+    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
+
+
+def jit_parallel(fn):
+    """``jit`` with its ``numba.prange`` loops run on every core (in ``THREADING_LAYER``)."""
+    return numba.njit(cache=True, nogil=True, error_model="numpy", parallel=True)(fn)
 
 
 def _load_tbb() -> bool:
@@ -122,7 +141,7 @@ _NEXT_DOUBLE = {
 }
 
 
-@_jit
+@jit
 def _uniform_loop(streams, out):
     for i in range(out.shape[0]):
         for j in range(out.shape[1]):

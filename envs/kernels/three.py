@@ -21,10 +21,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-from envs.kernels import layout, linalg, planar
+from envs.kernels import layout, linalg, planar, setup
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.layout import (
     C_A,
@@ -52,21 +51,14 @@ from envs.kernels.layout import (
     C_V,
 )
 from envs.kernels.linalg import singular_value_ratio3, solve3
+from envs.kernels.setup import jit, jit_inline
 
 __all__ = ["anchor", "anchors", "link_condition3", "rows", "transition_row"]
 
-drop_stale_caches(__file__, [layout.__file__, planar.__file__, linalg.__file__])
+drop_stale_caches(__file__, [layout.__file__, planar.__file__, linalg.__file__, setup.__file__])
 
 
-def _jit(fn):
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
-
-
-def _jit_inline(fn):
-    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
-
-
-@_jit
+@jit
 def anchor(c, i, qi):
     """Leg i's anchor A_i(q_i), its derivative A_i′ (each 3 numbers), ℓ_i(q_i) and ‖(A_i′, ℓ_i′)‖."""
     a = c[C_A + i]
@@ -86,13 +78,13 @@ def anchor(c, i, qi):
     return A0, A1, A2, D0, D1, D2, lam * qi + c[C_ELL + i], speed
 
 
-@_jit_inline
+@jit_inline
 def anchors(c, q0, q1, q2):
     """The three legs' ``anchor`` values at q = (q0, q1, q2): a tuple of three 8-tuples."""
     return anchor(c, 0, q0), anchor(c, 1, q1), anchor(c, 2, q2)
 
 
-@_jit_inline
+@jit_inline
 def _leg(c, i, translational, cs, sn, x0, x1, x2, an):
     """(row of A, d_iᵀ d_i, d_iᵀ A_i′ + ℓ_i ℓ_i′) of leg i at the pose, from its ``anchor`` values ``an``."""
     P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
@@ -119,7 +111,7 @@ def _leg(c, i, translational, cs, sn, x0, x1, x2, an):
     return r0, r1, r2, sq, dq
 
 
-@_jit_inline
+@jit_inline
 def rows(c, anc, x0, x1, x2):
     """Rows of A = J_x / 2 (9 numbers), d_iᵀ d_i (3) and −(J_q)_ii / 2 (3) at the pose, from ``anchors``."""
     translational = c[C_TRANSLATIONAL] != 0.0
@@ -132,14 +124,14 @@ def rows(c, anc, x0, x1, x2):
     return a00, a01, a02, a10, a11, a12, a20, a21, a22, sq0, sq1, sq2, dq0, dq1, dq2
 
 
-@_jit_inline
+@jit_inline
 def _rate(a, r0, r1, r2):
     """ẋ = A⁻¹ ((−J_q / 2) q̇) from ``rows`` a; NaN where J_x is exactly singular."""
     u0, u1, u2, _ = solve3(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[12] * r0, a[13] * r1, a[14] * r2)
     return u0, u1, u2
 
 
-@_jit_inline
+@jit_inline
 def _residual(anc, a):
     """max_i |d_iᵀ d_i − ℓ_i²| (NaN if any is NaN)."""
     res = 0.0
@@ -151,7 +143,7 @@ def _residual(anc, a):
     return res
 
 
-@_jit_inline
+@jit_inline
 def _metric(c, translational, s0, s1, s2):
     """‖(δp, ℓ_c δφ)‖ (planar) or ‖δp‖ (translational) of a step [m]."""
     if translational:
@@ -160,7 +152,7 @@ def _metric(c, translational, s0, s1, s2):
     return math.sqrt(s0 * s0 + s1 * s1 + lc * lc * s2 * s2)
 
 
-@_jit_inline
+@jit_inline
 def _newton(c, anc, x0, x1, x2, tolerance, max_iterations):
     """Newton's method on Φ(q, x) = 0 at the q of ``anc`` from x: (x, residual, rows at x)."""
     a = rows(c, anc, x0, x1, x2)
@@ -181,7 +173,7 @@ def _newton(c, anc, x0, x1, x2, tolerance, max_iterations):
     return x0, x1, x2, residual, a
 
 
-@_jit_inline
+@jit_inline
 def link_condition3(c, a00, a01, a02, a10, a11, a12, a20, a21, a22, l0, l1, l2):
     """(k, sign(det J_x)) of three legs from the rows a of A = J_x / 2 and the link lengths ℓ_i.
 
@@ -191,21 +183,15 @@ def link_condition3(c, a00, a01, a02, a10, a11, a12, a20, a21, a22, l0, l1, l2):
     i0, i1, i2 = 1.0 / l0, 1.0 / l1, 1.0 / l2
     s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
     k = singular_value_ratio3(
-        a00 * i0 * s0,
-        a01 * i0 * s1,
-        a02 * i0 * s2,
-        a10 * i1 * s0,
-        a11 * i1 * s1,
-        a12 * i1 * s2,
-        a20 * i2 * s0,
-        a21 * i2 * s1,
-        a22 * i2 * s2,
-    )
+        a00 * i0 * s0, a01 * i0 * s1, a02 * i0 * s2,
+        a10 * i1 * s0, a11 * i1 * s1, a12 * i1 * s2,
+        a20 * i2 * s0, a21 * i2 * s1, a22 * i2 * s2,
+    )  # fmt: skip
     det = a00 * (a11 * a22 - a12 * a21) + a01 * (a12 * a20 - a10 * a22) + a02 * (a10 * a21 - a11 * a20)
     return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
 
 
-@_jit_inline
+@jit_inline
 def singularity(c, anc, a):
     """(k of J_i diag(pose_scale), sign(det J_x), k_I) from ``rows`` a and ``anchors`` anc."""
     k, sign = link_condition3(c, a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], anc[0][6], anc[1][6], anc[2][6])
@@ -223,7 +209,7 @@ def singularity(c, anc, a):
     return k, sign, k1
 
 
-@_jit
+@jit
 def transition_row(c, state, action, i, moved):
     """Advance robot i by one control period (predict, correct, measure, terminate); writes its row of ``moved``.
 

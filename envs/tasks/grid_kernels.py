@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from envs.kernels import generic, layout, setup
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.generic import W_A, _inverse_kinematics, _safe, _singularity, _work
 from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL
-from envs.kernels.setup import _next_double
+from envs.kernels.setup import _next_double, jit
 
 __all__ = ["SAMPLER_TRIES", "SEGMENT_POINTS", "pack_workspace", "sample_circle_batch", "sample_reach_batch"]
 
@@ -36,10 +35,6 @@ SAMPLER_TRIES = 6400
 SEGMENT_POINTS = 33
 
 _TWO_PI = 2.0 * math.pi
-
-
-def _jit(fn):
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
 def pack_workspace(workspace) -> tuple:
@@ -59,7 +54,7 @@ def pack_workspace(workspace) -> tuple:
     return packed
 
 
-@_jit
+@jit
 def _node_index(values, v):
     """Index of the grid value nearest to v along one axis, clipped to the axis (``WorkspaceMap.node_index``)."""
     i = np.rint((v - values[0]) / (values[1] - values[0]))
@@ -71,13 +66,13 @@ def _node_index(values, v):
     return int(i)
 
 
-@_jit
+@jit
 def _label(ws, x):
     """Component id of the grid node nearest to the pose x (0: not in a safe region)."""
     return ws[1][_node_index(ws[7], x[0]), _node_index(ws[8], x[1]), _node_index(ws[9], x[2])]
 
 
-@_jit
+@jit
 def _grid_safe(c, ws, x, w, strokes):
     """Whether x is safe (the family's ``_safe``) and its node lies in a sampled region."""
     if not _safe(c, x, w, strokes):
@@ -85,7 +80,7 @@ def _grid_safe(c, ws, x, w, strokes):
     return ws[2][_label(ws, x)]
 
 
-@_jit
+@jit
 def _pose_in_component(c, ws, fn, st, j, w, strokes, out):
     """A safe pose of sampled component j into out: a random node of it jittered within its cell; found?"""
     cell, labels, comp = ws[0], ws[1], ws[3][j]
@@ -104,7 +99,7 @@ def _pose_in_component(c, ws, fn, st, j, w, strokes, out):
     return False
 
 
-@_jit
+@jit
 def _choose_component(ws, fn, st):
     """Index of a sampled component, drawn with probability proportional to its size."""
     cumulative = ws[4]
@@ -115,7 +110,7 @@ def _choose_component(ws, fn, st):
     return cumulative.shape[0] - 1
 
 
-@_jit
+@jit
 def _component_index(ws, x):
     """Index (into the sampled components) of the region of a pose, −1 if it is in none."""
     label = _label(ws, x)
@@ -126,7 +121,7 @@ def _component_index(ws, x):
     return -1
 
 
-@_jit
+@jit
 def _straight_min_k(c, start, target, n, w, strokes, point):
     """Smallest k (Type II) at n points of the straight line start → target in pose space (ends included)."""
     k_min = np.inf
@@ -144,7 +139,7 @@ def _straight_min_k(c, start, target, n, w, strokes, point):
     return k_min
 
 
-@_jit
+@jit
 def _distance(c, start, target):
     """‖(δp, ℓ_c δφ)‖ between two poses of three coordinates [m] (translational: ‖δp‖)."""
     d0, d1, d2 = target[0] - start[0], target[1] - start[1], target[2] - start[2]
@@ -153,7 +148,7 @@ def _distance(c, start, target):
     return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
-@_jit
+@jit
 def _sample_reach(c, ws, streams, hard, min_distance, fixed_kind, fixed, o_start, o_target):
     """Fill o_start / o_target (M, 3) with pairs in one region; fixed_kind 1 (2) keeps the start (target) fixed.
 
@@ -226,7 +221,7 @@ def sample_reach_batch(c, ws, streams, n, hard, min_distance, fixed_kind=0, fixe
     return o_start, o_target
 
 
-@_jit
+@jit
 def _sample_circle(c, ws, streams, r_lo, r_hi, a_lo, a_hi, n_check, o_center, o_amplitude, o_phase):
     """Fill circle references whose every step pose of a period is safe and in the region of their centre.
 
