@@ -5,6 +5,7 @@ Usage::
     python -m training.evaluate --run DIR | --controller resolved-rate|singularity-aware|planner
                                 [--env ID] [--episodes 100] [--seed 0] [--targets standard|hard]
                                 [--video] [--out DIR] [--model final|best] [--planner auto|ompl|grid]
+                                [--env-kwargs KEY:VALUE ...]
 
 Writes ``metrics.json`` (aggregates), ``episodes.csv`` (one row per episode), ``trajectories.png``
 (paths over the inverse-condition-number map), ``condition_number.png`` (k over time) and, with
@@ -41,6 +42,7 @@ __all__ = [
     "load_controller",
     "load_run",
     "main",
+    "parse_env_kwargs",
     "wrap_for_run",
 ]
 
@@ -569,6 +571,26 @@ def write_outputs(
     return metrics
 
 
+def parse_env_kwargs(items: list[str]) -> dict[str, Any]:
+    """Env keyword arguments from ``KEY:VALUE`` strings (the RL Zoo's ``--env-kwargs``; values read as YAML).
+
+    Raises:
+        EvaluationError: On an item without a colon, an empty key, a repeated key or a value YAML cannot read.
+    """
+    kwargs: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition(":")
+        if not sep or not key:
+            raise EvaluationError(f"--env-kwargs takes KEY:VALUE items, got {item!r}")
+        if key in kwargs:
+            raise EvaluationError(f"--env-kwargs gives {key!r} twice")
+        try:
+            kwargs[key] = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise EvaluationError(f"--env-kwargs {item!r}: the value is not YAML ({exc})") from None
+    return kwargs
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
     parser = argparse.ArgumentParser(prog="python -m training.evaluate", description=__doc__.split("\n")[0])
@@ -584,6 +606,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--video", action="store_true", help="write a GIF of the first episodes")
     parser.add_argument("--out", default=None, help="output folder; default: <run>/eval-<targets> or evals/...")
     parser.add_argument("--model", default="final", help="final (model.zip) or best (best_model.zip)")
+    parser.add_argument(
+        "--env-kwargs",
+        nargs="+",
+        default=[],
+        metavar="KEY:VALUE",
+        help="keyword arguments of the env, in the RL Zoo's form (values read as YAML: task_region:box, "
+        "sample_low:[-0.1,-0.1,-0.5], robot:planar_3rpr)",
+    )
     parser.add_argument(
         "--planner",
         default=None,
@@ -616,7 +646,11 @@ def main(argv: list[str] | None = None) -> int:
             raise EvaluationError(f"unknown env id {env_id!r}; valid choices: {list(envs.ENV_IDS)}")
         if args.targets is not None and args.targets not in TARGET_SETS:
             raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {args.targets!r}")
-        env = gym.make(env_id, render_mode="rgb_array" if args.video else None)
+        env_kwargs = parse_env_kwargs(args.env_kwargs)
+        try:
+            env = gym.make(env_id, render_mode="rgb_array" if args.video else None, **env_kwargs)
+        except (TypeError, ValueError) as exc:
+            raise EvaluationError(f"--env-kwargs {' '.join(args.env_kwargs)}: {exc}") from None
         shielded = " + shield" if args.shield is not None else ""
         if shielded:
             try:

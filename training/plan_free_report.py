@@ -69,19 +69,31 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     common = ["--env", args.env, "--episodes", str(args.episodes), "--seed", str(args.seed)]
-    folders = []
+    groups: dict[str, list[dict]] = {}
+
+    def add(label: str, folder: Path, source: list[str]) -> None:
+        _evaluate(folder, source)
+        groups.setdefault(label, []).append(json.loads((folder / "metrics.json").read_text()))
+
     for targets in ("standard", "hard"):
         tail = [*common, "--targets", targets]
         for controller in ("planner", "resolved-rate", "singularity-aware"):
-            folders.append(_evaluate(out / f"{controller}-{targets}", ["--controller", controller, *tail]))
+            add(f"{controller} @ {targets}", out / f"{controller}-{targets}", ["--controller", controller, *tail])
         for run in args.runs:
             name = Path(run).name
-            folders.append(_evaluate(out / f"{name}-{targets}", ["--run", run, *tail]))
+            add(f"plan-free @ {targets}", out / f"{name}-{targets}", ["--run", run, *tail])
             shield = ["--shield", str(args.shield)]
-            folders.append(_evaluate(out / f"{name}-{targets}-shield", ["--run", run, *tail, *shield]))
+            add(f"plan-free + shield @ {targets}", out / f"{name}-{targets}-shield", ["--run", run, *tail, *shield])
         if args.residual:
-            folders.append(_evaluate(out / f"residual-{targets}", ["--run", args.residual, *tail]))
-    family_report.main([str(out / "table.md"), *map(str, folders)])
+            add(f"residual over the planner @ {targets}", out / f"residual-{targets}", ["--run", args.residual, *tail])
+    groups = dict(sorted(groups.items(), key=lambda item: (item[0].split(" @ ")[1] != "hard", item[0])))
+    plans = family_report.planner_table(groups)
+    (out / "table.md").write_text(
+        f"{args.episodes} episodes per run and target set from reset seed {args.seed} on `{args.env}` "
+        f"(plan-free: {len(args.runs)} seeds, mean ± std over seeds; shield k_guard = {args.shield}).\n\n"
+        + family_report.table(groups)
+        + (f"\nThe planner's plans:\n\n{plans}" if plans else "")
+    )
 
     # time per decision of each plan-free run (normalise, one forward pass of one observation) against the
     # planner's planning time per episode on the same hard episodes, measured here one after the other

@@ -185,14 +185,15 @@ def test_demo_reports_the_hexapod(pretrained_run, tmp_path):
         assert gif.format == "GIF" and gif.n_frames > 2
 
 
-#: The shipped 3-RPR policies besides the standard one, each with its regression.json.
-OTHER_3RPR_RUNS = [demo.PRETRAINED_MIXED_RUN, demo.PRETRAINED_TRACK_RUN]
+#: The shipped 3-RPR policies besides the standard one, each with its regression.json (the plan-free policy is
+#: the planner distilled by ``training.distill``: no planner at run time).
+OTHER_3RPR_RUNS = [demo.PRETRAINED_MIXED_RUN, demo.PRETRAINED_TRACK_RUN, demo.PRETRAINED_PLAN_FREE_RUN]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("run", OTHER_3RPR_RUNS, ids=lambda r: r.name)
 def test_other_shipped_3rpr_policies_keep_their_recorded_performance(run):
-    """The mixed-target policy (on hard targets, with its wrapper) and the Track policy keep their record."""
+    """The mixed-target policies (on hard targets, with their wrappers) and the Track policy keep their record."""
     if not (run / "regression.json").is_file():
         pytest.skip(f"{run.name} not shipped")
     record = json.loads((run / "regression.json").read_text())
