@@ -170,11 +170,16 @@ class SingularityAwareController(ResolvedRateController):
         self.min_speed_fraction = float(min_speed_fraction)
 
     def _k(self, pose: np.ndarray) -> np.ndarray:
+        """The inverse condition number k at poses (N, m); NaN where a crank or slider cannot reach the pose."""
         robot = self.params.robot
         q = robot.inverse_kinematics(pose, validate=False)
         if all(kind == "leg" for kind in robot.actuator_kinds):
             q = np.maximum(q, 1e-9)
-        return robot.inverse_condition_number(q, pose, validate=False)
+        k = np.full(len(pose), np.nan)
+        reached = np.all(np.isfinite(q), axis=-1)
+        if reached.any():
+            k[reached] = robot.inverse_condition_number(q[reached], pose[reached], validate=False)
+        return k
 
     def desired_velocity(self, pose: np.ndarray, error: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """Resolved-rate velocity with the detour term, shape (N, m)."""
@@ -191,6 +196,7 @@ class SingularityAwareController(ResolvedRateController):
             dz = np.zeros(p.shape[-1])
             dz[j] = self.step / scale[j]
             grad[:, j] = (self._k(p + dz) - self._k(p - dz)) / (2.0 * self.step)
+        grad = np.nan_to_num(grad)  # out of reach on one side: no push along that coordinate
         n = grad / np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-12)
         vz = v[near] * scale
         into = np.minimum(np.sum(vz * n, axis=-1, keepdims=True), 0.0)

@@ -247,3 +247,25 @@ def test_track_evaluations_report_tracking_metrics(env_id):
     assert 0.0 <= tracking["lag_s"]["mean"] <= 1.0
     reach = gym.make(env_id.replace("Track", "Reach"))
     assert "tracking" not in aggregate(evaluate_agent(load_controller("resolved-rate", reach), reach, 1, 0))
+
+
+def test_singularity_aware_control_at_the_edge_of_a_crank_robots_reach():
+    """Where a finite-difference neighbour of the pose is out of the 3-RRR's reach, k there is NaN, not an error.
+
+    The controller then pushes along the other coordinates only, and its actions stay finite (it raised
+    "SVD did not converge" from inside NumPy on such a pose).
+    """
+    params = gym.make("Planar3RRRReach-v0").unwrapped.params
+    controller = SingularityAwareController(params)
+    robot = params.robot
+    inside, outside = 0.0, 1.0  # along +x from the home pose: bisect the edge of the reach
+    home = robot.home_pose()
+    for _ in range(60):
+        mid = 0.5 * (inside + outside)
+        reached = np.all(np.isfinite(robot.inverse_kinematics(home + [mid, 0.0, 0.0], validate=False)))
+        inside, outside = (mid, outside) if reached else (inside, mid)
+    pose = home + [inside - 0.5 * controller.step, 0.0, 0.0]  # +x neighbour out of reach, the pose inside
+    k = controller._k(np.stack([pose, pose + [controller.step, 0.0, 0.0]]))
+    assert np.isfinite(k[0]) and np.isnan(k[1])
+    velocity = controller.desired_velocity(pose[None], np.array([[0.01, 0.0, 0.0]]), np.zeros((1, 3)))
+    assert np.all(np.isfinite(velocity))
