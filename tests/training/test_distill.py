@@ -86,3 +86,19 @@ def test_bad_options_are_refused(capsys):
     with pytest.raises(SystemExit):
         distill.main(["--run-dir", "x", "--beta", "2"])
     assert "--beta must be in [0, 1], got 2.0" in capsys.readouterr().err
+
+
+def test_the_plan_free_report_tabulates_every_agent(tmp_path):
+    """A tiny run through training.plan_free_report: each agent's row, the timing and the paths picture."""
+    from training import plan_free_report
+
+    run = tmp_path / "run"
+    distill.distill(DistillConfig(expert_episodes=2, iterations=0, epochs=1), run, log=lambda _: None)
+    out = tmp_path / "report"
+    plan_free_report.main(["--runs", str(run), "--env", "Planar3RPRReach-v0", "--episodes", "1", "--out", str(out)])
+    table = (out / "table.md").read_text()
+    for label in ("planner", "resolved-rate", "singularity-aware", "plan-free", "plan-free + shield"):
+        for targets in ("standard", "hard"):
+            assert f"| {label} @ {targets} | " in table
+    assert "ratio" in (out / "timing.md").read_text()
+    assert (out / "paths_hard.png").stat().st_size > 0
