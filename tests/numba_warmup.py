@@ -1,0 +1,52 @@
+"""Compile the environments' Numba kernels into their on-disk cache, in one pass over every code path.
+
+With ``pytest -n 2`` the conftest runs ``warm_up`` in the controller before the workers start, so on a fresh
+clone each kernel is compiled once and the workers load it from ``__pycache__`` instead of compiling it side
+by side. It only fills the cache: what a test asserts is unchanged, and a kernel it misses is compiled on
+first use as before.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+#: One id per pose space and actuator kind (planar legs, spatial legs, translational cranks, planar cranks,
+#: planar sliders), with the 3-RPR's grid tasks, hard targets and a Track reference.
+IDS = (
+    "Planar3RPRReach-v0",
+    "Planar3RPRReachHard-v0",
+    "Planar3RPRTrack-v0",
+    "StewartGoughReach-v0",
+    "StewartGoughReachHard-v0",
+    "StewartGoughTrack-v0",
+    "DeltaReach-v0",
+    "DeltaTrack-v0",
+    "Planar3RRRReach-v0",
+    "Planar3PRRReach-v0",
+)
+
+
+def warm_up() -> None:
+    """Reset and step each id's env and vector env (one robot, and enough for the multi-core step)."""
+    import envs  # noqa: F401  (registers the ids)
+    from envs.kernels.generic import PARALLEL_MIN_BATCH
+
+    for env_id in IDS:
+        env = gym.make(env_id)
+        env.reset(seed=0)
+        env.action_space.seed(0)
+        for _ in range(3):
+            env.step(env.action_space.sample())
+        env.close()
+        for n in (2, PARALLEL_MIN_BATCH + 1):
+            vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+            vec.reset(seed=0)
+            vec.action_space.seed(0)
+            for _ in range(2):
+                vec.step(vec.action_space.sample().astype(np.float32))
+            vec.close()
+
+
+if __name__ == "__main__":
+    warm_up()
