@@ -8,6 +8,8 @@ first use as before.
 
 from __future__ import annotations
 
+import pickle
+
 import gymnasium as gym
 import numpy as np
 
@@ -28,7 +30,7 @@ IDS = (
 
 
 def warm_up() -> None:
-    """Reset and step each id's env and vector env (one robot, and enough for the multi-core step)."""
+    """Reset and step each id's env, a pickled copy of it, and its vector env (one robot, and a multi-core batch)."""
     import envs  # noqa: F401  (registers the ids)
     from envs.kernels.generic import PARALLEL_MIN_BATCH
 
@@ -36,9 +38,13 @@ def warm_up() -> None:
         env = gym.make(env_id)
         env.reset(seed=0)
         env.action_space.seed(0)
-        for _ in range(3):
-            env.step(env.action_space.sample())
-        env.close()
+        env.step(env.action_space.sample())
+        clone = pickle.loads(pickle.dumps(env))  # its constants come back writable: another specialisation
+        for made in (env, clone):
+            for _ in range(2):
+                made.step(made.action_space.sample())
+            made.reset(seed=1)
+            made.close()
         for n in (2, PARALLEL_MIN_BATCH + 1):
             vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
             vec.reset(seed=0)
@@ -46,6 +52,21 @@ def warm_up() -> None:
             for _ in range(2):
                 vec.step(vec.action_space.sample().astype(np.float32))
             vec.close()
+    _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
+
+
+def _batch_kernels(env: gym.Env) -> None:
+    """The batch kernels the tests call without an env: transition, safe set, segments, singularity measures."""
+    from envs import physics
+    from envs.kernels import generic as fk
+
+    params = env.params
+    start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(4)], {})
+    state = physics.initial_state(params, start, reference)
+    physics.transition(params, state, np.zeros_like(state.q))
+    fk.safe_batch(params.packed, start)
+    fk.segment_batch(params.packed, start, start[::-1].copy())
+    fk.singularity_batch(params.packed, state.q, start)
 
 
 if __name__ == "__main__":
