@@ -66,6 +66,7 @@ def _batch_kernels(env: gym.Env) -> None:
     physics.transition(params, state, np.zeros_like(state.q))
     fk.safe_batch(params.packed, start)
     fk.segment_batch(params.packed, start, start[::-1].copy())
+    fk.safety_batch(params.packed, start)  # the planners' certificate (segment_min_safety_batch shares the loop)
     fk.singularity_batch(params.packed, state.q, start)
 
 
