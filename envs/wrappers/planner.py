@@ -118,7 +118,7 @@ class PlannerResidualWrapper(_PlannerWrapper):
         if not (isinstance(scale, (int, float)) and np.isfinite(scale) and 0.0 < scale <= 2.0):
             raise ValueError(f"scale must be a number in (0, 2], got {scale!r}")
         gym.utils.RecordConstructorArgs.__init__(self, scale=scale, lookahead=lookahead, planner=planner)
-        n = env.action_space.shape[0]
+        n = env.action_space.shape[0] if isinstance(env.action_space, spaces.Box) else 0  # _setup refuses others
         self._setup(env, lookahead, planner, -np.ones(n), np.ones(n))
         self.scale = float(scale)
         # one plan per episode, shared by the observation and the action

@@ -200,17 +200,22 @@ def test_delta_hard_targets_are_ill_conditioned():
         assert fk.segment_batch(params.packed, info["pose"][None], target)[0] >= 2 * params.hard_threshold
 
 
-def test_3rrr_hard_targets_need_a_detour():
-    """Planar3RRRReachHard-v0: the straight path dips below k_safe; the certified detour does not."""
+def test_3rrr_hard_targets_are_ill_conditioned_and_on_the_starts_side():
+    """Planar3RRRReachHard-v0: targets where 2 k_hard ≤ safety < k_safe, reached by a path keeping ≥ 2 k_hard.
+
+    Start and target have one sign of det J_x (the kinematics library's link Jacobian): a path joins them.
+    """
     env = gym.make("Planar3RRRReachHard-v0")
     params = env.unwrapped.params
+    robot = params.robot
     for seed in range(5):
         _, info = env.reset(seed=seed)
         start, target = info["pose"][None], info["target"][None]
-        assert fk.segment_batch(params.packed, start, target)[0] < params.safe_threshold
-        waypoint = env.unwrapped.last_waypoints
-        assert fk.segment_batch(params.packed, start, waypoint)[0] >= params.safe_threshold
-        assert fk.segment_batch(params.packed, waypoint, target)[0] >= params.safe_threshold
+        assert 2 * params.hard_threshold <= _safety(params, target)[0] < params.safe_threshold
+        assert fk.segment_batch(params.packed, start, target)[0] >= 2 * params.hard_threshold
+        ends = np.concatenate([start, target])
+        signs = np.sign(np.linalg.det(robot.link_jacobian(robot.inverse_kinematics(ends), ends)))
+        assert signs[0] == signs[1]
 
 
 @pytest.mark.parametrize("env_id", ["DeltaReachHard-v0", "Planar3RRRReachHard-v0"])

@@ -69,7 +69,7 @@ def test_the_policy_action_is_scaled_added_and_clipped():
 
 
 def test_bad_arguments_are_named():
-    """Scale out of range, a foreign or hexapod env and a malformed action each get a precise error."""
+    """Scale out of range, a foreign env, the grid planner off-grid and a malformed action get precise errors."""
     with pytest.raises(ValueError, match=r"scale must be a number in \(0, 2\], got 0"):
         envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), scale=0)
     with pytest.raises(ValueError, match="lookahead must be a positive distance"):
@@ -79,7 +79,7 @@ def test_bad_arguments_are_named():
     with pytest.raises(
         ValueError, match="the planner needs a planar robot with task_region='grid', got spatial with task_region='box'"
     ):
-        envs.PlannerResidualWrapper(gym.make("StewartGoughReach-v0"))
+        envs.PlannerResidualWrapper(gym.make("StewartGoughReach-v0"), planner="grid")
     env = envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"))
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"action must be 3 finite numbers, got shape \(2,\)"):

@@ -97,7 +97,7 @@ def test_waypoint_on_a_detour_points_along_the_path_not_at_the_target():
 
 
 def test_waypoint_wrapper_is_deterministic_and_refuses_other_envs():
-    """The same seed gives the same observations; a foreign env, a hexapod env or a bad lookahead is refused clearly."""
+    """The same seed gives the same observations; a foreign env, the grid off-grid or a bad lookahead is refused."""
     a, b = (envs.PlannerWaypointWrapper(gym.make("Planar3RPRReachHard-v0")) for _ in range(2))
     np.testing.assert_array_equal(a.reset(seed=3)[0], b.reset(seed=3)[0])
     for _ in range(5):
@@ -108,6 +108,31 @@ def test_waypoint_wrapper_is_deterministic_and_refuses_other_envs():
     with pytest.raises(
         ValueError, match="the planner needs a planar robot with task_region='grid', got spatial with task_region='box'"
     ):
-        envs.PlannerWaypointWrapper(gym.make("StewartGoughReach-v0"))
+        envs.PlannerWaypointWrapper(gym.make("StewartGoughReach-v0"), planner="grid")
     with pytest.raises(ValueError, match="lookahead must be a positive distance"):
         envs.PlannerWaypointWrapper(gym.make("Planar3RPRReach-v0"), lookahead=0.0)
+
+
+@pytest.mark.parametrize("env_id", ["StewartGoughReachHard-v0", "DeltaReach-v0"])
+def test_the_planner_wrappers_work_in_every_pose_space(env_id):
+    """The hexapod (spatial) and the Delta (translational): the observation gains m (+ n) entries, checker-clean.
+
+    The waypoint offset of a straight plan is the observation's own error block (the carrot is the target).
+    """
+    from gymnasium.utils.env_checker import check_env
+
+    base = gym.make(env_id)
+    m, n = base.unwrapped.params.robot.n_pose, base.action_space.shape[0]
+    waypoint = envs.PlannerWaypointWrapper(gym.make(env_id))
+    residual = envs.PlannerResidualWrapper(gym.make(env_id))
+    obs, _ = waypoint.reset(seed=0)
+    assert obs.shape == (base.observation_space.shape[0] + m,)
+    assert residual.reset(seed=0)[0].shape == (base.observation_space.shape[0] + m + n,)
+    plain, _ = base.reset(seed=0)
+    error = envs.kernels.generic.observation_layout(base.unwrapped.params.robot.pose_space.name, n, False)["error"]
+    np.testing.assert_allclose(obs[-m:], plain[error], atol=1e-5)
+    with warnings.catch_warnings():  # any checker warning fails, but its note that a wrapper is not the raw env
+        warnings.simplefilter("error")
+        warnings.filterwarnings("ignore", message=r".*is different from the unwrapped version")
+        check_env(waypoint, skip_render_check=True)
+        check_env(residual, skip_render_check=True)

@@ -184,11 +184,17 @@ def replay(env_id: str, seed: int, actions: list, start: oracle.StartState, opti
     """Replay ``actions`` in ``gym.make(env_id, **kwargs)`` from ``start``: each step's reason, checked.
 
     Every step is checked against the oracle with the new settings. None if the reset did not give ``start``
-    (a threshold that shapes the task sampler, as the hard tasks' thresholds do, can change the episode).
+    (a threshold that shapes the task sampler, as the hard tasks' thresholds do, can change the episode, or leave
+    no task at all: an ill-conditioned band 2 k_hard ≤ k < k_safe that is empty).
     """
     env = make(env_id, **kwargs)
     settings = oracle.settings_of(env)
-    env.reset(seed=seed, options=options)
+    try:
+        env.reset(seed=seed, options=options)
+    except RuntimeError as exc:
+        if "no certified" not in str(exc):
+            raise
+        return None
     again = oracle.state_of(env)
     if not (np.array_equal(again.x, start.x) and np.array_equal(again.target, start.target)):
         return None

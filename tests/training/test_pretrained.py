@@ -115,6 +115,8 @@ def test_demo_writes_report(pretrained_run, tmp_path, capsys):
         agents.append("PPO policy (mixed, residual over the planner)")
     elif demo.PRETRAINED_HARD_RUN.is_dir():
         agents.append("PPO policy (hard-trained)")
+    if demo.PRETRAINED_PLAN_FREE_RUN.is_dir():
+        agents.append("plan-free policy (distilled planner)")
     expected = {f"{agent} @ {targets}" for agent in agents for targets in ("standard", "hard")}
     shielded = {f"{agent} + shield @ {targets}" for agent in agents for targets in ("standard", "hard")}
     assert set(metrics) == expected | shielded
@@ -167,10 +169,10 @@ def test_pretrained_hexapod_policy_keeps_its_recorded_performance():
 
 @pytest.mark.slow
 def test_demo_reports_the_hexapod(pretrained_run, tmp_path):
-    """The main job's report has the hexapod section: policy and resolved-rate, standard and hard, and a GIF."""
+    """The main job's report has the hexapod section: policy, resolved-rate and planner, standard and hard, a GIF."""
     out = tmp_path / "demo"
     metrics = demo.run_hexapod_demo(demo.PRETRAINED_HEXAPOD_RUN, out, episodes=2)
-    agents = ["PPO policy", "resolved-rate"]
+    agents = ["PPO policy", "resolved-rate", "planner"]
     if demo.PRETRAINED_HEXAPOD_HARD_RUN.is_dir():
         agents.append("PPO policy (hard-trained)")
     expected = {
@@ -237,10 +239,10 @@ def test_shipped_crank_policies_keep_their_recorded_performance(run):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["delta", "planar_3rrr", "planar_3prr"])
 def test_demo_reports_each_crank_robot(name, tmp_path):
-    """The main job's section of each new robot: its policy and resolved-rate on its targets, and a GIF."""
+    """The main job's section of each new robot: its policy, resolved-rate and the planner on its targets, a GIF."""
     metrics = demo.run_family_demo(name, tmp_path, episodes=2, shield=None)
     _title, ids, _runs = demo.FAMILY_DEMOS[name]
-    assert set(metrics) == {f"{agent} @ {t}" for agent in ("PPO policy", "resolved-rate") for t in ids}
+    assert set(metrics) == {f"{agent} @ {t}" for agent in ("PPO policy", "resolved-rate", "planner") for t in ids}
     text = (tmp_path / f"{name}.md").read_text()
     assert all(env_id in text for env_id in ids.values())
     with Image.open(tmp_path / f"{name}_policy.gif") as gif:
