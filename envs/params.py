@@ -59,7 +59,9 @@ class FamilyParams:
             (x*_j = c_j + a_j W_kj at vertex k, the first two turned by a random heading); () for sinusoids.
         track_path_times: The share of the period each segment W_k → W_k+1 (mod K) takes, K positive values.
         stroke_margin: Strokes of the safe set keep this far from the limits [m].
-        segment_spacing: Largest gap between checked points of a certified path [m].
+        segment_spacing: Largest gap between checked points of a certified path [m]; unless given, capped per robot
+            by ``envs.presets.certificate_spacing`` (the safety may not fall by more than half the safe-to-hard
+            margin between two checked points).
         min_distance: Smallest ‖(δp, ℓ_c δθ)‖ between start and target [m].
         hard_kind: What makes a hard target: "detour" (the straight path dips below k_safe, a detour is
             certified), "ill_conditioned" (the target lies where 2 k_hard ≤ k < k_safe) or "crossing" (the
