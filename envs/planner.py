@@ -70,9 +70,28 @@ LOG_LENGTH = 10_000
 _OFFSETS = tuple((i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) > (0, 0, 0))
 
 
-def _start_floor(k_safe: float, k_start: float, fraction: float) -> float:
-    """The safety the first segment out of a start must keep: k_safe, or ``fraction`` of an unsafe start's."""
-    return k_safe if k_start >= k_safe else fraction * k_start
+def _end_floor(k_safe: float, k_end: float, fraction: float) -> float:
+    """The safety a segment out of a path's start or target must keep: k_safe, or ``fraction`` of an unsafe end's."""
+    return k_safe if k_end >= k_safe else fraction * k_end
+
+
+def _segment_lengths(waypoints: np.ndarray, metric: np.ndarray) -> np.ndarray:
+    """Lengths in z = (p, ℓ_c θ) [m] of the segments of a polyline of poses (P, m), shape (P − 1,)."""
+    return np.linalg.norm(np.diff(waypoints, axis=0) * metric, axis=-1)
+
+
+def _closest_on_segments(waypoints: np.ndarray, metric: np.ndarray, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closest points of a polyline's segments to a pose: (distance in z [m], fraction along), each (P − 1,).
+
+    Args:
+        waypoints: Poses of the polyline, shape (P, m).
+        metric: Pose metric (1 for positions, ℓ_c for angles), shape (m,).
+        pose: The pose, shape (m,).
+    """
+    a, b, z = waypoints[:-1] * metric, waypoints[1:] * metric, pose * metric
+    d = b - a
+    t = np.clip(np.sum((z - a) * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-18), 0.0, 1.0)
+    return np.linalg.norm(a + t[:, None] * d - z, axis=-1), t
 
 
 @dataclass(frozen=True)
@@ -162,9 +181,6 @@ class SafeGraph:
 
     # -- queries -------------------------------------------------------------------------------------
 
-    def _length(self, waypoints: np.ndarray) -> float:
-        return float(np.linalg.norm(np.diff(waypoints, axis=0) * self.metric, axis=-1).sum())
-
     def _anchors(self, pose: np.ndarray, floor: float, reach: int = 2) -> tuple[np.ndarray, np.ndarray]:
         """Safe nodes within ``reach`` cells of the pose joined to it by a segment keeping safety ≥ ``floor``."""
         centre = np.array(self.workspace.node_index(pose[None]))[:, 0]
@@ -182,7 +198,7 @@ class SafeGraph:
         start = np.asarray(start, dtype=float).reshape(3)
         target = np.asarray(target, dtype=float).reshape(3)
         straight = float(np.linalg.norm((target - start) * self.metric))
-        floor = _start_floor(self.k_safe, float(self.segment_min_k(start[None], start[None])[0]), self.start_floor)
+        floor = _end_floor(self.k_safe, float(self.segment_min_k(start[None], start[None])[0]), self.start_floor)
         k_line = float(self.segment_min_k(start[None], target[None])[0])
         if k_line >= floor:
             path = np.stack([start, target])
@@ -203,7 +219,8 @@ class SafeGraph:
                 path = np.concatenate([start[None], self.nodes[chain[::-1]], target[None]])
                 path = self._shortcut(path, floor)
                 min_k = float(np.min(self.segment_min_k(path[:-1], path[1:])))
-                return Plan(path, True, self._length(path), straight, min_k, time.perf_counter() - clock)
+                length = float(_segment_lengths(path, self.metric).sum())
+                return Plan(path, True, length, straight, min_k, time.perf_counter() - clock)
         path = np.stack([start, target])
         return Plan(path, False, straight, straight, k_line, time.perf_counter() - clock)
 
@@ -346,9 +363,6 @@ class SafePlanner:
             state[j] = float(value)
         return state
 
-    def _length(self, waypoints: np.ndarray) -> float:
-        return float(np.linalg.norm(np.diff(waypoints, axis=0) * self.metric, axis=-1).sum())
-
     def plan(self, start: np.ndarray, target: np.ndarray) -> Plan:
         """The planned path from ``start`` to ``target`` (poses in the env's coordinates, each shape (m,))."""
         clock = time.perf_counter()
@@ -357,7 +371,7 @@ class SafePlanner:
         straight = float(np.linalg.norm((target - start) * self.metric))
         k_ends = self.safety(np.stack([start, target]))
         self._ends = np.stack([start, target])
-        self._end_floors = np.array([_start_floor(self.k_safe, k, self.start_floor) for k in k_ends])
+        self._end_floors = np.array([_end_floor(self.k_safe, k, self.start_floor) for k in k_ends])
         k_line = float(self.segment_min_k(start[None], target[None])[0])
         if k_line >= self._end_floors.min():
             path = np.stack([start, target])
@@ -380,8 +394,8 @@ class SafePlanner:
                 if len(k_edges) == 1:
                     floors[0] = self._end_floors.min()
                 if np.all(k_edges >= floors):
-                    min_k = float(k_edges.min())
-                    return Plan(path, True, self._length(path), straight, min_k, time.perf_counter() - clock)
+                    min_k, length = float(k_edges.min()), float(_segment_lengths(path, self.metric).sum())
+                    return Plan(path, True, length, straight, min_k, time.perf_counter() - clock)
         path = np.stack([start, target])
         return Plan(path, False, straight, straight, k_line, time.perf_counter() - clock)
 
@@ -480,7 +494,7 @@ class PathFollower:
         """Plan row ``row`` afresh from ``pose`` to ``target`` (each (m,)) and return the plan."""
         plan = self.graph.plan(pose, target)
         self.log.append(plan)
-        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(plan.waypoints, axis=0) * self.metric, axis=-1))])
+        arc = np.concatenate([[0.0], np.cumsum(_segment_lengths(plan.waypoints, self.metric))])
         self._rows[row] = (np.array(target, dtype=float), plan, arc, 0.0, np.array(pose, dtype=float))
         return plan
 
@@ -496,7 +510,10 @@ class PathFollower:
             entry is None
             or not np.allclose(entry[0], target, rtol=0.0, atol=1e-4)
             or np.linalg.norm((pose - entry[4]) * self.metric) > self._jump
-            or (self.replan_distance is not None and self._gap(entry[1].waypoints, pose) > self.replan_distance)
+            or (
+                self.replan_distance is not None
+                and _closest_on_segments(entry[1].waypoints, self.metric, pose)[0].min() > self.replan_distance
+            )
         ):
             self.reset_row(row, pose, target)
             entry = self._rows[row]
@@ -504,10 +521,7 @@ class PathFollower:
         w = plan.waypoints
         if len(w) > 2 and progress < arc[-1]:
             # closest point of the polyline to the pose, at or after the progress made so far
-            a, b, z = w[:-1] * self.metric, w[1:] * self.metric, pose * self.metric
-            d = b - a
-            t = np.clip(np.sum((z - a) * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-18), 0.0, 1.0)
-            gap = np.linalg.norm(a + t[:, None] * d - z, axis=-1)
+            gap, t = _closest_on_segments(w, self.metric, pose)
             along = arc[:-1] + t * (arc[1:] - arc[:-1])
             gap[along < progress - 1e-12] = np.inf
             if np.isfinite(gap).any():
@@ -523,13 +537,6 @@ class PathFollower:
         if self.planar:
             out[2] = pose[2] + wrap_angle(out[2] - pose[2])
         return out
-
-    def _gap(self, waypoints: np.ndarray, pose: np.ndarray) -> float:
-        """Distance in z [m] from ``pose`` (m,) to the closest point of the polyline ``waypoints`` (P, m)."""
-        a, b, z = waypoints[:-1] * self.metric, waypoints[1:] * self.metric, pose * self.metric
-        d = b - a
-        t = np.clip(np.sum((z - a) * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-18), 0.0, 1.0)
-        return float(np.min(np.linalg.norm(a + t[:, None] * d - z, axis=-1)))
 
     def last_plan_metrics(self) -> dict[str, float] | None:
         """The last plan's figures (for the evaluation's per-episode record), or None before any."""

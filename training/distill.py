@@ -85,7 +85,7 @@ def collect(
 
     Args:
         env: A ``gym.make`` Reach environment.
-        expert: The labelling planner controller.
+        expert: The labelling planner controller (its plan log is cleared first, then holds these episodes' plans).
         learner: A function of one observation (D,) to an action (n,), or None (the expert acts).
         episodes: Number of episodes; episode i resets with seed ``first_seed + i``.
         beta: Probability that the expert's action is executed at a step.
@@ -98,7 +98,7 @@ def collect(
     """
     observations, actions = [], []
     successes = singular = steps = 0
-    plans_before = len(expert.log)
+    expert.log.clear()  # the plans of these episodes alone
     for i in range(episodes):
         obs, _ = env.reset(seed=first_seed + i)
         while True:
@@ -112,7 +112,7 @@ def collect(
                 successes += bool(info.get("is_success", False))
                 singular += info.get("termination_reason") in ("singular", "singularity_crossed", "actuator_singular")
                 break
-    plans = list(expert.log)[plans_before:] if len(expert.log) < expert.log.maxlen else list(expert.log)
+    plans = list(expert.log)
     figures = {
         "success_rate": successes / episodes,
         "singular_terminations": singular / episodes,
