@@ -33,6 +33,8 @@ _SPECS = {
     # The lesson's planar 3-RPR: tasks in the regions of its certified grid; hard targets behind the
     # ill-conditioned zone; "mixed": standard or hard at random per episode (one policy for both kinds).
     "Planar3RPRReach-v0": (*_REACH, 200, {"robot": "planar_3rpr"}),
+    # One robot per episode from a family of 3-RPRs (base and platform scaled and sheared by up to ±15 %), known.
+    "Planar3RPRReachFamily-v0": (*_REACH, 200, {"robot": "planar_3rpr_family"}),
     "Planar3RPRReachHard-v0": (*_REACH, 200, {"robot": "planar_3rpr", "targets": "hard"}),
     "Planar3RPRReachMixed-v0": (*_REACH, 200, {"robot": "planar_3rpr", "targets": "mixed"}),
     "Planar3RPRTrack-v0": (*_TRACK, 400, {"robot": "planar_3rpr"}),

@@ -15,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from envs import hardware
 from envs.kernels import generic as fk
 from envs.params import TARGET_MODES, FamilyParams
 from envs.physics import (
@@ -27,6 +28,7 @@ from envs.physics import (
     copy_state,
     evaluate,
     initial_state,
+    measurement_info,
     observation_bounds,
     step,
 )
@@ -82,6 +84,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         low, high = observation_bounds(params, self.with_velocity)
         self.observation_space = spaces.Box(low.copy(), high.copy(), dtype=np.float32)
         self._state: FamilyState | None = None
+        self._streams: np.ndarray | None = None
         self._buffers = (StepBuffers(params, 1, self.with_velocity), StepBuffers(params, 1, self.with_velocity))
         self._next = 0
         self._terminated = False
@@ -101,8 +104,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         unknown = set(options) - set(self.reset_options)
         if unknown:
             raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self.reset_options)}")
-        start, reference = self.sample_tasks((self.np_random,), options)
-        self._state = initial_state(self.params, start, reference)
+        self._streams = fk.random_streams((self.np_random,)) if self.params.random_hardware else None
+        self._state = self.start_episodes((self.np_random,), options, self._streams)
         self._terminated = False
         self._trail.clear()
         if self.render_mode is not None:  # the trail is drawn only
@@ -130,7 +133,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"action must have shape ({n},), got shape {a.shape}")
         out = self._buffers[self._next]
         state, outcome, evaluation, observations = step(
-            self.params, self._state, a.reshape(1, n), self.with_velocity, out, validate=False
+            self.params, self._state, a.reshape(1, n), self.with_velocity, out, validate=False, streams=self._streams
         )
         self._next ^= 1
         self._state = state
@@ -185,13 +188,32 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         info["target"] = row[self._target_rows].copy()
         for name in TYPE_I_INFO:
             info[name] = info.pop(name)
+        for name, value in measurement_info(self._state).items():
+            info[name] = float(value[0]) if value.ndim == 1 else value[0].copy()
         return info
+
+    def start_episodes(
+        self, generators: Sequence[np.random.Generator], options: dict[str, Any], streams: np.ndarray | None = None
+    ) -> FamilyState:
+        """The state at t = 0 of M new episodes, episode i drawn from the i-th generator (its stream ``streams[i]``).
+
+        In this order, from each generator: the robot's own geometry (``geometry_variation``), the task
+        (``sample_tasks``), the robot as built (``geometry_tolerance``), the first encoder reading. The single env
+        and the vector env both start episodes here.
+        """
+        params = self.params
+        if streams is None and params.random_hardware:
+            streams = fk.random_streams(generators)
+        known = hardware.varied_plants(params, streams) if params.geometry_variation else None
+        start, reference = self.sample_tasks(generators, options, streams, None if known is None else known[0])
+        return initial_state(params, start, reference, streams if params.random_hardware else None, known)
 
     def sample_tasks(
         self,
         generators: Sequence[np.random.Generator],
         options: dict[str, Any],
         streams: np.ndarray | None = None,
+        constants: np.ndarray | None = None,
     ) -> tuple[np.ndarray, FamilyReference]:
         """Draw one task per generator in one compiled call (start poses (M, m) and references).
 
@@ -200,6 +222,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             options: Reset options.
             streams: ``envs.kernels.setup.random_streams(generators)``, shape (M, 2), if the caller keeps them
                 (the vector env holds one row per sub-environment); None computes them.
+            constants: Each robot's own packed constants (M, C_SIZE) to certify its task on (``geometry_variation``),
+                or None: the nominal robot's.
         """
         raise NotImplementedError
 
@@ -240,6 +264,13 @@ _ARGUMENTS_DOC = """
     | `track_shape` | str | `"sinusoid"` | "sinusoid" (or the `track_path`) or "circle" (grid only) |
     | `track_radius_range` | (float, float) | `(0.05, 0.15)` | radius of a circle reference [m] |
     | `track_angle_range` | (float, float) | `(0.0, 0.4)` | amplitude of a circle's third coordinate [rad] |
+    | `observation_source` | str | `"pose"` | "pose" (the true pose) or "encoders" (strokes measured, pose estimated) |
+    | `encoder_resolution` | float or n floats | `()` | encoder count [m, rad]; (): 10 µm, 0.01° (`envs.hardware`) |
+    | `encoder_noise` | float or n floats | `()` | encoder noise, standard deviation [m, rad]; (): one count |
+    | `estimator_iterations` | int | `20` | Newton iterations of the pose estimate per step |
+    | `geometry_tolerance` | float | `0.0` | the robot as built: anchors, points, lengths within ± this [m] |
+    | `max_acceleration` | float or n floats | `()` | largest change of an actuator's rate [m/s², rad/s²]; (): none |
+    | `action_delay` | int | `0` | control steps between an action and its effect |
     | `**kwargs` | | | any other field of `FamilyParams` (Newton, substeps, margins) |
 
     `robot` may name a preset of `ROBOT_PRESETS` (its settings apply under the caller's own); a mechanism gets
@@ -355,6 +386,7 @@ class FamilyReachEnv(FamilyEnvBase):
         generators: Sequence[np.random.Generator],
         options: dict[str, Any],
         streams: np.ndarray | None = None,
+        constants: np.ndarray | None = None,
     ) -> tuple[np.ndarray, FamilyReference]:
         """Certified start/target pairs, one per generator (see the class docstring, Starting State).
 
@@ -379,7 +411,7 @@ class FamilyReachEnv(FamilyEnvBase):
         if streams is None:
             streams = fk.random_streams(generators)
         if mode != "mixed":
-            starts, targets, waypoints = self._draw(streams, n, mode == "hard", start, target)
+            starts, targets, waypoints = self._draw(streams, n, mode == "hard", start, target, constants)
         else:  # each episode draws its kind first, from its own generator
             hard = np.array([g.random() < 0.5 for g in generators])
             starts, targets, waypoints = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
@@ -387,17 +419,32 @@ class FamilyReachEnv(FamilyEnvBase):
                 rows = np.flatnonzero(hard == kind)
                 if rows.size:
                     starts[rows], targets[rows], waypoints[rows] = self._draw(
-                        streams[rows], rows.size, kind, start, target
+                        streams[rows], rows.size, kind, start, target, None if constants is None else constants[rows]
                     )
         self.last_waypoints = waypoints
         return starts, FamilyReference(targets, np.zeros((n, m)), np.zeros((n, m)))
 
     def _draw(
-        self, streams: np.ndarray, n: int, hard: bool, start: np.ndarray | None, target: np.ndarray | None
+        self,
+        streams: np.ndarray,
+        n: int,
+        hard: bool,
+        start: np.ndarray | None,
+        target: np.ndarray | None,
+        constants: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Certified pairs of one kind, one per stream: (starts, targets, waypoints), each (n, m)."""
         params = self.params
-        if params.workspace is not None:
+        if constants is not None:  # each robot's task certified on its own geometry
+            if start is not None or target is not None:
+                raise ValueError("reset options 'start' and 'target' are not available with a geometry_variation")
+            m = params.robot.n_pose
+            rows = [
+                fk.sample_reach_batch(constants[i], streams[i : i + 1], 1, m, hard, params.min_distance)
+                for i in range(n)
+            ]
+            found = None if any(r is None for r in rows) else tuple(np.concatenate(c) for c in zip(*rows))
+        elif params.workspace is not None:
             fixed_kind, fixed = (1, start) if start is not None else ((2, target) if target is not None else (0, None))
             found = grid_kernels.sample_reach_batch(
                 params.packed, params.workspace.packed, streams, n, hard, params.min_distance, fixed_kind, fixed
@@ -484,9 +531,12 @@ class FamilyTrackEnv(FamilyEnvBase):
         generators: Sequence[np.random.Generator],
         options: dict[str, Any],
         streams: np.ndarray | None = None,
+        constants: np.ndarray | None = None,
     ) -> tuple[np.ndarray, FamilyReference]:
         """References whose whole period is safe, one per generator; the start is the reference at t = 0."""
         params = self.params
+        if constants is not None:
+            raise ValueError("geometry_variation is available for Reach tasks only")
         n, m = len(generators), params.robot.n_pose
         if streams is None:
             streams = fk.random_streams(generators)

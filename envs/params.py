@@ -76,6 +76,19 @@ class FamilyParams:
             coordinates, the third oscillating by ±a, all of one period in one safe region).
         track_radius_range: (r_min, r_max) of a circle reference [m].
         track_angle_range: (a_min, a_max) of a circle reference's third coordinate [rad, or m if translational].
+        observation_source: "pose" (the observation holds the true pose) or "encoders" (measured actuator
+            coordinates and the pose estimated from them by the nominal forward kinematics: ``envs.hardware``).
+        encoder_resolution: Count of each actuator's encoder [m, or rad for cranks], shape (n,); () for the
+            defaults of ``envs.hardware.ENCODER_RESOLUTION`` (10 µm, 0.01°).
+        encoder_noise: Standard deviation of each encoder's noise before quantisation, shape (n,) [m, rad]; ()
+            for one count.
+        estimator_iterations: Most Newton iterations of the pose estimate per step.
+        geometry_tolerance: δ [m]: each episode's robot has its anchors, platform points and (cranks, sliders)
+            link lengths and crank radii drawn within ±δ of the nominal ones, which every controller assumes.
+        geometry_variation: ν: each episode's robot has its base and platform scaled and sheared by up to ±ν
+            (``envs.hardware.varied_plants``), known to the controller and coded at the end of the observation.
+        max_acceleration: Largest change of each actuator's rate per second [m/s², rad/s²], shape (n,); () for none.
+        action_delay: Whole control steps between an action and its effect.
     """
 
     robot: DistanceConstraintMechanism = field(default_factory=StewartGough)
@@ -117,6 +130,14 @@ class FamilyParams:
     track_shape: str = "sinusoid"
     track_radius_range: tuple[float, float] = (0.05, 0.15)
     track_angle_range: tuple[float, float] = (0.0, 0.4)
+    observation_source: str = "pose"
+    encoder_resolution: tuple[float, ...] = ()
+    encoder_noise: tuple[float, ...] = ()
+    estimator_iterations: int = 20
+    geometry_tolerance: float = 0.0
+    geometry_variation: float = 0.0
+    max_acceleration: tuple[float, ...] = ()
+    action_delay: int = 0
 
     @functools.cached_property
     def workspace(self) -> WorkspaceMap | None:
@@ -145,6 +166,23 @@ class FamilyParams:
     def packed(self) -> np.ndarray:
         """The kernels' float64 constants (``generic.pack_family``), read-only."""
         return fk.pack_family(self)
+
+    @functools.cached_property
+    def packed_rows(self) -> np.ndarray:
+        """``packed`` as one row of per-robot constants, shape (1, C_SIZE), read-only (one geometry for all)."""
+        return self.packed[None]
+
+    @property
+    def random_hardware(self) -> bool:
+        """Whether episodes draw the robot as built or steps draw encoder noise (the envs then pass streams)."""
+        return self.geometry_tolerance > 0.0 or self.geometry_variation > 0.0 or self.observation_source == "encoders"
+
+    @property
+    def drive_shape(self) -> tuple[int, int] | None:
+        """(1 + action_delay, n) of the drives' state (``envs.hardware.drive``), or None for ideal drives."""
+        if self.action_delay == 0 and not self.max_acceleration:
+            return None
+        return 1 + self.action_delay, self.robot.n_actuators
 
     @functools.cached_property
     def evaluation_rows(self) -> dict[str, int | slice]:
@@ -180,6 +218,10 @@ def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.n
         v_max = np.maximum(_track_speed_bounds(params), 1e-3)
         low += list(-v_max)
         high += list(v_max)
+    if params.geometry_variation:  # the codes of the robot's geometry (``envs.hardware.varied_plants``)
+        d = params.robot.base.shape[1]
+        low += [-1.0] * (2 * d * d)
+        high += [1.0] * (2 * d * d)
     low_arr, high_arr = np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
     low_arr.setflags(write=False)
     high_arr.setflags(write=False)

@@ -12,6 +12,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from envs import hardware
+from envs.hardware import Measurement
 from envs.kernels import generic as fk
 from envs.params import FamilyParams
 
@@ -28,6 +30,7 @@ __all__ = [
     "copy_state",
     "evaluate",
     "initial_state",
+    "measurement_info",
     "observation_bounds",
     "reward_terms",
     "step",
@@ -139,6 +142,13 @@ class FamilyState(NamedTuple):
         actuator_condition: Actuator condition number at (q, x) (Type I measure; 1 for legs), shape (N,).
         residual: Constraint residual max_i |Φ_i| [m²], shape (N,).
         reference: The targets' trajectories.
+        plant: Packed constants of each robot as built (``geometry_tolerance`` > 0: ``envs.hardware``), shape
+            (N, C_SIZE), or None: every robot is the nominal one.
+        sensed: What the controller measures and estimates (``observation_source="encoders"``), or None.
+        drive: The drives' state (``FamilyParams.drive_shape``: the last applied action, then the delayed ones),
+            shape (N, 1 + action_delay, n), or None for ideal drives.
+        geometry: The codes of each robot's known geometry (``geometry_variation``: ``envs.hardware.varied_plants``,
+            whose constants are then ``plant``), shape (N, 2 d²), or None.
     """
 
     q: np.ndarray
@@ -149,6 +159,23 @@ class FamilyState(NamedTuple):
     actuator_condition: np.ndarray
     residual: np.ndarray
     reference: FamilyReference
+    plant: np.ndarray | None = None
+    sensed: Measurement | None = None
+    drive: np.ndarray | None = None
+    geometry: np.ndarray | None = None
+
+
+#: The fields of ``FamilyState`` that hold one array each, in order (``reference`` and ``sensed`` are records).
+STATE_ARRAYS = (
+    "q", "x", "t", "det_sign", "inverse_condition", "actuator_condition", "residual", "plant", "drive", "geometry",
+)  # fmt: skip
+
+
+def state_arrays(state: FamilyState) -> list[np.ndarray]:
+    """Every array of ``state`` (its own, its reference's and its measurement's; the absent ones left out)."""
+    arrays = [getattr(state, name) for name in STATE_ARRAYS]
+    arrays += list(state.reference) + (list(state.sensed) if state.sensed is not None else [])
+    return [a for a in arrays if a is not None]
 
 
 class FamilyOutcome(NamedTuple):
@@ -198,12 +225,57 @@ def check_state(params: FamilyParams, state: FamilyState) -> int:
     ref = state.reference
     rows, pose, flat = (n_rows, n), (n_rows, m), (n_rows,)
     strokes = rows if ref.strokes is None else ref.strokes.shape
-    got = (*(field.shape for field in state[:-1]), ref.center.shape, ref.amplitude.shape, ref.phase.shape, strokes)
-    if got != (rows, pose, flat, flat, flat, flat, flat, pose, pose, pose, rows):
-        shapes = {name: np.shape(v) for name, v in zip(FamilyState._fields, state) if name != "reference"}
+    got = (
+        *(getattr(state, name).shape for name in STATE_ARRAYS[:7]),
+        ref.center.shape,
+        ref.amplitude.shape,
+        ref.phase.shape,
+        strokes,
+    )
+    want = (rows, pose, flat, flat, flat, flat, flat, pose, pose, pose, rows)
+    optional = {
+        "plant": (state.plant, (n_rows, fk.C_SIZE)),
+        "drive": (state.drive, (n_rows, *(params.drive_shape or (0, n)))),
+        "geometry": (state.geometry, (n_rows, 2 * params.robot.base.shape[1] ** 2)),
+    }
+    if state.sensed is not None:
+        optional.update(
+            {
+                f"sensed.{f}": (v, rows if f == "q" else pose if f == "x" else flat)
+                for f, v in state.sensed._asdict().items()
+            }
+        )
+    extra_ok = all(v is None or np.shape(v) == shape for v, shape in optional.values())
+    if got != want or not extra_ok:
+        shapes = {name: np.shape(getattr(state, name)) for name in STATE_ARRAYS if getattr(state, name) is not None}
         shapes.update({f"reference.{name}": np.shape(v) for name, v in zip(FamilyReference._fields, ref)})
+        shapes.update({name: np.shape(v) for name, (v, _) in optional.items() if v is not None})
         raise ValueError(f"state arrays must have shapes (N, {n}), (N, {m}) or (N,) with one N, got {shapes}")
     return n_rows
+
+
+def _plant(params: FamilyParams, plant: np.ndarray | None) -> np.ndarray:
+    """The constants the robots move with, as the kernels take them: a read-only (N or 1, C_SIZE) array."""
+    if plant is None:
+        return params.packed_rows
+    view = plant.view()
+    view.setflags(write=False)  # one compiled signature for every caller: the kernels take read-only constants
+    return view
+
+
+def _model(params: FamilyParams, state: FamilyState) -> np.ndarray:
+    """The constants the controllers know (the observation's and the reward's), read-only, (N or 1, C_SIZE).
+
+    Each robot's own with a known geometry (``geometry_variation``), else the nominal ones.
+    """
+    return _plant(params, state.plant) if state.geometry is not None else params.packed_rows
+
+
+def _with_codes(state: FamilyState, observations: np.ndarray) -> np.ndarray:
+    """Write the codes of the robots' known geometries into the last columns of their observations, in place."""
+    if state.geometry is not None:
+        observations[:, -state.geometry.shape[1] :] = state.geometry
+    return observations
 
 
 def _motion(state: FamilyState) -> tuple[np.ndarray, ...]:
@@ -211,18 +283,58 @@ def _motion(state: FamilyState) -> tuple[np.ndarray, ...]:
     return state.q, state.x, state.t, state.det_sign, state.residual
 
 
-def initial_state(params: FamilyParams, start: np.ndarray, reference: FamilyReference) -> FamilyState:
-    """State of N robots at rest at ``start`` (shape (N, m)), strokes from the inverse kinematics."""
+def initial_state(
+    params: FamilyParams,
+    start: np.ndarray,
+    reference: FamilyReference,
+    streams: np.ndarray | None = None,
+    known: tuple[np.ndarray, np.ndarray] | None = None,
+) -> FamilyState:
+    """State of N robots at rest at ``start`` (shape (N, m)), strokes from the nominal inverse kinematics.
+
+    With a ``geometry_tolerance``, each robot as built is drawn from its stream (``envs.hardware``) and starts at
+    the pose it assembles at for those strokes, near ``start``; with encoders, its first measurement is taken (the
+    estimate starts from ``start``, the pose the controller believes). ``streams`` (``random_streams`` of the N
+    generators, (N, 2)) is needed only then; the geometry is drawn before the encoder noise. With a
+    ``geometry_variation``, ``known`` = (constants (N, C_SIZE), codes (N, 2 d²)) of each robot's own geometry
+    (``envs.hardware.varied_plants``, drawn before its task), which its strokes and target strokes are solved with.
+    """
     start = _rows(start, params.robot.n_pose, "start")
-    q, k, k1, det_sign, residual = fk.initial_batch(params.packed, start)
-    reference = with_strokes(params, reference)
-    return FamilyState(q, start.copy(), np.zeros(len(start), dtype=np.int64), det_sign, k, k1, residual, reference)
+    n = len(start)
+    x, plant, codes = start.copy(), None, None
+    if known is not None:
+        plant, codes = known
+        rows = [fk.initial_batch(plant[i], start[i : i + 1]) for i in range(n)]
+        q, k, k1, det_sign, residual = (np.concatenate(column) for column in zip(*rows))
+        if reference.strokes is None:
+            strokes = [fk.strokes_batch(plant[i], reference.center[i : i + 1]) for i in range(n)]
+            reference = reference._replace(strokes=np.concatenate(strokes))
+    else:
+        q, k, k1, det_sign, residual = fk.initial_batch(params.packed, start)
+        reference = with_strokes(params, reference)
+    if streams is None and (params.geometry_tolerance or params.observation_source == "encoders"):
+        raise ValueError("initial_state needs the robots' random streams with a geometry tolerance or encoders")
+    if params.geometry_tolerance:
+        plant = hardware.perturbed_plants(params, streams)
+        x, residual, k, k1, det_sign = fk.forward_batch(_plant(params, plant), q, start, 50)
+        if not np.isfinite(residual).all():
+            raise RuntimeError(
+                f"a robot drawn within geometry_tolerance={params.geometry_tolerance} m does not assemble at the "
+                f"strokes of its start pose {start[np.flatnonzero(~np.isfinite(residual))[0]].tolist()}"
+            )
+    drive = None if params.drive_shape is None else np.zeros((n, *params.drive_shape))
+    t = np.zeros(n, dtype=np.int64)
+    state = FamilyState(q, x, t, det_sign, k, k1, residual, reference, plant, None, drive, codes)
+    if params.observation_source == "encoders":
+        state = state._replace(sensed=hardware.sense(params, q, start, streams, _model(params, state)))
+    return state
 
 
 def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> tuple[FamilyState, FamilyOutcome]:
     """Advance N robots by one control period: predict, correct, measure, terminate.
 
-    Strokes advance by the clipped action · max_rate · dt, clamped to the hard stops; the step is split into
+    Strokes advance by the clipped action (through the drives, if limited or delayed) · max_rate · dt, clamped
+    to the hard stops (of each robot as built, with a geometry tolerance); the step is split into
     substeps of at most ``max_substep`` of predicted motion; each predicts the pose with the twist
     J_f(q, x) q̇ (Euler or RK4, on the rotation group) and corrects it onto Φ = 0 by Newton's method. A robot
     whose correction fails stays where it was; the others are checked for an assembly-mode jump, a flip of
@@ -234,7 +346,7 @@ def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> 
         action: Normalised stroke rates, shape (N, n), finite.
 
     Returns:
-        (the new state, the outcome).
+        (the new state, the outcome); the new state has no measurement (``sensed`` None): ``step`` takes one.
     """
     action = _rows(action, params.robot.n_actuators, "action")
     if action.shape[0] != check_state(params, state):
@@ -242,8 +354,15 @@ def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> 
     if not np.isfinite(action).all():
         rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
         raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}", rows)
-    q, x, k, k1, residual, a, q_rate, reason, jump = fk.transition_batch(params.packed, _motion(state), action)
-    new = FamilyState(q, x, state.t + 1, state.det_sign, k, k1, residual, state.reference)
+    drive = state.drive
+    if drive is not None:
+        action, drive = hardware.drive(params, drive, action)
+    q, x, k, k1, residual, a, q_rate, reason, jump = fk.transition_batch(
+        _plant(params, state.plant), _motion(state), action
+    )
+    new = FamilyState(
+        q, x, state.t + 1, state.det_sign, k, k1, residual, state.reference, state.plant, None, drive, state.geometry
+    )
     return new, FamilyOutcome(a, q_rate, reason, jump)
 
 
@@ -260,7 +379,9 @@ def evaluate(
         with_velocity: Whether the observation ends with the target velocity.
 
     Returns:
-        (evaluation (rows of ``params.evaluation_rows``, N) float64, observations (N, D) float32).
+        (evaluation (rows of ``params.evaluation_rows``, N) float64, observations (N, D) float32). The evaluation
+        (reward, errors, success, ``info``) is of the true state; the observations are of the measurement
+        ``state.sensed`` where there is one (encoders), else of the true state.
     """
     action = _rows(action, params.robot.n_actuators, "action")
     reason = np.asarray(reason, dtype=np.int64)
@@ -271,7 +392,21 @@ def evaluate(
     ref = with_strokes(params, state.reference)
     measured = (state.q, state.x, state.t, state.inverse_condition, state.actuator_condition, state.residual)
     outcome = (action, reason)
-    return fk.evaluate_batch(params.packed, (low, high, bool(with_velocity)), measured, tuple(ref), outcome)
+    observation = (low, high, bool(with_velocity))
+    model = _model(params, state)
+    evaluation, observations = fk.evaluate_batch(model, observation, measured, tuple(ref), outcome)
+    if state.sensed is not None:
+        observations = _sensed_observations(params, state, observation, ref, outcome)
+    return evaluation, _with_codes(state, observations)
+
+
+def _sensed_observations(
+    params: FamilyParams, state: FamilyState, observation: tuple, reference: FamilyReference, outcome: tuple
+) -> np.ndarray:
+    """The observations of N robots from what their controllers measure (``state.sensed``), shape (N, D)."""
+    sensed = state.sensed
+    measured = (sensed.q, sensed.x, state.t, sensed.k, sensed.k1, state.residual)
+    return fk.evaluate_batch(_model(params, state), observation, measured, tuple(reference), outcome)[1]
 
 
 def reward_terms(
@@ -331,6 +466,7 @@ def step(
     out: StepBuffers | None = None,
     *,
     validate: bool = True,
+    streams: np.ndarray | None = None,
 ) -> tuple[FamilyState, FamilyOutcome, np.ndarray, np.ndarray]:
     """``transition`` then ``evaluate``, fused in one compiled pass (on every core for large N).
 
@@ -342,6 +478,8 @@ def step(
         out: Buffers to write into (none of them may hold ``state``), or None.
         validate: Check the state's and the buffers' shapes (``check_state``). The envs pass False for the
             state they hold, which ``initial_state`` and ``step`` made with the right shapes.
+        streams: ``random_streams`` of the N robots' generators, shape (N, 2): the encoder noise is drawn from
+            them (needed with ``observation_source="encoders"`` only).
 
     Returns:
         (new state, outcome, evaluation, observations).
@@ -361,26 +499,65 @@ def step(
     ref = with_strokes(params, state.reference)
     low, high = observation_bounds(params, with_velocity)
     observation = (low, high, bool(with_velocity))
-    bad = fk.step_batch(params.packed, observation, _motion(state), tuple(ref), action, out.arrays)
-    if bad:
-        rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
-        where = f" (row(s) {rows[:10].tolist()} of {n})" if n > 1 else ""
-        raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}{where}", rows)
+    drive = state.drive
+    if drive is not None:  # the drives hold actions back: check them before they are queued
+        if not np.isfinite(action).all():
+            _non_finite(action)
+        action, drive = hardware.drive(params, drive, action)
+    plant, model = _plant(params, state.plant), _model(params, state)
+    if fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays):
+        _non_finite(action)
     q, x, t, k, k1, residual = out.fields
-    return FamilyState(q, x, t, state.det_sign, k, k1, residual, ref), out.outcome, out.evaluation, out.observations
+    new = FamilyState(q, x, t, state.det_sign, k, k1, residual, ref, state.plant, None, drive, state.geometry)
+    if params.observation_source == "encoders":
+        if streams is None:
+            raise ValueError("step needs the robots' random streams (streams=) with observation_source='encoders'")
+        new = new._replace(sensed=hardware.sense(params, q, state.sensed.x, streams, model))
+        outcome = (out.outcome.action, out.outcome.reason)
+        out.observations[:] = _sensed_observations(params, new, observation, ref, outcome)
+    return new, out.outcome, out.evaluation, _with_codes(new, out.observations)
+
+
+def _non_finite(action: np.ndarray) -> None:
+    """Raise ``NonFiniteActionError`` naming the rows of ``action`` (N, n) that hold a NaN or an infinity."""
+    rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
+    where = f" (row(s) {rows[:10].tolist()} of {len(action)})" if len(action) > 1 else ""
+    raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}{where}", rows)
 
 
 def copy_state(state: FamilyState) -> FamilyState:
     """A deep copy of ``state`` (every array copied)."""
-    ref = FamilyReference(*(None if a is None else a.copy() for a in state.reference))
-    return FamilyState(*(a.copy() for a in state[:-1]), ref)
+
+    def copied(record):
+        return None if record is None else type(record)(*(None if a is None else a.copy() for a in record))
+
+    own = {name: None if getattr(state, name) is None else getattr(state, name).copy() for name in STATE_ARRAYS}
+    return FamilyState(reference=copied(state.reference), sensed=copied(state.sensed), **own)
 
 
-def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) -> dict[str, np.ndarray]:
+def measurement_info(state: FamilyState) -> dict[str, np.ndarray]:
+    """The info entries of what the controllers measure, per robot (empty without encoders).
+
+    ``estimated_pose`` (N, m): the pose estimated from the encoders; ``estimate_inverse_condition_number`` (N,):
+    k there (what the observation holds); ``measured_strokes`` (N, n): the encoder readings.
+    """
+    if state.sensed is None:
+        return {}
+    sensed = state.sensed
+    return {
+        "estimated_pose": sensed.x.copy(),
+        "estimate_inverse_condition_number": sensed.k.copy(),
+        "measured_strokes": sensed.q.copy(),
+    }
+
+
+def step_info(
+    params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray, state: FamilyState | None = None
+) -> dict[str, np.ndarray]:
     """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order.
 
     ``INFO_KEYS`` in order (``is_success`` as bools, the reasons as names, pose and target as (N, m)), the Type I
-    entries last.
+    entries last, then ``measurement_info(state)`` if a state is given.
     """
     rows = params.evaluation_rows
     info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS if name not in TYPE_I_INFO}
@@ -390,4 +567,6 @@ def step_info(params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray) 
     info["target"] = evaluation[rows["target"]].T.copy()
     for name in TYPE_I_INFO:
         info[name] = evaluation[rows[name]].copy()
+    if state is not None:
+        info.update(measurement_info(state))
     return info

@@ -9,13 +9,23 @@ from its size and home pose, ``derived_defaults``).
 from __future__ import annotations
 
 import math
+from pathlib import PurePath
 from typing import Any
 
 import numpy as np
 
+from envs import hardware
 from envs.kernels import generic as fk
 from envs.params import HARD_KINDS, INTEGRATORS, TASK_REGIONS, TRACK_SHAPES, FamilyParams
-from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
+from kinematics import (
+    Delta,
+    DistanceConstraintMechanism,
+    Planar3PRR,
+    Planar3RPR,
+    Planar3RRR,
+    StewartGough,
+    load_mechanism,
+)
 
 __all__ = [
     "ADEPT_CYCLE",
@@ -118,6 +128,16 @@ _PLANAR_3RPR: dict[str, Any] = {
 #: Documented defaults of the robots with registered ids: constructor keyword arguments of the envs.
 ROBOT_PRESETS: dict[str, dict[str, Any]] = {
     "planar_3rpr": _PLANAR_3RPR,
+    # A family of 3-RPRs (``envs.hardware.varied_plants``): each episode's base and platform scaled and sheared by up
+    # to ±15 %, the robot known to the policy (its codes end the observation). Tasks in the task box, certified on
+    # each robot's own geometry (the grid certifies one geometry only); hard targets need a detour.
+    "planar_3rpr_family": {
+        **_PLANAR_3RPR,
+        "task_region": "box",
+        "hard_kind": "detour",
+        "track_shape": "sinusoid",
+        "geometry_variation": 0.15,
+    },
     # A symmetric 6-6 hexapod (``kinematics.StewartGough()``): base radius 0.5 m, platform radius 0.3 m, legs
     # 0.59 m at the home pose p = (0, 0, 0.5) m. Strokes 0.45-0.75 m at 0.1 m/s. Standard tasks keep to a box of
     # ±0.1 m, z 0.4-0.6 m, tilts ±0.2 rad and yaw ±0.5 rad, where k ≥ 0.2. Hard tasks widen the tilts to
@@ -352,8 +372,9 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     of it is safe.
 
     Args:
-        robot: The mechanism, or the name of one with its default geometry (a key of ``ROBOTS``); default
-            ``StewartGough()``.
+        robot: The mechanism, the name of one with its default geometry (a key of ``ROBOTS``), its data (a dict,
+            ``DistanceConstraintMechanism.from_dict``) or the path of a JSON file of it (``*.json``,
+            ``kinematics.load_mechanism``); default ``StewartGough()``.
         **kwargs: Fields of ``FamilyParams``.
 
     Returns:
@@ -366,6 +387,10 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     caller_keys = set(kwargs)
     if robot is None:
         robot = "stewart_gough"
+    if isinstance(robot, dict):  # a robot given as data (``DistanceConstraintMechanism.from_dict``)
+        robot = DistanceConstraintMechanism.from_dict(robot)
+    elif isinstance(robot, (str, PurePath)) and str(robot).endswith(".json"):  # ... or as a file of it
+        robot = load_mechanism(robot)
     named = isinstance(robot, str)
     if named:
         if robot in ROBOT_PRESETS:  # a preset: its documented settings, under the caller's own
@@ -485,4 +510,53 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
             values["segment_spacing"],
             certificate_spacing(certificate, robot, values["sample_low"], values["sample_high"], margin),
         )
-    return FamilyParams(robot=robot, stroke_limits=(lo, hi), **values)
+    values.update(_hardware(robot, args))
+    params = FamilyParams(robot=robot, stroke_limits=(lo, hi), **values)
+    hardware.check_tolerance(params)
+    return params
+
+
+def _per_actuator(name: str, value: Any, n: int, default: tuple[float, ...], *, allow_zero: bool) -> tuple[float, ...]:
+    """() → ``default``; a number → n of it; else n numbers, each finite and > 0 (≥ 0 with ``allow_zero``)."""
+    if isinstance(value, (tuple, list, np.ndarray)) and len(value) == 0:
+        return default
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        value = (value,) * n
+    values = _vector(name, value, n)
+    if not all(v > 0 or (allow_zero and v == 0) for v in values):
+        raise ValueError(f"{name} must be {n} numbers {'≥' if allow_zero else '>'} 0, got {list(values)}")
+    return values
+
+
+def _hardware(robot: DistanceConstraintMechanism, args: dict[str, Any]) -> dict[str, Any]:
+    """The validated options of the robot as built and measured (``envs.hardware``)."""
+    n = robot.n_actuators
+    source = args["observation_source"]
+    if source not in hardware.OBSERVATION_SOURCES:
+        raise ValueError(f"observation_source must be one of {hardware.OBSERVATION_SOURCES}, got {source!r}")
+    values = {
+        "observation_source": source,
+        "encoder_resolution": _per_actuator("encoder_resolution", args["encoder_resolution"], n, (), allow_zero=False),
+        "encoder_noise": _per_actuator("encoder_noise", args["encoder_noise"], n, (), allow_zero=True),
+        "geometry_tolerance": _number("geometry_tolerance", args["geometry_tolerance"], allow_zero=True),
+        "geometry_variation": _number("geometry_variation", args["geometry_variation"], allow_zero=True),
+        "max_acceleration": _per_actuator("max_acceleration", args["max_acceleration"], n, (), allow_zero=False),
+    }
+    if values["geometry_variation"]:
+        if not values["geometry_variation"] < 0.5:
+            raise ValueError(
+                f"geometry_variation must be < 0.5 (a share of the size), got {values['geometry_variation']}"
+            )
+        if args["task_region"] != "box" or values["geometry_tolerance"]:
+            raise ValueError(
+                "geometry_variation needs task_region='box' (tasks certified on each robot's own geometry) and no "
+                f"geometry_tolerance, got task_region={args['task_region']!r}, "
+                f"geometry_tolerance={values['geometry_tolerance']}"
+            )
+    for name in ("estimator_iterations", "action_delay"):
+        count = args[name]
+        low = 1 if name == "estimator_iterations" else 0
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < low:
+            raise ValueError(f"{name} must be an int ≥ {low}, got {count!r}")
+        values[name] = int(count)
+    return values

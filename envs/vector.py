@@ -15,7 +15,7 @@ from gymnasium.vector.utils import batch_space
 from envs import physics
 from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv, render_frames
 from envs.kernels.setup import random_streams
-from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate, initial_state, step_info
+from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate, step_info
 
 __all__ = ["FamilyReachVectorEnv", "FamilyTrackVectorEnv", "FamilyVectorEnv"]
 
@@ -30,7 +30,7 @@ def _positive_int(name: str, value: Any) -> int:
 
 def _put(state: FamilyState, rows: np.ndarray, values: FamilyState) -> None:
     """Write ``values`` (len(rows) robots) into the rows ``rows`` of ``state``, in place."""
-    for field, value in zip((*state[:-1], *state.reference), (*values[:-1], *values.reference)):
+    for field, value in zip(physics.state_arrays(state), physics.state_arrays(values)):
         field[rows] = value
 
 
@@ -163,6 +163,8 @@ class FamilyVectorEnv(VectorEnv):
         # The kernels' handle on each generator (``envs.kernels.setup.random_streams``), made once per generator:
         # an episode start then costs no Python work per robot beyond its task's compiled draw.
         self._streams = np.zeros((self.num_envs, 2), dtype=np.uint64)
+        self._scratch_generator = np.random.default_rng(0)  # draws thrown away (see ``step``)
+        self._scratch_stream = random_streams([self._scratch_generator])[0]
         self._seeds: list[int | None] = [None] * self.num_envs
         self._state: FamilyState | None = None
         self._observations: np.ndarray | None = None
@@ -243,9 +245,17 @@ class FamilyVectorEnv(VectorEnv):
                 "reset them with reset(options={'reset_mask': mask})"
             )
         out = self._buffers[self._next]  # not the one holding self._state
+        streams = None
+        if self.params.observation_source == "encoders":
+            streams = self._streams
+            if self.autoreset_mode == AutoresetMode.NEXT_STEP and self._ended.any():
+                # Robots that restart this step draw no encoder noise from their own generators (a single env
+                # that has ended is not stepped), so their next task is the one the single env would draw.
+                streams = streams.copy()
+                streams[self._ended] = self._scratch_stream
         try:
             state, outcome, evaluation, observations = physics.step(
-                self.params, self._state, a, self.with_velocity, out, validate=False
+                self.params, self._state, a, self.with_velocity, out, validate=False, streams=streams
             )
         except NonFiniteActionError as exc:  # checked inside the compiled pass; no robot has moved
             bad = exc.rows
@@ -254,7 +264,7 @@ class FamilyVectorEnv(VectorEnv):
             ) from None
         self._next ^= 1
         self._state = state
-        info = step_info(self.params, evaluation, outcome.reason)
+        info = step_info(self.params, evaluation, outcome.reason, state)
         rewards = evaluation[self.params.evaluation_rows["reward"]].copy()
         terminations = outcome.reason != 0
         truncations = state.t >= self.max_episode_steps
@@ -399,7 +409,7 @@ class FamilyVectorEnv(VectorEnv):
         """
         if self._state is None:
             return 0
-        return sum(field.nbytes for field in (*self._state[:-1], *self._state.reference))
+        return sum(field.nbytes for field in physics.state_arrays(self._state))
 
     # -- helpers ----------------------------------------------------------------------------------
 
@@ -408,16 +418,15 @@ class FamilyVectorEnv(VectorEnv):
         n = state.q.shape[0]
         action, reason = np.zeros((n, self._n_actions)), np.zeros(n, dtype=np.int64)
         evaluation, observations = evaluate(self.params, state, action, reason, self.with_velocity)
-        return observations, step_info(self.params, evaluation, reason)
+        return observations, step_info(self.params, evaluation, reason, state)
 
     def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> FamilyState:
         """Draw a task for each sub-environment of ``rows`` with its own generator; their state at t = 0.
 
-        One compiled call for all of them (``sample_tasks``), each drawing from its own generator.
+        One compiled call for all of them (the single env's ``start_episodes``), each drawing from its own generator.
         """
         generators = [self._generators[i] for i in rows.tolist()]
-        start, reference = self._sampler.sample_tasks(generators, options, self._streams[rows])
-        return initial_state(self.params, start, reference)
+        return self._sampler.start_episodes(generators, options, self._streams[rows])
 
     def _new_generator(self, i: int, seed: int | None) -> None:
         """Give sub-environment i a new generator (seeded with ``seed``, or from entropy) and its stream."""

@@ -38,7 +38,7 @@ Every function accepts leading batch dimensions and broadcasts ``q`` against ``x
 """
 
 from kinematics.delta import Delta
-from kinematics.family import ACTUATOR_KINDS, POSE_SPACES, DistanceConstraintMechanism, PoseSpace
+from kinematics.family import ACTUATOR_KINDS, POSE_SPACES, DistanceConstraintMechanism, PoseSpace, load_mechanism
 from kinematics.mechanism import (
     ForwardKinematicsResult,
     ParallelMechanism,
@@ -61,4 +61,5 @@ __all__ = [
     "PoseSpace",
     "SingularConfigurationError",
     "StewartGough",
+    "load_mechanism",
 ]

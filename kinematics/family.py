@@ -208,6 +208,27 @@ def _unit_vectors(name: str, value: Any, n: int, d: int) -> FloatArray:
     return np.array(arr, dtype=np.float64)
 
 
+def load_mechanism(path: Any) -> DistanceConstraintMechanism:
+    """A mechanism from a JSON file of its geometry (``DistanceConstraintMechanism.from_dict``'s keys).
+
+    Raises:
+        FileNotFoundError: If there is no such file.
+        ValueError: If the file is not JSON or its data is refused (the message names the file).
+    """
+    import json
+    from pathlib import Path
+
+    file = Path(path)
+    try:
+        data = json.loads(file.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{file}: not a JSON file ({exc})") from None
+    try:
+        return DistanceConstraintMechanism.from_dict(data)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{file}: {exc}") from None
+
+
 def _readonly(*arrays: FloatArray) -> None:
     for arr in arrays:
         arr.setflags(write=False)
@@ -475,6 +496,54 @@ class DistanceConstraintMechanism(ParallelMechanism):
             f"pose_space={self._space.name!r}{extra}, characteristic_length={self._l_c!r}, "
             f"singular_tolerance={self.singular_tolerance!r})"
         )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The geometry as plain data (lists, numbers, strings): ``from_dict`` and JSON read it back.
+
+        Only what the kind of each leg needs is written (link lengths for cranks and sliders, radii and axes for
+        cranks, rails for sliders, branches for both).
+        """
+        data: dict[str, Any] = {
+            "pose_space": self._space.name,
+            "base": self._B.tolist(),
+            "platform": self._P.tolist(),
+            "actuators": list(self._kinds),
+        }
+        if not self._all_legs:
+            data["link_lengths"] = self._ell.tolist()
+            data["branches"] = self._branch.tolist()
+        if "crank" in self._kinds:
+            data["crank_radii"] = self._a.tolist()
+            data["crank_axes"] = self.crank_axes.tolist()
+        if "slider" in self._kinds:
+            data["rails"] = self._E.tolist()
+        if self._home is not None:
+            data["home"] = self._home.tolist()
+        data["characteristic_length"] = self._l_c
+        return data
+
+    @classmethod
+    def from_dict(cls, data: Any) -> DistanceConstraintMechanism:
+        """A mechanism from plain data (a ``to_dict`` output, or a JSON object with the constructor's arguments).
+
+        Raises:
+            TypeError: If ``data`` is not a mapping.
+            ValueError: On an unknown key (naming the valid ones) or a value the constructor refuses.
+        """
+        if not isinstance(data, dict):
+            raise TypeError(f"a robot's data must be a mapping of constructor arguments, got {type(data).__name__}")
+        valid = (
+            "base", "platform", "pose_space", "actuators", "link_lengths", "crank_radii", "crank_axes", "rails",
+            "branches", "home", "characteristic_length", "singular_tolerance",
+        )  # fmt: skip
+        unknown = sorted(set(data) - set(valid))
+        if unknown:
+            raise ValueError(f"unknown key(s) {unknown} in a robot's data; valid keys are {list(valid)}")
+        missing = [key for key in ("base", "platform") if key not in data]
+        if missing:
+            raise ValueError(f"a robot's data needs {missing}")
+        args = dict(data)
+        return DistanceConstraintMechanism(args.pop("base"), args.pop("platform"), **args)
 
     def _key(self) -> tuple[Any, ...]:
         arrays = (self._B, self._P, self._a, self._U, self._V, self._E, self._ell, self._branch)

@@ -55,6 +55,7 @@ __all__ = [
     "allocate_step",
     "evaluate_batch",
     "evaluation_rows",
+    "forward_batch",
     "initial_batch",
     "observation_layout",
     "pack_certificate",
@@ -869,28 +870,36 @@ def _path(c):
 
 
 @jit_inline
-def _transition_block(c, state, action, start, count, w, lanes, moved):
+def _row(cs, i):
+    """Robot i's constants: row i of per-robot constants (shape (N, C_SIZE)), or the one row all share ((1, C_SIZE))."""
+    return cs[i] if cs.shape[0] > 1 else cs[0]
+
+
+@jit_inline
+def _transition_block(cs, state, action, start, count, w, lanes, moved):
     """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
 
     Every path runs the algorithm of ``envs.physics.transition`` in its order: predict, correct (the row path),
     measure (k and k_I at the new pose), terminate (``planar.termination_reason``). Args as ``transition_batch``;
     ``moved`` holds its outputs. Spatial robots in blocks are moved one by one, then the k of all of them comes
     from one ``inverse_condition6_lanes`` call over the block (vectorised across robots, each robot's k bit for
-    bit what it would be alone), then their termination reasons.
+    bit what it would be alone), then their termination reasons. ``cs`` holds one row of constants per robot or
+    one row for all (the robots of one batch share their pose space and actuator kinds, not their geometry).
     """
-    path = _path(c)
+    path = _path(cs[0])
     if path == PLANAR_LEGS:
         for i in range(start, start + count):
-            planar.transition_row(c, state, action, i, moved)
+            planar.transition_row(_row(cs, i), state, action, i, moved)
         return
     if path == THREE:
         for i in range(start, start + count):
-            three.transition_row(c, state, action, i, moved)
+            three.transition_row(_row(cs, i), state, action, i, moved)
         return
     det_sign = state[3]
     o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
-    if count == 1 or c[C_N] != 6.0:  # one robot (the single env; the plain Jacobi is cheaper) or m = 3
+    if count == 1 or cs[0][C_N] != 6.0:  # one robot (the single env; the plain Jacobi is cheaper) or m = 3
         for i in range(start, start + count):
+            c = _row(cs, i)
             failed, out = _advance_spatial(c, state, action, i, w, moved)
             k, sign = _singularity(c, o_q[i], w, W_A)
             k1 = _actuator_condition(c, w)
@@ -901,6 +910,7 @@ def _transition_block(c, state, action, start, count, w, lanes, moved):
     H, lane = lanes
     for r in range(count):
         i = start + r
+        c = _row(cs, i)
         failed, out = _advance_spatial(c, state, action, i, w, moved)
         lane[L_SIGN, r] = _homogeneous_lane(c, o_q[i], w, W_A, H, r)
         lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if out else 0.0)
@@ -915,7 +925,7 @@ def _transition_block(c, state, action, start, count, w, lanes, moved):
         o_k[i] = k
         o_k1[i] = lane[L_K1, r]
         o_reason[i] = planar.termination_reason(
-            c, failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out, lane[L_K1, r]
+            _row(cs, i), failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out, lane[L_K1, r]
         )
 
 
@@ -928,11 +938,12 @@ def _allocate_moved(n, m):
 
 
 @jit
-def transition_batch(c, state, action):
+def transition_batch(cs, state, action):
     """Advance N robots by one control period (the algorithm of ``envs.physics.transition``).
 
     Args:
-        c: Packed constants (``pack_family``), shape (C_SIZE,).
+        cs: Packed constants (``pack_family``) of the robots that move: shape (N, C_SIZE), one row per robot, or
+            (1, C_SIZE), one geometry for all.
         state: (q, x, t, det_sign, residual): strokes [m] (N, n), poses (N, m), steps (N,) int (not read), the
             working mode sign(det J_x) of each episode (N,), the constraint residual at (q, x) [m²] (N,).
         action: Normalised stroke rates, shape (N, n), finite.
@@ -945,7 +956,7 @@ def transition_batch(c, state, action):
     w = _work()
     lanes = allocate_lanes()
     for start in range(0, n, LANES):
-        _transition_block(c, state, action, start, min(LANES, n - start), w, lanes, moved)
+        _transition_block(cs, state, action, start, min(LANES, n - start), w, lanes, moved)
     return moved
 
 
@@ -985,6 +996,41 @@ def initial_batch(c, x):
         o_k1[i] = _actuator_condition(c, w)
         o_res[i] = _residual(c, o_q[i], w)
     return o_q, o_k, o_k1, o_sign, o_res
+
+
+@jit
+def forward_batch(cs, q, guess, max_iterations):
+    """Forward kinematics of N robots by Newton's method from ``guess``: the pose each q assembles at near it.
+
+    What a real controller computes from its encoders, warm-started from its previous estimate (and what a robot
+    whose geometry differs from the nominal one assembles at for the strokes the nominal inverse kinematics
+    gave). Near a Type II singularity the pose is ill-determined by q and the iteration may fail.
+
+    Args:
+        cs: Packed constants, shape (N, C_SIZE) or (1, C_SIZE).
+        q: Actuator coordinates [m, or rad for cranks], shape (N, n).
+        guess: Starting poses, shape (N, m).
+        max_iterations: Most Newton iterations.
+
+    Returns:
+        (poses (N, m), residuals max_i |Φ_i| [m²] (N,), k (N,), k_I (N,), sign(det J_x) (N,)); a robot whose
+        iteration did not reach the tolerance ``C_NEWTON_TOL`` keeps its guess and gets residual NaN.
+    """
+    n, m = guess.shape
+    o_x, o_res, o_k, o_k1, o_sign = np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    w = _work()
+    for i in range(n):
+        c = _row(cs, i)
+        res = _newton(c, q[i], guess[i], w, o_x[i], c[C_NEWTON_TOL], max_iterations)
+        if not res <= c[C_NEWTON_TOL]:
+            for j in range(m):
+                o_x[i, j] = guess[i, j]
+            res = np.nan
+        _rows(c, q[i], o_x[i], w)
+        o_k[i], o_sign[i] = _singularity(c, q[i], w, W_A)
+        o_k1[i] = _actuator_condition(c, w)
+        o_res[i] = res
+    return o_x, o_res, o_k, o_k1, o_sign
 
 
 # -- reference, errors, reward, observation -------------------------------------------------------------
@@ -1207,11 +1253,12 @@ def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
 
 
 @jit
-def evaluate_batch(c, observation, measured, reference, outcome):
+def evaluate_batch(cs, observation, measured, reference, outcome):
     """Evaluation rows (``evaluation_rows``) and observations of N robots.
 
     Args:
-        c: Packed constants.
+        cs: Packed constants of the model the observation and the reward are computed with: shape (N, C_SIZE) or
+            (1, C_SIZE), as ``transition_batch``.
         observation: (low, high, with_velocity): the observation's float32 bounds, shape (D,) each, and whether it
             ends with the target velocity.
         measured: (q, x, t, k, k_I, residual): strokes [m] (N, n), poses (N, m), step indices (N,) int, inverse
@@ -1229,7 +1276,7 @@ def evaluate_batch(c, observation, measured, reference, outcome):
     out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
     w = _work()
     for i in range(n):
-        _evaluate_row(c, observation, measured, reference, outcome, i, w, out)
+        _evaluate_row(_row(cs, i), observation, measured, reference, outcome, i, w, out)
     return out
 
 
@@ -1237,17 +1284,17 @@ def evaluate_batch(c, observation, measured, reference, outcome):
 
 
 @jit_inline
-def _step_block(c, observation, state, reference, action, start, count, w, lanes, out):
-    """Transition then evaluation of robots start .. start + count − 1 (count ≤ ``LANES``) into ``out``."""
+def _step_block(model, plant, observation, state, reference, action, start, count, w, lanes, out):
+    """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``)."""
     o_q, o_x, o_t, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
     _transition_block(
-        c, state, action, start, count, w, lanes, (o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
+        plant, state, action, start, count, w, lanes, (o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
     )
     t = state[2]
     measured, outcome = (o_q, o_x, o_t, o_k, o_k1, o_res), (o_a, o_reason)
     for i in range(start, start + count):
         o_t[i] = t[i] + 1
-        _evaluate_row(c, observation, measured, reference, outcome, i, w, (o_eval, o_obs))
+        _evaluate_row(_row(model, i), observation, measured, reference, outcome, i, w, (o_eval, o_obs))
 
 
 @jit
@@ -1260,7 +1307,7 @@ def _finite_actions(action):
 
 
 @jit
-def _step_range(c, observation, state, reference, action, span, out):
+def _step_range(model, plant, observation, state, reference, action, span, out):
     """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
 
     Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's parfor analysis
@@ -1270,30 +1317,32 @@ def _step_range(c, observation, state, reference, action, span, out):
     lanes = allocate_lanes()
     begin, end = span
     for start in range(begin, end, LANES):
-        _step_block(c, observation, state, reference, action, start, min(LANES, end - start), w, lanes, out)
+        count = min(LANES, end - start)
+        _step_block(model, plant, observation, state, reference, action, start, count, w, lanes, out)
 
 
 @jit
 def _step_serial(
-    c, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, action, out
+    model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, action, out
 ):
     # Flat, unlike the rest: the single env calls it at every step, and Numba types an array inside a tuple
     # argument slower than a bare one (about 0.2 µs per array per call).
     if not _finite_actions(action):
         return True
     state, reference = (q, x, t, det_sign, residual), (center, amplitude, phase, strokes)
-    _step_range(c, (low, high, with_velocity), state, reference, action, (0, q.shape[0]), out)
+    _step_range(model, plant, (low, high, with_velocity), state, reference, action, (0, q.shape[0]), out)
     return False
 
 
 @jit_parallel
-def _step_parallel(c, observation, state, reference, action, out):
+def _step_parallel(model, plant, observation, state, reference, action, out):
     if not _finite_actions(action):
         return True
     n = action.shape[0]
     chunks = (n + CHUNK - 1) // CHUNK
     for chunk in numba.prange(chunks):
-        _step_range(c, observation, state, reference, action, (chunk * CHUNK, min(n, (chunk + 1) * CHUNK)), out)
+        span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
+        _step_range(model, plant, observation, state, reference, action, span, out)
     return False
 
 
@@ -1308,11 +1357,14 @@ def allocate_step(n, m, obs_dim):
     return q, x, t, k, k1, residual, action, q_rate, reason, jump, evaluation, observations
 
 
-def step_batch(c, observation, state, reference, action, out):
+def step_batch(model, plant, observation, state, reference, action, out):
     """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite.
 
     Args:
-        c: Packed constants.
+        model: Packed constants of the model the reward and the observation are computed with, shape (N, C_SIZE)
+            or (1, C_SIZE) (``transition_batch``'s ``cs``).
+        plant: Packed constants of the robots that move (the integrated geometry), shape (N, C_SIZE) or
+            (1, C_SIZE).
         observation: (low, high, with_velocity), as ``evaluate_batch``.
         state: (q, x, t, det_sign, residual), as ``transition_batch``.
         reference: (center, amplitude, phase, strokes), as ``evaluate_batch``.
@@ -1320,8 +1372,8 @@ def step_batch(c, observation, state, reference, action, out):
         out: The arrays of ``allocate_step``.
     """
     if action.shape[0] >= PARALLEL_MIN_BATCH:
-        return _step_parallel(c, observation, state, reference, action, out)
-    return _step_serial(c, *observation, *state, *reference, action, out)
+        return _step_parallel(model, plant, observation, state, reference, action, out)
+    return _step_serial(model, plant, *observation, *state, *reference, action, out)
 
 
 # -- the safe set and the task sampler ------------------------------------------------------------------

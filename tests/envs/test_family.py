@@ -152,8 +152,10 @@ def test_parallel_step_equals_serial_step_bit_for_bit(hexapod):
     motion = (state.q, state.x, state.t, state.det_sign, state.residual)
     grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 6, low.shape[0]) for _ in range(2)]
-    assert not fk._step_parallel(hexapod.packed, *grouped, outs[0])
-    assert not fk._step_serial(hexapod.packed, low, high, False, *motion, *state.reference, action, outs[1])
+    assert not fk._step_parallel(hexapod.packed_rows, hexapod.packed_rows, *grouped, outs[0])
+    assert not fk._step_serial(
+        hexapod.packed_rows, hexapod.packed_rows, low, high, False, *motion, *state.reference, action, outs[1]
+    )
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
 

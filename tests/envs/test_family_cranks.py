@@ -120,8 +120,10 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
     motion = (state.q, state.x, state.t, state.det_sign, state.residual)
     grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 3, low.shape[0]) for _ in range(2)]
-    assert not fk._step_parallel(params.packed, *grouped, outs[0])
-    assert not fk._step_serial(params.packed, low, high, False, *motion, *state.reference, action, outs[1])
+    assert not fk._step_parallel(params.packed_rows, params.packed_rows, *grouped, outs[0])
+    assert not fk._step_serial(
+        params.packed_rows, params.packed_rows, low, high, False, *motion, *state.reference, action, outs[1]
+    )
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
 
@@ -147,7 +149,7 @@ def test_scalar_transition_equals_the_work_array_algorithm_bit_for_bit(env_id, i
     for _ in range(40):
         action = rng.uniform(-1.5, 1.5, size=(n, 3))
         motion = (q, x, state.t, state.det_sign, residual)
-        new = fk.transition_batch(c, motion, action)
+        new = fk.transition_batch(params.packed_rows, motion, action)
         ref = [np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)]
         o_q, o_x, o_res, o_a, o_qr, o_jump = ref
         w = fk._work()
