@@ -43,9 +43,9 @@ __all__ = [
     "encoders",
     "perturbed_plants",
     "perturbed_robot",
-    "varied_plants",
     "plant_columns",
     "sense",
+    "varied_plants",
 ]
 
 OBSERVATION_SOURCES = ("pose", "encoders")

@@ -267,8 +267,11 @@ def test_bad_hardware_parameters_are_refused_with_the_expected_and_the_actual_va
 
 
 def test_a_family_robot_is_its_own_known_geometry_and_its_codes_are_observed():
-    """Each episode's robot: base and platform scaled and sheared as its codes say (oracle: the draw written out with
-    NumPy), its steps obey its own constraints, its task is safe on its own geometry, its codes end the observation."""
+    """Each episode's robot is the known geometry its codes say, and is observed so.
+
+    Oracle: the draw written out with NumPy and the kinematics library: base and platform scaled and sheared as the
+    codes say, its steps obey its own constraints, its task is safe on its own geometry, its codes end the observation.
+    """
     env = gym.make("Planar3RPRReachFamily-v0").unwrapped
     params = env.params
     robot = params.robot
@@ -321,7 +324,7 @@ def test_geometry_variation_is_refused_where_it_cannot_hold():
     """Grid tasks certify one geometry; a tolerance on top is not combined; ν must stay below 0.5."""
     with pytest.raises(ValueError, match="geometry_variation needs task_region='box'"):
         gym.make("Planar3RPRReach-v0", geometry_variation=0.1)
-    with pytest.raises(ValueError, match="geometry_variation must be < 0.5"):
+    with pytest.raises(ValueError, match=r"geometry_variation must be < 0\.5"):
         gym.make("Planar3RPRReachFamily-v0", geometry_variation=0.6)
 
 
