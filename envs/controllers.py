@@ -55,7 +55,9 @@ def decode_observation(params: FamilyParams, obs: np.ndarray) -> tuple[np.ndarra
         pose = np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
     error = obs[:, layout["error"]]
     velocity_slice = layout["target_velocity"]
-    velocity = obs[:, velocity_slice] if obs.shape[1] >= velocity_slice.stop else np.zeros_like(pose)
+    codes = 2 * robot.base.shape[1] ** 2 if params.geometry_variation else 0  # a known geometry's codes end it
+    with_velocity = obs.shape[1] - codes >= velocity_slice.stop
+    velocity = obs[:, velocity_slice] if with_velocity else np.zeros_like(pose)
     return pose, error, velocity
 
 
@@ -216,6 +218,9 @@ class PlannerController(ResolvedRateController):
     ``ResolvedRateController``'s law, speed cap and stroke-limit handling, toward the carrot of
     ``envs.planner.PathFollower``: ``lookahead`` ahead of the platform's closest point on the path, and the
     target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
+    Near a thin Type II band a step at full speed leaves a certified line by millimetres where k falls by a
+    third (the 3-RRR): with ``damping`` the action is scaled by clip((k / k_safe)², 0.05, 1), k the observed one,
+    and with ``cross_track`` a one-segment plan is followed as any other (``envs.planner.PathFollower``).
 
     Args:
         params: Environment constants.
@@ -226,6 +231,8 @@ class PlannerController(ResolvedRateController):
             new one.
         planner: The follower's planner: "auto" (the certified grid's graph where there is one, else OMPL),
             "ompl" or "grid".
+        cross_track: The follower's ``cross_track``: steer along one-segment plans too (``envs.planner``).
+        damping: Slow down as the observed k falls below k_safe (see above).
     """
 
     name = "planner"
@@ -238,9 +245,16 @@ class PlannerController(ResolvedRateController):
         lookahead: float = 0.1,
         follower=None,
         planner: str = "auto",
+        cross_track: bool = True,
+        damping: bool = True,
     ) -> None:
         super().__init__(params, gain, max_speed)
-        self.follower = PathFollower(params, lookahead, planner) if follower is None else follower
+        self.damping = bool(damping)
+        layout = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)
+        self._k_column = layout["k"].start
+        if follower is None:
+            follower = PathFollower(params, lookahead, planner, cross_track=cross_track)
+        self.follower = follower
 
     @property
     def log(self) -> Sequence:
@@ -252,7 +266,11 @@ class PlannerController(ResolvedRateController):
         pose, error, velocity = decode_observation(self.params, obs)
         target = self._target(pose, error)
         carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
-        return self.steer(pose, carrot, velocity)
+        action = self.steer(pose, carrot, velocity)
+        if self.damping:
+            k = np.asarray(obs, dtype=np.float64)[:, self._k_column]
+            action = action * np.clip((k / self.params.safe_threshold) ** 2, 0.05, 1.0)[:, None].astype(np.float32)
+        return action
 
     def _target(self, pose: np.ndarray, error: np.ndarray) -> np.ndarray:
         """The target pose from the pose and the observation's error block (each (N, m))."""

@@ -269,6 +269,7 @@ _ARGUMENTS_DOC = """
     | `encoder_noise` | float or n floats | `()` | encoder noise, standard deviation [m, rad]; (): one count |
     | `estimator_iterations` | int | `20` | Newton iterations of the pose estimate per step |
     | `geometry_tolerance` | float | `0.0` | the robot as built: anchors, points, lengths within ± this [m] |
+    | `geometry_variation` | float | `0.0` | ν: each episode's robot scaled, sheared by up to ±ν, known (Reach, box) |
     | `max_acceleration` | float or n floats | `()` | largest change of an actuator's rate [m/s², rad/s²]; (): none |
     | `action_delay` | int | `0` | control steps between an action and its effect |
     | `**kwargs` | | | any other field of `FamilyParams` (Newton, substeps, margins) |
@@ -325,7 +326,10 @@ class FamilyReachEnv(FamilyEnvBase):
 
     Planar robots: (x, y, cos φ, sin φ), the target likewise, (x* − x, y* − y, wrap(φ* − φ)), strokes,
     stroke errors, k (D = 18). Translational robots (the Delta): p, p*, p* − p, strokes, stroke errors, k (D = 16;
-    19 with Track's velocity).
+    19 with Track's velocity). With `geometry_variation` (`Planar3RPRReachFamily-v0`) the observation ends with the
+    2 d² codes of the episode's robot in [−1, 1] (`envs.hardware.varied_plants`; D = 26 for planar robots), and the
+    stroke errors and k are that robot's. With `observation_source="encoders"` the pose, strokes and k are the
+    measured and estimated ones (`envs.hardware`; the true pose is `info["pose"]`).
 
     ## Rewards
     r = −(w_p ‖p* − p‖ + w_o ℓ_c θ_err) − w_s ((k_safe − k)/k_safe)² [k < k_safe] − w_a ‖a‖² − P [terminated],

@@ -1,6 +1,6 @@
 """The robot as built and as measured: geometry tolerances, encoders with a forward-kinematics estimate, drives.
 
-Three parts of a real parallel robot that the ideal simulation leaves out, each an option of
+Four parts of a real parallel robot that the ideal simulation leaves out, each an option of
 ``envs.params.FamilyParams`` and off by default; ``envs.physics`` calls the functions below, so the single env, the
 vector env and the evaluation share them.
 

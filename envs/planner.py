@@ -465,6 +465,8 @@ class PathFollower:
         replan_distance: If given, a row whose pose is farther than this from its path (in z [m]) is planned
             afresh from the pose: the carrot is then a function of the pose and the target alone, as an expert
             that relabels the states a learner visits must be (``training.distill``). None: plan once per episode.
+        cross_track: Steer along a straight (one-segment) plan too, toward the carrot on it, instead of straight at
+            the target from wherever the robot is: a robot that drifts off a certified line is brought back to it.
     """
 
     def __init__(
@@ -473,6 +475,7 @@ class PathFollower:
         lookahead: float = 0.1,
         planner: str = "auto",
         replan_distance: float | None = None,
+        cross_track: bool = False,
     ) -> None:
         if not (np.isfinite(lookahead) and lookahead > 0.0):
             raise ValueError(f"lookahead must be a positive distance [m], got {lookahead!r}")
@@ -481,6 +484,7 @@ class PathFollower:
         self.replan_distance = None if replan_distance is None else float(replan_distance)
         self.params = params
         self.lookahead = float(lookahead)
+        self.cross_track = bool(cross_track)
         self.metric = params.pose_metric
         self.planar = params.robot.pose_space.name == "planar"
         self.graph = make_planner(params, planner)
@@ -519,7 +523,8 @@ class PathFollower:
             entry = self._rows[row]
         goal_pose, plan, arc, progress, _ = entry
         w = plan.waypoints
-        if len(w) > 2 and progress < arc[-1]:
+        follow = len(w) > 2 or self.cross_track  # a one-segment plan ends at the target: steer there directly
+        if follow and progress < arc[-1]:
             # closest point of the polyline to the pose, at or after the progress made so far
             gap, t = _closest_on_segments(w, self.metric, pose)
             along = arc[:-1] + t * (arc[1:] - arc[:-1])
@@ -528,7 +533,7 @@ class PathFollower:
                 progress = max(progress, float(along[int(np.argmin(gap))]))
         self._rows[row] = (goal_pose, plan, arc, progress, pose.copy())
         goal = progress + self.lookahead
-        if len(w) == 2 or goal >= arc[-1]:
+        if not follow or goal >= arc[-1]:
             out = np.array(target, dtype=float)
         else:
             j = int(np.searchsorted(arc, goal, side="right")) - 1

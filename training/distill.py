@@ -64,12 +64,15 @@ class DistillConfig:
     replan_distance: float = 0.03
     lookahead: float = 0.1
     ppo_steps: int = 0
+    #: The expert's speed damping near the band (``PlannerController``'s ``damping``); the shipped plan-free policy
+    #: was distilled from the undamped law.
+    expert_damping: bool = False
 
 
 def _expert(env: gym.Env, config: DistillConfig) -> PlannerController:
     params = env.unwrapped.params
     follower = PathFollower(params, config.lookahead, config.planner, config.replan_distance)
-    return PlannerController(params, follower=follower)
+    return PlannerController(params, follower=follower, damping=config.expert_damping)
 
 
 def collect(

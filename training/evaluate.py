@@ -43,6 +43,7 @@ __all__ = [
     "load_run",
     "main",
     "parse_env_kwargs",
+    "run_env_kwargs",
     "wrap_for_run",
 ]
 
@@ -275,9 +276,10 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
     if config.get("hyperparams", {}).get("normalize"):
         if not stats.is_file():
             raise EvaluationError(f"run folder {str(run)!r} normalises observations but has no {stats.name}")
-        env_id = config["env_id"]
+        env_id, env_kwargs = config["env_id"], run_env_kwargs(config)
         try:
-            normalizer = VecNormalize.load(str(stats), DummyVecEnv([lambda: wrap_for_run(gym.make(env_id), config)]))
+            venv = DummyVecEnv([lambda: wrap_for_run(gym.make(env_id, **env_kwargs), config)])
+            normalizer = VecNormalize.load(str(stats), venv)
         except Exception as exc:
             raise EvaluationError(f"cannot load {str(stats)!r}: {type(exc).__name__}: {exc}") from exc
         normalizer.training = False
@@ -290,6 +292,11 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
 
     agent.observation_space = model.observation_space  # type: ignore[attr-defined]
     return agent, config
+
+
+def run_env_kwargs(config: dict[str, Any]) -> dict[str, Any]:
+    """The env keyword arguments a run was trained with (its config's ``env_kwargs``; {} if none)."""
+    return dict(config.get("hyperparams", {}).get("env_kwargs") or {})
 
 
 def wrap_for_run(env: gym.Env, config: dict[str, Any]) -> gym.Env:
@@ -637,16 +644,19 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.episodes < 1:
             raise EvaluationError(f"--episodes must be ≥ 1, got {args.episodes}")
+        run_kwargs: dict[str, Any] = {}
         if args.run is not None:
             config = read_run_config(args.run)
             env_id = args.env or config["env_id"]
+            if env_id == config["env_id"]:  # the run's env as it was trained, unless the command line says otherwise
+                run_kwargs = run_env_kwargs(config)
         else:
             env_id = args.env or "Planar3RPRReach-v0"
         if env_id not in envs.ENV_IDS:
             raise EvaluationError(f"unknown env id {env_id!r}; valid choices: {list(envs.ENV_IDS)}")
         if args.targets is not None and args.targets not in TARGET_SETS:
             raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {args.targets!r}")
-        env_kwargs = parse_env_kwargs(args.env_kwargs)
+        env_kwargs = {**run_kwargs, **parse_env_kwargs(args.env_kwargs)}
         try:
             env = gym.make(env_id, render_mode="rgb_array" if args.video else None, **env_kwargs)
         except (TypeError, ValueError) as exc:

@@ -13,6 +13,7 @@ from envs.tasks.grid import WorkspaceMap
 #: Episode length every registered id promises (README and Episode End sections).
 MAX_EPISODE_STEPS = {
     "Planar3RPRReach-v0": 200,
+    "Planar3RPRReachFamily-v0": 200,
     "Planar3RPRReachHard-v0": 200,
     "Planar3RPRReachMixed-v0": 200,
     "Planar3RPRTrack-v0": 400,

@@ -13,7 +13,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gymnasium_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from envs import ENV_IDS, PLANAR_3RPR_IDS, physics
+from envs import ENV_IDS, PLANAR_3RPR_IDS, hardware, physics
 from envs.kernels import generic as fk
 from tests.envs.helpers import INFO_KEYS, MAX_EPISODE_STEPS, REWARD_TERMS, component_node
 
@@ -63,7 +63,7 @@ def test_registry_matches_expected_ids():
     assert len(ENV_IDS) == len(set(ENV_IDS))
     assert set(ENV_IDS) == set(MAX_EPISODE_STEPS)
     assert set(PLANAR_3RPR_IDS) == {i for i in MAX_EPISODE_STEPS if i.startswith("Planar3RPR")}
-    assert len(PLANAR_3RPR_IDS) == 4
+    assert len(PLANAR_3RPR_IDS) == 5
     for env_id in ENV_IDS:
         assert env_id in gym.registry, env_id
         expected = "envs.env:FamilyTrackEnv" if "Track" in env_id else "envs.env:FamilyReachEnv"
@@ -114,7 +114,8 @@ def test_spaces(env_id, make_env):
     assert isinstance(space, gym.spaces.Box)
     assert space.dtype == np.float32
     reach_size = {"spatial": 33, "planar": 18, "translational": 16}[robot.pose_space.name]  # Observation Space
-    assert space.shape == ((reach_size + robot.n_pose,) if "Track" in env_id else (reach_size,))  # + velocity
+    codes = 2 * robot.base.shape[1] ** 2 if env.unwrapped.params.geometry_variation else 0  # a known geometry's
+    assert space.shape == ((reach_size + robot.n_pose,) if "Track" in env_id else (reach_size + codes,))
     assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
     assert np.all(space.low < space.high)
     assert space.is_bounded("both")
@@ -213,7 +214,8 @@ def _documented_observation(env: gym.Env) -> np.ndarray:
     )
     target, velocity = target[0], velocity[0]
     lo, hi = params.stroke_limits
-    robot = params.robot
+    # a robot of a known family of geometries is observed with its own model, and its codes end the observation
+    robot = params.robot if state.geometry is None else hardware.perturbed_robot(params, state.plant[0])
     parts = [
         x[:2],
         [np.cos(x[2]), np.sin(x[2])],
@@ -225,9 +227,11 @@ def _documented_observation(env: gym.Env) -> np.ndarray:
         (robot.inverse_kinematics(target) - q) / (hi - lo),
         [robot.inverse_condition_number(q, x)],
     ]
-    if env.observation_space.shape[0] == 21:
+    if unwrapped.with_velocity:
         parts.append(velocity)
-    assert env.observation_space.shape[0] == (21 if unwrapped.with_velocity else 18)
+    codes = [] if state.geometry is None else list(state.geometry[0])
+    parts.append(codes)
+    assert env.observation_space.shape[0] == (21 if unwrapped.with_velocity else 18) + len(codes)
     expected = np.concatenate([np.asarray(p, dtype=np.float64) for p in parts])
     return np.clip(expected, env.observation_space.low, env.observation_space.high)
 

@@ -12,6 +12,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from envs import hardware, physics
 from envs.kernels.setup import random_streams
@@ -234,10 +235,11 @@ def test_vector_env_is_the_single_env_bit_for_bit_with_hardware(kwargs):
 )
 @pytest.mark.parametrize("env_id", ("Planar3RPRReach-v0", "StewartGoughReach-v0", "DeltaTrack-v0"))
 def test_checkers_are_silent_and_runs_reproducible_in_every_mode(env_id, kwargs):
-    """Gymnasium's checker warns of nothing, and one seed gives one run (geometry and noise included)."""
+    """Gymnasium's and SB3's checkers warn of nothing, and one seed gives one run (geometry and noise included)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(gym.make(env_id, **kwargs).unwrapped, skip_render_check=True)
+        sb3_check_env(gym.make(env_id, **kwargs), warn=True)
     assert not caught, [str(w.message) for w in caught]
     runs = [_rollout(gym.make(env_id, **kwargs), 30, seed=9) for _ in range(2)]
     for a, b in zip(*runs):

@@ -102,3 +102,25 @@ def test_planner_reaches_hard_targets_without_singularities(env):
     table = planner_table({"planner @ hard": [metrics]})
     assert "| planner @ hard | 5 | 100 % |" in table
     assert planner_table({"ppo @ hard": [{k: v for k, v in metrics.items() if k != "planner"}]}) == ""
+
+
+@pytest.mark.parametrize("seed", [5020, 5045, 5083, 5092])
+def test_damped_planner_crosses_the_3rrr_band_where_full_speed_meets_it(seed):
+    """The damped planner controller reaches the 3-RRR's hard targets where the full-speed law meets the band.
+
+    On the 3-RRR, a step at full speed next to its thin band leaves the certified line by millimetres where k
+    falls below k_hard; slowing down as k falls (``damping``) reaches those ill-conditioned targets.
+
+    The undamped law is run too, on the same episode, so that the test fails if these stop being episodes that
+    need the damping (then they test nothing).
+    """
+    import gymnasium as gym
+
+    from envs.controllers import PlannerController
+
+    env = gym.make("Planar3RRRReachHard-v0")
+    params = env.unwrapped.params
+    damped = evaluate_agent(PlannerController(params), env, 1, seed)[0]
+    full_speed = evaluate_agent(PlannerController(params, damping=False), env, 1, seed)[0]
+    assert damped.success and not damped.singularity_termination
+    assert full_speed.singularity_termination

@@ -1,0 +1,94 @@
+r"""One policy for a family of geometries against one trained on the nominal geometry, on geometries never seen.
+
+Usage::
+
+    python -m training.geometry_report --family runs/family-s0 --nominal runs/nominal-s0 \\
+        --env Planar3RPRReachFamily-v0 --out docs/results/geometry_family
+
+Scores, on ``--episodes`` episodes from reset seed ``--seed`` (each episode draws its own robot of the family: held-out
+geometries, none of them met in training), standard and hard targets (the family's hard targets are ill-conditioned
+ones, 2 k_hard ≤ k < k_safe: detour tasks are too rare on some robots of the family to draw them):
+
+* the ``--family`` run (trained on the family, its geometry's codes in its observation);
+* the ``--nominal`` run (trained on the nominal geometry alone, ``geometry_variation: 0``): on the same robots it
+  sees the same observation without the codes (computed with each robot's own model, as the family's is), and on
+  the nominal robot itself for reference.
+
+Writes each evaluation's folder (``training.evaluate``'s files) and ``table.md`` (every figure from their
+``metrics.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+
+import envs  # noqa: F401  (registers the ids)
+from training import evaluate, family_report
+
+__all__ = ["main", "without_codes"]
+
+
+def without_codes(env: gym.Env) -> gym.Env:
+    """``env`` with the codes of its robot's geometry cut from the end of the observation (for a nominal policy)."""
+    d = env.unwrapped.params.robot.base.shape[1]
+    space = env.observation_space
+    cut = gym.spaces.Box(space.low[: -2 * d * d], space.high[: -2 * d * d], dtype=space.dtype)
+    return gym.wrappers.TransformObservation(env, lambda obs: obs[: -2 * d * d], cut)
+
+
+def _score(agent, env: gym.Env, folder: Path, label: str, episodes: int, seed: int, targets: str) -> dict:
+    if not (folder / "metrics.json").is_file():
+        records = evaluate.evaluate_agent(agent, env, episodes, seed, targets)
+        evaluate.write_outputs(folder, label, env, records, None)
+    return json.loads((folder / "metrics.json").read_text())
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry point (see the module docstring)."""
+    parser = argparse.ArgumentParser(prog="python -m training.geometry_report", description=__doc__.splitlines()[0])
+    parser.add_argument("--family", nargs="+", required=True, help="run folders trained on the family")
+    parser.add_argument("--nominal", nargs="+", required=True, help="run folders trained on the nominal geometry")
+    parser.add_argument("--env", default="Planar3RPRReachFamily-v0")
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=5000)
+    parser.add_argument("--out", required=True)
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    groups: dict[str, list[dict]] = {}
+    for targets in ("standard", "hard"):
+        for run in args.family:
+            agent, _ = evaluate.load_run(run)
+            env = gym.make(args.env)
+            label = f"family policy, unseen geometries @ {targets}"
+            folder = out / f"{Path(run).name}-family-{targets}"
+            groups.setdefault(label, []).append(_score(agent, env, folder, label, args.episodes, args.seed, targets))
+        for run in args.nominal:
+            agent, _ = evaluate.load_run(run)
+            label = f"nominal policy, unseen geometries @ {targets}"
+            folder = out / f"{Path(run).name}-family-{targets}"
+            env = without_codes(gym.make(args.env))
+            groups.setdefault(label, []).append(_score(agent, env, folder, label, args.episodes, args.seed, targets))
+            label = f"nominal policy, nominal geometry @ {targets}"
+            folder = out / f"{Path(run).name}-nominal-{targets}"
+            env = gym.make(args.env, geometry_variation=0.0)
+            groups.setdefault(label, []).append(_score(agent, env, folder, label, args.episodes, args.seed, targets))
+    variation = gym.make(args.env).unwrapped.params.geometry_variation
+    text = (
+        f"# One policy for a family of geometries\n\n{args.env} (base and platform scaled and sheared by up to "
+        f"±{100 * variation:.0f} %), {args.episodes} episodes from reset seed {args.seed}, each on its own robot; "
+        "hard = ill-conditioned targets (2 k_hard ≤ k < k_safe). "
+        f"Runs: family {', '.join(Path(r).name for r in args.family)}; nominal "
+        f"{', '.join(Path(r).name for r in args.nominal)}.\n\n" + family_report.table(groups)
+    )
+    (out / "table.md").write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
