@@ -189,7 +189,12 @@ def test_demo_reports_the_hexapod(pretrained_run, tmp_path):
 
 #: The shipped 3-RPR policies besides the standard one, each with its regression.json (the plan-free policy is
 #: the planner distilled by ``training.distill``: no planner at run time).
-OTHER_3RPR_RUNS = [demo.PRETRAINED_MIXED_RUN, demo.PRETRAINED_TRACK_RUN, demo.PRETRAINED_PLAN_FREE_RUN]
+OTHER_3RPR_RUNS = [
+    demo.PRETRAINED_MIXED_RUN,
+    demo.PRETRAINED_TRACK_RUN,
+    demo.PRETRAINED_PLAN_FREE_RUN,
+    demo._pretrained("ppo-Planar3RPRReachFamily-v0"),  # one policy for a family of geometries (docs/real_robot.md)
+]
 
 
 @pytest.mark.slow
