@@ -261,6 +261,9 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("beta", "learning_rate", "replan_distance", "lookahead"):
         parser.add_argument("--" + name.replace("_", "-"), type=float, default=getattr(defaults, name))
     parser.add_argument("--planner", default=defaults.planner, choices=("auto", "ompl", "grid"))
+    parser.add_argument(
+        "--expert-damping", action="store_true", help="label with the planner controller's damping near the band"
+    )
     args = parser.parse_args(argv)
     if args.env not in envs.ENV_IDS or "Reach" not in args.env:
         parser.error(f"--env must be a Reach id of {envs.ENV_IDS}, got {args.env!r}")
@@ -283,6 +286,7 @@ def main(argv: list[str] | None = None) -> int:
         replan_distance=args.replan_distance,
         lookahead=args.lookahead,
         ppo_steps=args.ppo_steps,
+        expert_damping=args.expert_damping,
     )
     distill(config, Path(args.run_dir))
     return 0

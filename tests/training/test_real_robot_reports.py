@@ -1,4 +1,4 @@
-"""The real-robot reports (``training.mismatch_report``, ``training.geometry_report``) and runs trained with env kwargs."""
+"""The real-robot reports (``training.mismatch_report``, ``geometry_report``) and runs trained with env kwargs."""
 
 from __future__ import annotations
 
