@@ -30,6 +30,7 @@ from envs.physics import (
     initial_state,
     measurement_info,
     observation_bounds,
+    put_rows,
     step,
 )
 from envs.presets import build_family_params
@@ -41,6 +42,8 @@ __all__ = ["TRAIL_LENGTH", "FamilyEnvBase", "FamilyReachEnv", "FamilyTrackEnv", 
 
 #: Poses kept for the drawn trail.
 TRAIL_LENGTH = 200
+#: Most draws of a task and a robot as built before ``start_episodes`` gives up (see there).
+START_ATTEMPTS = 100
 
 
 def render_frames(params: FamilyParams, state: FamilyState, trails: Sequence[Sequence[np.ndarray]]) -> list[np.ndarray]:
@@ -198,15 +201,35 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         """The state at t = 0 of M new episodes, episode i drawn from the i-th generator (its stream ``streams[i]``).
 
         In this order, from each generator: the robot's own geometry (``geometry_variation``), the task
-        (``sample_tasks``), the robot as built (``geometry_tolerance``), the first encoder reading. The single env
-        and the vector env both start episodes here.
+        (``sample_tasks``), the robot as built (``geometry_tolerance``), the first encoder reading. A robot as
+        built that does not assemble near its task's start pose at the nominal strokes (near a singularity a
+        millimetre can move the pose by a tenth of a radian, or out of reach) draws its task and itself again,
+        from the same generator. The single env and the vector env both start episodes here.
+
+        Raises:
+            RuntimeError: If a robot as built still does not assemble after ``START_ATTEMPTS`` draws.
         """
         params = self.params
         if streams is None and params.random_hardware:
             streams = fk.random_streams(generators)
-        known = hardware.varied_plants(params, streams) if params.geometry_variation else None
-        start, reference = self.sample_tasks(generators, options, streams, None if known is None else known[0])
-        return initial_state(params, start, reference, streams if params.random_hardware else None, known)
+        rows, state = np.arange(len(generators)), None
+        for _ in range(START_ATTEMPTS):
+            own = None if streams is None else streams[rows]
+            known = hardware.varied_plants(params, own) if params.geometry_variation else None
+            drawn = [generators[i] for i in rows]
+            start, reference = self.sample_tasks(drawn, options, own, None if known is None else known[0])
+            fresh = initial_state(
+                params, start, reference, own if params.random_hardware else None, known, strict=False
+            )
+            state = fresh if state is None else put_rows(state, rows, fresh)
+            unassembled = ~np.isfinite(fresh.residual)
+            if not unassembled.any():
+                return state
+            rows = rows[unassembled]
+        raise RuntimeError(
+            f"robots drawn within geometry_tolerance={params.geometry_tolerance} m did not assemble near the start "
+            f"pose of {START_ATTEMPTS} tasks in a row; give a smaller tolerance"
+        )
 
     def sample_tasks(
         self,

@@ -32,6 +32,7 @@ __all__ = [
     "initial_state",
     "measurement_info",
     "observation_bounds",
+    "put_rows",
     "reward_terms",
     "step",
     "step_info",
@@ -289,6 +290,7 @@ def initial_state(
     reference: FamilyReference,
     streams: np.ndarray | None = None,
     known: tuple[np.ndarray, np.ndarray] | None = None,
+    strict: bool = True,
 ) -> FamilyState:
     """State of N robots at rest at ``start`` (shape (N, m)), strokes from the nominal inverse kinematics.
 
@@ -298,6 +300,8 @@ def initial_state(
     generators, (N, 2)) is needed only then; the geometry is drawn before the encoder noise. With a
     ``geometry_variation``, ``known`` = (constants (N, C_SIZE), codes (N, 2 d²)) of each robot's own geometry
     (``envs.hardware.varied_plants``, drawn before its task), which its strokes and target strokes are solved with.
+    A robot as built that does not assemble near ``start`` raises, or with ``strict=False`` gets residual NaN (the
+    envs then draw its task again: ``FamilyEnvBase.start_episodes``).
     """
     start = _rows(start, params.robot.n_pose, "start")
     n = len(start)
@@ -317,7 +321,7 @@ def initial_state(
     if params.geometry_tolerance:
         plant = hardware.perturbed_plants(params, streams)
         x, residual, k, k1, det_sign = fk.forward_batch(_plant(params, plant), q, start, 50)
-        if not np.isfinite(residual).all():
+        if strict and not np.isfinite(residual).all():
             raise RuntimeError(
                 f"a robot drawn within geometry_tolerance={params.geometry_tolerance} m does not assemble at the "
                 f"strokes of its start pose {start[np.flatnonzero(~np.isfinite(residual))[0]].tolist()}"
@@ -523,6 +527,16 @@ def _non_finite(action: np.ndarray) -> None:
     rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
     where = f" (row(s) {rows[:10].tolist()} of {len(action)})" if len(action) > 1 else ""
     raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}{where}", rows)
+
+
+def put_rows(state: FamilyState, rows: np.ndarray, values: FamilyState) -> FamilyState:
+    """Write ``values`` (len(rows) robots) into the rows ``rows`` of ``state``, in place; returns ``state``.
+
+    Both states must hold the same optional parts (``plant``, ``sensed``, ``drive``, ``geometry``).
+    """
+    for field, value in zip(state_arrays(state), state_arrays(values), strict=True):
+        field[rows] = value
+    return state
 
 
 def copy_state(state: FamilyState) -> FamilyState:

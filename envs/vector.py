@@ -28,12 +28,6 @@ def _positive_int(name: str, value: Any) -> int:
     return int(value)
 
 
-def _put(state: FamilyState, rows: np.ndarray, values: FamilyState) -> None:
-    """Write ``values`` (len(rows) robots) into the rows ``rows`` of ``state``, in place."""
-    for field, value in zip(physics.state_arrays(state), physics.state_arrays(values)):
-        field[rows] = value
-
-
 class FamilyVectorEnv(VectorEnv):
     """N robots of the family in one batch: the native vector form of a single environment.
 
@@ -215,7 +209,7 @@ class FamilyVectorEnv(VectorEnv):
             self._state = fresh
             self._trails = [deque(maxlen=TRAIL_LENGTH) for _ in range(self.num_envs)]
         else:
-            _put(self._state, rows, fresh)
+            physics.put_rows(self._state, rows, fresh)
         self._ended[rows] = False
         observations, info = self._evaluate(fresh)
         if self._observations is None:
@@ -439,7 +433,7 @@ class FamilyVectorEnv(VectorEnv):
             if self._generators[i] is None:  # pragma: no cover - every row was reset before stepping
                 self._new_generator(i, None)
         fresh = self._start_episodes(rows, {})
-        _put(self._state, rows, fresh)
+        physics.put_rows(self._state, rows, fresh)
         new_obs, new_info = self._evaluate(fresh)
         observations[rows] = new_obs
         for key, value in new_info.items():

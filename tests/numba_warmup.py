@@ -52,6 +52,17 @@ def warm_up() -> None:
             for _ in range(2):
                 vec.step(vec.action_space.sample().astype(np.float32))
             vec.close()
+    # the robot as built and as measured (``envs.hardware``): per-robot constants and the forward kinematics
+    hardware = {"observation_source": "encoders", "geometry_tolerance": 0.001}
+    for env_id in ("Planar3RPRReach-v0", "StewartGoughReach-v0", "DeltaReach-v0", "Planar3RRRReach-v0"):
+        for n in (1, PARALLEL_MIN_BATCH + 1):
+            vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **hardware)
+            vec.reset(seed=0)
+            vec.step(np.zeros(vec.action_space.shape, dtype=np.float32))
+            vec.close()
+    family = gym.make("Planar3RPRReachFamily-v0")
+    family.reset(seed=0)
+    family.step(np.zeros(3, dtype=np.float32))
     _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
 
 
