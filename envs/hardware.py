@@ -33,7 +33,8 @@ import numpy as np
 
 from envs.kernels import generic as fk
 from envs.kernels.layout import C_A, C_B, C_ELL, C_P
-from envs.kernels.setup import uniform_batch
+from envs.kernels.setup import random_streams, uniform_batch
+from kinematics import DistanceConstraintMechanism
 
 __all__ = [
     "OBSERVATION_SOURCES",
@@ -154,8 +155,6 @@ def perturbed_robot(params, plant: np.ndarray):
         params: ``envs.params.FamilyParams`` (the nominal robot: pose space, actuation, axes, rails, branches).
         plant: One row of ``perturbed_plants`` (or of ``FamilyState.plant``), shape (C_SIZE,).
     """
-    from kinematics import DistanceConstraintMechanism
-
     robot = params.robot
     n, d = robot.n_actuators, robot.base.shape[1]
     return DistanceConstraintMechanism(
@@ -186,8 +185,6 @@ def check_tolerance(params, draws: int = 64) -> None:
     tolerance = params.geometry_tolerance
     if tolerance == 0.0:
         return
-    from envs.kernels.setup import random_streams
-
     centre = 0.5 * (np.asarray(params.sample_low) + np.asarray(params.sample_high))
     q, k, _, sign, _ = fk.initial_batch(params.packed, centre[None])
     if not np.isfinite(q).all() or not k[0] >= params.hard_threshold:
