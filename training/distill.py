@@ -19,6 +19,11 @@ at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on
    the learner is refitted on all pairs gathered so far.
 3. Optionally ``ppo_steps`` of PPO from the distilled weights (the normalisation stays fixed).
 
+``finetune`` (``--from-run``) fine-tunes a distilled run with PPO on the env's own reward: the critic alone is
+fitted first (``warmup_steps``, the actor frozen, so that the first policy updates use a value function of the
+distilled policy rather than a random one), then actor and critic together with a small step (learning rate
+``learning_rate``, clip range 0.1 and an early stop at a KL divergence of ``target_kl`` per update).
+
 The run folder is a ``training.train`` run folder (``config.yml``, ``model.zip``, ``vecnormalize.pkl``), so
 ``training.evaluate --run`` scores it like any other; ``distill.json`` holds the per-round figures and the time
 per decision of the learner against the expert's planning time. Episodes reset with seeds from
@@ -43,7 +48,7 @@ import envs
 from envs.controllers import PlannerController
 from envs.planner import PathFollower
 
-__all__ = ["DistillConfig", "collect", "distill", "fit", "main"]
+__all__ = ["DistillConfig", "FinetuneConfig", "collect", "distill", "finetune", "fit", "main"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +72,25 @@ class DistillConfig:
     #: The expert's speed damping near the band (``PlannerController``'s ``damping``); the shipped plan-free policy
     #: was distilled from the undamped law.
     expert_damping: bool = False
+
+
+@dataclass(frozen=True)
+class FinetuneConfig:
+    """Settings of a PPO fine-tuning of a distilled run (``finetune``)."""
+
+    steps: int = 1_000_000
+    warmup_steps: int = 100_000
+    n_envs: int = 16
+    n_steps: int = 128
+    batch_size: int = 512
+    n_epochs: int = 10
+    learning_rate: float = 1e-4
+    clip_range: float = 0.1
+    target_kl: float = 0.02
+    gamma: float = 0.98
+    gae_lambda: float = 0.95
+    log_std: float = -1.6
+    seed: int = 0
 
 
 def _expert(env: gym.Env, config: DistillConfig) -> PlannerController:
@@ -249,6 +273,81 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     return result
 
 
+def finetune(source: Path, run_dir: Path, config: FinetuneConfig, log=print) -> dict[str, Any]:
+    """Fine-tune the distilled run ``source`` with PPO on its env's reward; write the run folder ``run_dir``.
+
+    The observation normalisation of ``source`` stays frozen, so the fine-tuned policy reads the observation the
+    way the distilled one did. Episodes reset with seeds from ``2_000_000 · (seed + 1)`` on, away from the
+    distillation's and the evaluation's seeds.
+
+    Returns:
+        The figures written to ``finetune.json`` (wall time, the rollouts' success rate per phase).
+    """
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from training.train import make_training_env
+
+    source_config = yaml.safe_load((source / "config.yml").read_text())
+    if source_config.get("distilled_from") != "planner":
+        raise ValueError(
+            f"--from-run must be a training.distill run folder, got {source} ({source_config.get('algo')})"
+        )
+    env_id = source_config["env_id"]
+    torch.manual_seed(config.seed)
+    torch.set_num_threads(1)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    venv = make_training_env(env_id, config.n_envs, 2_000_000 * (config.seed + 1), "native", run_dir)
+    venv = VecNormalize.load(str(source / "vecnormalize.pkl"), venv)
+    venv.training, venv.norm_reward = False, False
+    model = PPO.load(
+        source / "model.zip",
+        env=venv,
+        device="cpu",
+        seed=config.seed,
+        custom_objects={
+            "n_steps": config.n_steps,
+            "batch_size": config.batch_size,
+            "n_epochs": config.n_epochs,
+            "learning_rate": config.learning_rate,
+            "clip_range": config.clip_range,
+            "target_kl": config.target_kl,
+            "gamma": config.gamma,
+            "gae_lambda": config.gae_lambda,
+            "ent_coef": 0.0,
+        },
+    )
+    policy = model.policy
+    with torch.no_grad():
+        policy.log_std.fill_(config.log_std)
+    actor = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters(), policy.log_std]
+    phases = []
+    clock = time.perf_counter()
+    for name, steps, frozen in (("critic", config.warmup_steps, True), ("both", config.steps, False)):
+        if steps <= 0:
+            continue
+        for parameter in actor:
+            parameter.requires_grad_(not frozen)
+        start = time.perf_counter()
+        model.learn(steps, reset_num_timesteps=False, progress_bar=False)
+        buffer = list(model.ep_info_buffer)
+        success = float(np.mean([info.get("is_success", 0.0) for info in buffer])) if buffer else float("nan")
+        phases.append({"phase": name, "steps": steps, "seconds": time.perf_counter() - start,
+                       "recent_success": success})  # fmt: skip
+        log(f"{name}: {steps} steps, recent rollouts {success:.0%} success")
+    model.save(run_dir / "model.zip")
+    venv.save(str(run_dir / "vecnormalize.pkl"))
+    run_config = {**source_config, "finetuned_from": str(source), "finetune": asdict(config)}
+    (run_dir / "config.yml").write_text(yaml.safe_dump(run_config, sort_keys=False))
+    (run_dir / "command.txt").write_text(" ".join(["python -m training.distill", *sys.argv[1:]]) + "\n")
+    result = {"source": str(source), "config": asdict(config), "phases": phases,
+              "wall_time_s": time.perf_counter() - clock}  # fmt: skip
+    (run_dir / "finetune.json").write_text(json.dumps(result, indent=2))
+    venv.close()
+    return result
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point (see the module docstring)."""
     defaults = DistillConfig()
@@ -264,7 +363,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--expert-damping", action="store_true", help="label with the planner controller's damping near the band"
     )
+    parser.add_argument(
+        "--from-run", default=None, help="fine-tune this distilled run with PPO (--ppo-steps, default 1M) instead"
+    )
+    parser.add_argument("--warmup-steps", type=int, default=FinetuneConfig.warmup_steps, help="critic-only steps")
     args = parser.parse_args(argv)
+    if args.from_run is not None:
+        steps = args.ppo_steps or FinetuneConfig.steps
+        if steps < 1 or args.warmup_steps < 0:
+            parser.error(f"--ppo-steps must be ≥ 1 and --warmup-steps ≥ 0, got {steps} and {args.warmup_steps}")
+        try:
+            finetune(Path(args.from_run), Path(args.run_dir), FinetuneConfig(steps, args.warmup_steps, seed=args.seed))
+        except (ValueError, FileNotFoundError) as exc:
+            parser.error(str(exc))
+        return 0
     if args.env not in envs.ENV_IDS or "Reach" not in args.env:
         parser.error(f"--env must be a Reach id of {envs.ENV_IDS}, got {args.env!r}")
     for name in ("expert_episodes", "epochs", "batch_size"):
