@@ -6,7 +6,13 @@ from envs.env import FamilyReachEnv, FamilyTrackEnv
 from envs.params import FamilyParams
 from envs.presets import ROBOT_PRESETS
 from envs.vector import FamilyReachVectorEnv, FamilyTrackVectorEnv, FamilyVectorEnv
-from envs.wrappers import GoalReachWrapper, PlannerResidualWrapper, PlannerWaypointWrapper, SingularityShield
+from envs.wrappers import (
+    GoalReachWrapper,
+    PlannerResidualWrapper,
+    PlannerWaypointWrapper,
+    SingularityShield,
+    VectorSingularityShield,
+)
 
 __all__ = [
     "ENV_IDS",
@@ -22,6 +28,7 @@ __all__ = [
     "PlannerResidualWrapper",
     "PlannerWaypointWrapper",
     "SingularityShield",
+    "VectorSingularityShield",
 ]
 
 _REACH = ("envs.env:FamilyReachEnv", "envs.vector:FamilyReachVectorEnv")

@@ -282,9 +282,13 @@ class PlannerController(ResolvedRateController):
         """Resolved-rate actions from ``pose`` toward ``carrot`` (each (N, m)) with feed-forward ``velocity``."""
         return self.act(pose, pose_error(self.params, pose, carrot), velocity)
 
-    def episode_metrics(self) -> dict[str, float] | None:
-        """The last plan's figures (path found, planned / straight length, min k, planning time), or None."""
-        return self.follower.last_plan_metrics()
+    def episode_metrics(self, row: int | None = None) -> dict[str, float] | None:
+        """The last plan's figures (path found, planned / straight length, min k, planning time), or None.
+
+        Args:
+            row: The batch row whose current plan to describe; None: the last plan made.
+        """
+        return self.follower.last_plan_metrics(row)
 
 
 #: Controllers by command-line name.

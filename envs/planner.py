@@ -543,11 +543,19 @@ class PathFollower:
             out[2] = pose[2] + wrap_angle(out[2] - pose[2])
         return out
 
-    def last_plan_metrics(self) -> dict[str, float] | None:
-        """The last plan's figures (for the evaluation's per-episode record), or None before any."""
-        if not self.log:
+    def last_plan_metrics(self, row: int | None = None) -> dict[str, float] | None:
+        """The last plan's figures (for the evaluation's per-episode record), or None before any.
+
+        Args:
+            row: The batch row whose current plan to describe; None: the last plan made for any row.
+        """
+        if row is not None:
+            entry = self._rows.get(row)
+            plan = None if entry is None else entry[1]
+        else:
+            plan = self.log[-1] if self.log else None
+        if plan is None:
             return None
-        plan = self.log[-1]
         return {
             "path_found": float(plan.found),
             "planned_length_ratio": plan.length / plan.straight if plan.straight > 0 else 1.0,

@@ -33,10 +33,13 @@ from training.evaluate import (
     EvaluationError,
     aggregate,
     evaluate_agent,
+    evaluate_vector,
     format_table,
     load_controller,
     load_run,
+    make_vector_env,
     print_table,
+    run_env_kwargs,
     wrap_for_run,
 )
 
@@ -95,6 +98,39 @@ def _shown(path: Path) -> str:
         return str(path)
 
 
+def _progress(total: int, desc: str):
+    """A progress bar over a section's evaluation rows (on stderr)."""
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, unit="row", leave=False, file=sys.stderr)
+
+
+def evaluate_rows(
+    agent, config: dict, env_id: str, episodes: int, seed: int, targets: str | None, shield: float | None = None
+) -> list:
+    """Episodes i = 0 … episodes − 1 (reset seed ``seed + i``) of ``agent`` on ``env_id``, behind the shield if set.
+
+    All episodes run at once on the id's native vector env (``training.evaluate.evaluate_vector``), except for a
+    run whose ``env_wrapper`` wraps single envs (the planner's residual and waypoint wrappers), which runs them one
+    after the other (``evaluate_agent``). The records are the same either way (a policy's batched actions aside,
+    which may differ in the last bit of float32).
+    """
+    if config.get("hyperparams", {}).get("env_wrapper") or env_id not in envs.ENV_IDS:
+        env = gym.make(env_id, **run_env_kwargs(config))
+        if shield is not None:
+            env = envs.SingularityShield(env, k_guard=shield)  # inside: it filters the action the env receives
+        env = wrap_for_run(env, config)
+        try:
+            return evaluate_agent(agent, env, episodes, seed, targets)
+        finally:
+            env.close()
+    venv = make_vector_env(env_id, episodes, run_env_kwargs(config), shield)
+    try:
+        return evaluate_vector(agent, venv, seed, targets)
+    finally:
+        venv.close()
+
+
 def run_demo(
     run: Path,
     out: Path,
@@ -144,22 +180,23 @@ def run_demo(
     for name in ("resolved-rate", "singularity-aware", "planner"):
         agents[name] = (load_controller(name, env), {})
     metrics, records = {}, {}
-    frames = []
-    for targets in ("standard", "hard"):
-        records[targets] = {}
-        for name, (agent, agent_config) in agents.items():
-            film = frames if (targets == "hard" and name == filmed) else None
-            recs = evaluate_agent(agent, wrap_for_run(env, agent_config), episodes, seed, targets, film, video_episodes)
-            records[targets][name] = recs
-            metrics[f"{name} @ {targets}"] = aggregate(recs)
-    if shield is not None:
+    frames: list[np.ndarray] = []
+    rows = len(agents) * 2 * (2 if shield is not None else 1)
+    with _progress(rows, "3-RPR") as bar:
         for targets in ("standard", "hard"):
+            records[targets] = {}
             for name, (agent, agent_config) in agents.items():
-                # the shield filters the action the env receives (a residual wrapper's sum), so it sits inside
-                shielded = wrap_for_run(envs.SingularityShield(gym.make(env_id), k_guard=shield), agent_config)
-                recs = evaluate_agent(agent, shielded, episodes, seed, targets)
-                metrics[f"{name} + shield @ {targets}"] = aggregate(recs)
-                shielded.close()
+                records[targets][name] = evaluate_rows(agent, agent_config, env_id, episodes, seed, targets)
+                metrics[f"{name} @ {targets}"] = aggregate(records[targets][name])
+                bar.update()
+                if targets == "hard" and name == filmed:
+                    evaluate_agent(agent, wrap_for_run(env, agent_config), video_episodes, seed, targets, frames)
+        if shield is not None:
+            for targets in ("standard", "hard"):
+                for name, (agent, agent_config) in agents.items():
+                    recs = evaluate_rows(agent, agent_config, env_id, episodes, seed, targets, shield)
+                    metrics[f"{name} + shield @ {targets}"] = aggregate(recs)
+                    bar.update()
     params, workspace = env.unwrapped.params, env.unwrapped.workspace
     for targets in ("standard", "hard"):
         plots.trajectories_figure(records[targets], params, workspace, out / f"trajectories_{targets}.png")
@@ -234,27 +271,29 @@ def run_family_demo(
         policy, config = load_run(run)
         trained_on = gym.spec(config["env_id"]).kwargs.get("targets", "standard")
         label = f"{config['algo'].upper()} policy" + ("" if i == 0 else f" ({trained_on}-trained)")
-        policies[label] = policy
+        policies[label] = (policy, config)
     metrics: dict = {}
     frames: list[np.ndarray] = []
-    for targets, env_id in ids.items():
-        env = gym.make(env_id, render_mode="rgb_array")
-        agents = {
-            **policies,
-            "resolved-rate": load_controller("resolved-rate", env),
-            "planner": load_controller("planner", env),
-        }
-        for label, agent in agents.items():
-            film = frames if (targets == "standard" and label == next(iter(policies))) else None
-            recs = evaluate_agent(agent, env, episodes, seed, targets, film, 2)
-            metrics[f"{label} @ {targets}"] = aggregate(recs)
-            if shield is not None:
-                shielded = envs.SingularityShield(gym.make(env_id), k_guard=shield)
-                metrics[f"{label} + shield @ {targets}"] = aggregate(
-                    evaluate_agent(agent, shielded, episodes, seed, targets)
+    with _progress(len(ids) * (len(policies) + 2) * (2 if shield is not None else 1), name) as bar:
+        for targets, env_id in ids.items():
+            env = gym.make(env_id, render_mode="rgb_array")
+            agents = {
+                **policies,
+                "resolved-rate": (load_controller("resolved-rate", env), {}),
+                "planner": (load_controller("planner", env), {}),
+            }
+            for label, (agent, config) in agents.items():
+                metrics[f"{label} @ {targets}"] = aggregate(
+                    evaluate_rows(agent, config, env_id, episodes, seed, targets)
                 )
-                shielded.close()
-        env.close()
+                bar.update()
+                if targets == "standard" and label == next(iter(policies)):
+                    evaluate_agent(agent, env, 2, seed, targets, frames, 2)
+                if shield is not None:
+                    recs = evaluate_rows(agent, config, env_id, episodes, seed, targets, shield)
+                    metrics[f"{label} + shield @ {targets}"] = aggregate(recs)
+                    bar.update()
+            env.close()
     plots.save_gif(frames, out / f"{name}_policy.gif", fps=20)
     (out / f"{name}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     kinds = "; ".join(f"{targets} targets: `{env_id}`" for targets, env_id in ids.items())
@@ -289,8 +328,14 @@ def run_track_demo(run: Path, out: Path, episodes: int, seed: int = 1000, stem: 
     out.mkdir(parents=True, exist_ok=True)
     policy, config = load_run(run)
     env = gym.make(config["env_id"])
-    agents = {f"{config['algo'].upper()} policy": policy, "resolved-rate": load_controller("resolved-rate", env)}
-    metrics = {f"{name} @ track": aggregate(evaluate_agent(a, env, episodes, seed)) for name, a in agents.items()}
+    agents = {
+        f"{config['algo'].upper()} policy": (policy, config),
+        "resolved-rate": (load_controller("resolved-rate", env), {}),
+    }
+    metrics = {
+        f"{name} @ track": aggregate(evaluate_rows(a, agent_config, config["env_id"], episodes, seed, None))
+        for name, (a, agent_config) in agents.items()
+    }
     env.close()
     groups = {label.split(" @ ")[0]: [m] for label, m in metrics.items()}  # one run per agent
     (out / f"{stem}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")

@@ -36,7 +36,7 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +56,8 @@ class DistillConfig:
     """Settings of one distillation run (the command-line options of ``main``)."""
 
     env_id: str = "Planar3RPRReachMixed-v0"
+    #: Keyword arguments of ``gym.make`` (``{"targets": "mixed"}`` on a robot without a Mixed id).
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
     seed: int = 0
     expert_episodes: int = 200
     iterations: int = 6
@@ -174,11 +176,11 @@ def fit(policy: Any, observations: np.ndarray, actions: np.ndarray, config: Dist
     return loss_value
 
 
-def _normalizer(env_id: str, observations: np.ndarray):
+def _normalizer(env_id: str, observations: np.ndarray, env_kwargs: dict[str, Any] | None = None):
     """A frozen ``VecNormalize`` (observations only) with the mean and variance of ``observations``."""
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    vec = VecNormalize(DummyVecEnv([lambda: gym.make(env_id)]), norm_obs=True, norm_reward=False)
+    vec = VecNormalize(DummyVecEnv([lambda: gym.make(env_id, **(env_kwargs or {}))]), norm_obs=True, norm_reward=False)
     vec.obs_rms.mean = observations.mean(axis=0).astype(np.float64)
     vec.obs_rms.var = observations.var(axis=0).astype(np.float64)
     vec.obs_rms.count = float(len(observations))
@@ -195,7 +197,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     torch.set_num_threads(1)
     run_dir.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(config.seed)
-    env = gym.make(config.env_id)
+    env = gym.make(config.env_id, **config.env_kwargs)
     expert = _expert(env, config)
     seed = 1_000_000 * (config.seed + 1)
     clock = time.perf_counter()
@@ -203,7 +205,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     seed += config.expert_episodes
     rounds = [{"round": 0, "beta": 1.0, "pairs": len(obs), **figures, "seconds": time.perf_counter() - clock}]
     log(f"expert: {figures['success_rate']:.0%} success, {len(obs)} pairs")
-    normalizer = _normalizer(config.env_id, obs)
+    normalizer = _normalizer(config.env_id, obs, config.env_kwargs)
     model = PPO(
         "MlpPolicy",
         normalizer,
@@ -259,6 +261,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         "policy": "MlpPolicy",
         "normalize": {"norm_obs": True, "norm_reward": False},
         "policy_kwargs": {"net_arch": list(config.net_arch), "log_std_init": -1.0},
+        **({"env_kwargs": dict(config.env_kwargs)} if config.env_kwargs else {}),
     }
     run_config = {
         "algo": "ppo",
@@ -298,7 +301,8 @@ def finetune(source: Path, run_dir: Path, config: FinetuneConfig, log=print) -> 
     torch.manual_seed(config.seed)
     torch.set_num_threads(1)
     run_dir.mkdir(parents=True, exist_ok=True)
-    venv = make_training_env(env_id, config.n_envs, 2_000_000 * (config.seed + 1), "native", run_dir)
+    env_kwargs = source_config.get("hyperparams", {}).get("env_kwargs") or {}
+    venv = make_training_env(env_id, config.n_envs, 2_000_000 * (config.seed + 1), "native", run_dir, env_kwargs)
     venv = VecNormalize.load(str(source / "vecnormalize.pkl"), venv)
     venv.training, venv.norm_reward = False, False
     model = PPO.load(
@@ -355,6 +359,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--env", default=defaults.env_id, help="a Reach id (default %(default)s)")
     parser.add_argument("--seed", type=int, default=defaults.seed)
     parser.add_argument("--run-dir", required=True)
+    parser.add_argument(
+        "--env-kwargs", nargs="*", default=[], metavar="KEY:VALUE", help="gym.make keyword arguments (targets:mixed)"
+    )
     for name in ("expert_episodes", "iterations", "episodes", "epochs", "batch_size", "ppo_steps"):
         parser.add_argument("--" + name.replace("_", "-"), type=int, default=getattr(defaults, name))
     for name in ("beta", "learning_rate", "replan_distance", "lookahead"):
@@ -384,8 +391,15 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
     if not 0.0 <= args.beta <= 1.0:
         parser.error(f"--beta must be in [0, 1], got {args.beta}")
+    from training.evaluate import EvaluationError, parse_env_kwargs
+
+    try:
+        env_kwargs = parse_env_kwargs(args.env_kwargs)
+    except EvaluationError as exc:
+        parser.error(str(exc))
     config = DistillConfig(
         env_id=args.env,
+        env_kwargs=env_kwargs,
         seed=args.seed,
         expert_episodes=args.expert_episodes,
         iterations=args.iterations,

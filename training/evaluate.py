@@ -39,9 +39,11 @@ __all__ = [
     "aggregate",
     "check_compatible",
     "evaluate_agent",
+    "evaluate_vector",
     "load_controller",
     "load_run",
     "main",
+    "make_vector_env",
     "parse_env_kwargs",
     "run_env_kwargs",
     "wrap_for_run",
@@ -347,6 +349,73 @@ def check_compatible(agent: Agent, env: gym.Env, source: str) -> None:
 # -- episodes --------------------------------------------------------------------------------------
 
 
+def _target_options(env: Any, targets: str | None) -> dict[str, str] | None:
+    """The reset options for ``targets`` (None keeps the env's own setting); refuses what the env cannot take."""
+    if targets is None:
+        return None
+    if targets not in TARGET_SETS:
+        raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {targets!r}")
+    base = env.unwrapped
+    options = getattr(base, "reset_options", None) or getattr(getattr(base, "_sampler", None), "reset_options", ())
+    if "targets" not in options:
+        name = env.spec.id if getattr(env, "spec", None) else type(base).__name__
+        raise EvaluationError(f"--targets applies only to the Reach environments, not {name}")
+    return {"targets": targets}
+
+
+def _episode_record(
+    base: Any,
+    episode: int,
+    last: dict[str, Any],
+    total: float,
+    series: dict[str, np.ndarray],
+    costs: np.ndarray,
+    planner: dict[str, float] | None,
+) -> EpisodeRecord:
+    """The record of one finished episode.
+
+    Args:
+        base: The unwrapped env (single or vector: ``with_velocity`` and ``params``).
+        episode: Its index.
+        last: The last step's info of this episode (scalars).
+        total: Sum of its rewards.
+        series: "pose", "target" (T + 1, m), "inverse_condition_number", "position_error", "orientation_error"
+            (T + 1,): from the reset to the last step.
+        costs: ``cost`` per step, shape (T,).
+        planner: The planning agent's ``episode_metrics``, or None.
+    """
+    reason = last["termination_reason"]
+    tracking = None
+    if getattr(base, "with_velocity", False):  # a Track environment
+        poses, goal = series["pose"], series["target"]
+        d = 3 if poses.shape[1] == 6 else 2  # position coordinates of the pose (spatial or planar)
+        tracking = tracking_metrics(
+            series["position_error"], series["orientation_error"], costs, poses[:, :d], goal[:, :d],
+            float(base.params.dt),
+        )  # fmt: skip
+    return EpisodeRecord(
+        episode=episode,
+        success=bool(last["is_success"]),
+        final_position_error_mm=1000.0 * last["position_error"],
+        final_orientation_error_deg=float(np.degrees(last["orientation_error"])),
+        episode_return=total,
+        min_inverse_condition=float(np.min(series["inverse_condition_number"])),
+        singularity_termination=reason in SINGULARITY_REASONS,
+        termination_reason=reason,
+        cost_fraction=float(np.mean(costs)) if costs.size else 0.0,
+        length=len(costs),
+        poses=series["pose"],
+        targets=series["target"],
+        inverse_condition=series["inverse_condition_number"],
+        tracking=tracking,
+        planner=planner,
+    )
+
+
+#: The per-step info entries an episode record keeps.
+_SERIES = ("pose", "target", "inverse_condition_number", "position_error", "orientation_error")
+
+
 def evaluate_agent(
     agent: Agent,
     env: gym.Env,
@@ -371,19 +440,13 @@ def evaluate_agent(
     Returns:
         One record per episode.
     """
-    options = None
-    if targets is not None:
-        if targets not in TARGET_SETS:
-            raise EvaluationError(f"--targets must be one of {list(TARGET_SETS)}, got {targets!r}")
-        if "targets" not in type(env.unwrapped).reset_options:
-            raise EvaluationError(f"--targets applies only to the Reach environments, not {env.spec.id}")
-        options = {"targets": targets}
+    options = _target_options(env, targets)
     records = []
     for episode in range(episodes):
         obs, info = env.reset(seed=seed + episode, options=options)
-        poses, goal, ks, costs = [info["pose"]], [info["target"]], [info["inverse_condition_number"]], []
-        position_errors, orientation_errors = [info["position_error"]], [info["orientation_error"]]
-        total, done, terminated = 0.0, False, False
+        series = {key: [info[key]] for key in _SERIES}
+        costs: list[float] = []
+        total, done = 0.0, False
         film = frames is not None and episode < video_episodes
         if film:
             frames.append(env.render())
@@ -393,45 +456,80 @@ def evaluate_agent(
             obs, reward, terminated, truncated, info = env.step(action)
             total += reward
             done = terminated or truncated
-            poses.append(info["pose"])
-            goal.append(info["target"])
-            ks.append(info["inverse_condition_number"])
+            for key in _SERIES:
+                series[key].append(info[key])
             costs.append(info["cost"])
-            position_errors.append(info["position_error"])
-            orientation_errors.append(info["orientation_error"])
             if film:
                 frames.append(env.render())
-        reason = info["termination_reason"]
-        tracking = None
-        if getattr(env.unwrapped, "with_velocity", False):  # a Track environment
-            d = 3 if len(poses[0]) == 6 else 2  # position coordinates of the pose (spatial or planar)
-            pose_arr, goal_arr = np.array(poses), np.array(goal)
-            tracking = tracking_metrics(
-                np.array(position_errors),
-                np.array(orientation_errors),
-                np.array(costs),
-                pose_arr[:, :d],
-                goal_arr[:, :d],
-                float(env.unwrapped.params.dt),
-            )
+        planner = agent.episode_metrics() if hasattr(agent, "episode_metrics") else None
+        arrays = {key: np.array(values) for key, values in series.items()}
+        records.append(_episode_record(env.unwrapped, episode, info, total, arrays, np.array(costs), planner))
+    return records
+
+
+def make_vector_env(
+    env_id: str, episodes: int, env_kwargs: dict[str, Any] | None = None, shield: float | None = None
+) -> gym.vector.VectorEnv:
+    """The native vector env of ``env_id`` with one row per episode (behind ``envs.VectorSingularityShield``)."""
+    if env_id not in envs.ENV_IDS or gym.spec(env_id).vector_entry_point is None:
+        raise EvaluationError(f"{env_id} has no native vector env of envs; ids: {list(envs.ENV_IDS)}")
+    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **(env_kwargs or {}))
+    return venv if shield is None else envs.VectorSingularityShield(venv, k_guard=shield)
+
+
+def evaluate_vector(
+    agent: Agent, venv: gym.vector.VectorEnv, seed: int = 0, targets: str | None = None
+) -> list[EpisodeRecord]:
+    """Run one fixed-seed episode per row of a native vector env at once and record them.
+
+    Row i resets with seed + i and is recorded up to its first end, so that its record is the one
+    ``evaluate_agent`` makes of episode i on the single env (the vector env's row i is that single env to the
+    last bit; a policy's actions for a batch may differ from its actions one at a time in the last bit of
+    float32). The agent acts on every row at each step, which is where the time goes: one batched call per step
+    instead of one per step and episode.
+
+    Args:
+        agent: Batched agent (a ``PlannerController`` plans per row).
+        venv: ``make_vector_env(env_id, episodes, ...)``: a native vector env in ``AutoresetMode.NEXT_STEP``
+            (rows that end restart at the next step and are no longer recorded).
+        seed: Seed of the first row.
+        targets: As ``evaluate_agent``.
+
+    Returns:
+        One record per row, in row order.
+    """
+    options = _target_options(venv, targets)
+    n = venv.num_envs
+    obs, info = venv.reset(seed=seed, options=options)
+    series = {key: [np.array(info[key])] for key in _SERIES}
+    costs: list[np.ndarray] = []
+    totals = np.zeros(n)
+    active = np.ones(n, dtype=bool)
+    ends: dict[int, tuple[int, dict[str, Any], dict[str, float] | None]] = {}
+    while active.any():
+        obs, reward, terminated, truncated, info = venv.step(agent(obs))
+        totals[active] += reward[active]  # the same additions, in the same order, as the single env's loop
+        for key in _SERIES:
+            series[key].append(np.array(info[key]))
+        costs.append(np.array(info["cost"]))
+        for i in np.flatnonzero(active & (terminated | truncated)):
+            last = {
+                "is_success": bool(info["is_success"][i]),
+                "termination_reason": str(info["termination_reason"][i]),
+                "position_error": float(info["position_error"][i]),
+                "orientation_error": float(info["orientation_error"][i]),
+            }
+            planner = agent.episode_metrics(int(i)) if hasattr(agent, "episode_metrics") else None
+            ends[int(i)] = (len(costs), last, planner)
+            active[i] = False
+    stacked = {key: np.stack(values) for key, values in series.items()}
+    cost_steps = np.stack(costs)
+    records = []
+    for i in range(n):
+        length, last, planner = ends[i]
+        row = {key: np.ascontiguousarray(values[: length + 1, i]) for key, values in stacked.items()}
         records.append(
-            EpisodeRecord(
-                episode=episode,
-                success=bool(info["is_success"]),
-                final_position_error_mm=1000.0 * info["position_error"],
-                final_orientation_error_deg=float(np.degrees(info["orientation_error"])),
-                episode_return=total,
-                min_inverse_condition=float(np.min(ks)),
-                singularity_termination=reason in SINGULARITY_REASONS,
-                termination_reason=reason,
-                cost_fraction=float(np.mean(costs)) if costs else 0.0,
-                length=len(costs),
-                poses=np.array(poses),
-                targets=np.array(goal),
-                inverse_condition=np.array(ks),
-                tracking=tracking,
-                planner=agent.episode_metrics() if hasattr(agent, "episode_metrics") else None,
-            )
+            _episode_record(venv.unwrapped, i, last, float(totals[i]), row, cost_steps[:length, i].copy(), planner)
         )
     return records
 

@@ -2,6 +2,12 @@
 
 from envs.wrappers.goal import GoalReachWrapper
 from envs.wrappers.planner import PlannerResidualWrapper, PlannerWaypointWrapper
-from envs.wrappers.shield import SingularityShield
+from envs.wrappers.shield import SingularityShield, VectorSingularityShield
 
-__all__ = ["GoalReachWrapper", "PlannerResidualWrapper", "PlannerWaypointWrapper", "SingularityShield"]
+__all__ = [
+    "GoalReachWrapper",
+    "PlannerResidualWrapper",
+    "PlannerWaypointWrapper",
+    "SingularityShield",
+    "VectorSingularityShield",
+]

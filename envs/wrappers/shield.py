@@ -13,6 +13,9 @@ leave the robot below a guard level of the inverse condition number:
 The zero action leaves strokes and pose unchanged, so a safe candidate always exists. The dynamics,
 rewards and termination rules are those of the environment; the cost is one to four extra
 ``core.transition`` calls per step (the accepted candidate is computed again by ``env.step``).
+``shield_actions`` is the filter on a batch of robots; ``SingularityShield`` applies it to the single env and
+``VectorSingularityShield`` to the native vector env (row i of the vector env is shielded exactly as the single env
+of the same seed).
 """
 
 from __future__ import annotations
@@ -24,10 +27,37 @@ import numpy as np
 
 from envs.physics import transition
 
-__all__ = ["SHIELD_SCALES", "SingularityShield"]
+__all__ = ["SHIELD_SCALES", "SingularityShield", "VectorSingularityShield", "shield_actions"]
 
 #: Action scales tried in order; the last (zero) is always safe.
 SHIELD_SCALES = (1.0, 0.5, 0.25, 0.125, 0.0)
+
+
+def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[np.ndarray, np.ndarray]:
+    """The shielded actions of N robots and the scale applied to each.
+
+    Args:
+        params: The environment's ``FamilyParams``.
+        state: The robots' ``FamilyState`` (N rows).
+        actions: Proposed normalised stroke rates, shape (N, n), finite; clipped to [-1, 1].
+        k_guard: Guard level of the inverse condition number, in (0, 1).
+
+    Returns:
+        (actions (N, n) float32: row i is its proposal times the first scale of ``SHIELD_SCALES`` whose step does
+        not terminate and ends with k' ≥ min(k_guard, k), else zero; the scales (N,) float64).
+    """
+    proposed = np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0)
+    k_now = np.asarray(state.inverse_condition, dtype=np.float64)
+    scales = np.zeros(len(proposed))
+    open_rows = np.ones(len(proposed), dtype=bool)
+    for scale in SHIELD_SCALES[:-1]:
+        new_state, outcome = transition(params, state, proposed * scale)
+        accept = open_rows & (outcome.reason == 0) & (new_state.inverse_condition >= np.minimum(k_guard, k_now))
+        scales[accept] = scale
+        open_rows &= ~accept
+        if not open_rows.any():
+            break
+    return (proposed * scales[:, None]).astype(np.float32), scales
 
 
 class SingularityShield(gym.Wrapper):
@@ -70,13 +100,8 @@ class SingularityShield(gym.Wrapper):
         n = base.action_space.shape[0]
         if proposed.shape != (n,) or not np.all(np.isfinite(proposed)):
             return np.asarray(action), 1.0  # let the environment reject it with its own message
-        proposed = np.clip(proposed, -1.0, 1.0)
-        k_now = float(state.inverse_condition[0])
-        for scale in SHIELD_SCALES[:-1]:
-            new_state, outcome = transition(base.params, state, proposed[None] * scale)
-            if outcome.reason[0] == 0 and float(new_state.inverse_condition[0]) >= min(self.k_guard, k_now):
-                return (proposed * scale).astype(np.float32), scale
-        return np.zeros(n, dtype=np.float32), 0.0
+        safe, scales = shield_actions(base.params, state, proposed[None], self.k_guard)
+        return safe[0], float(scales[0])
 
     def step(self, action: Any):
         """Step with the shielded action; ``info["shield_scale"]`` records the scale used."""
@@ -84,3 +109,39 @@ class SingularityShield(gym.Wrapper):
         obs, reward, terminated, truncated, info = self.env.step(safe)
         info["shield_scale"] = scale
         return obs, reward, terminated, truncated, info
+
+
+class VectorSingularityShield(gym.vector.VectorWrapper):
+    """``SingularityShield`` on the native vector env (``gym.make_vec(id, vectorization_mode="vector_entry_point")``).
+
+    ``infos["shield_scale"]`` (N,) is the scale applied to each row's proposed action.
+
+    Args:
+        env: A native vector env of ``envs`` (its ``unwrapped`` has ``params`` and the batched ``state``).
+        k_guard: Guard level of the inverse condition number in (0, 1) (default 0.05).
+    """
+
+    def __init__(self, env: gym.vector.VectorEnv, k_guard: float = 0.05) -> None:
+        """Wrap ``env``; see the class docstring."""
+        super().__init__(env)
+        base = env.unwrapped
+        if not (hasattr(base, "params") and hasattr(base, "state")):
+            raise TypeError(f"VectorSingularityShield needs a native vector env of envs, got {type(base).__name__}")
+        if not (isinstance(k_guard, (int, float)) and 0.0 < float(k_guard) < 1.0):
+            raise ValueError(f"k_guard must be a number in (0, 1), got {k_guard!r}")
+        self.k_guard = float(k_guard)
+
+    def step(self, actions: Any):
+        """Step with the shielded actions; ``infos["shield_scale"]`` records the scales used."""
+        base = self.env.unwrapped
+        state = base.state
+        if state is None:
+            raise gym.error.ResetNeeded("Cannot call step() before reset()")
+        proposed = np.asarray(actions, dtype=np.float64)
+        if proposed.shape != state.q.shape or not np.all(np.isfinite(proposed)):
+            return self.env.step(actions)  # the environment rejects it with its own message
+        safe, scales = shield_actions(base.params, state, proposed, self.k_guard)
+        obs, rewards, terminations, truncations, infos = self.env.step(safe)
+        infos["shield_scale"] = scales
+        infos["_shield_scale"] = np.ones(len(scales), dtype=bool)
+        return obs, rewards, terminations, truncations, infos

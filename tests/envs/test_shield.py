@@ -77,3 +77,55 @@ def test_shield_bad_input(make_env):
     env.reset(seed=0)
     with pytest.raises(ValueError):
         env.step(np.array([np.nan, 0.0, 0.0], dtype=np.float32))  # the env's own validation message
+
+
+def _shield_row_by_row(params, state, actions: np.ndarray, k_guard: float) -> tuple[np.ndarray, np.ndarray]:
+    """The shield's rule written out for one robot at a time (the oracle of the batched filter)."""
+    from envs.physics import transition
+
+    def row(value, i):  # row i of a state's field (arrays, tuples of arrays, or None)
+        if value is None:
+            return None
+        if isinstance(value, tuple):
+            return type(value)(*[row(v, i) for v in value])
+        return value[i : i + 1]
+
+    out, scales = np.zeros_like(actions, dtype=np.float32), np.zeros(len(actions))
+    for i in range(len(actions)):
+        one = row(state, i)
+        proposed = np.clip(actions[i].astype(np.float64), -1.0, 1.0)
+        for scale in SHIELD_SCALES[:-1]:
+            new, outcome = transition(params, one, proposed[None] * scale)
+            if outcome.reason[0] == 0 and new.inverse_condition[0] >= min(k_guard, one.inverse_condition[0]):
+                out[i], scales[i] = (proposed * scale).astype(np.float32), scale
+                break
+    return out, scales
+
+
+def test_vector_shield_filters_each_row_as_the_rule_written_out_for_one_robot():
+    """``VectorSingularityShield``: every row's action and scale equal the one-robot rule; shielded rows never end."""
+    from envs import VectorSingularityShield
+
+    n = 24
+    plain = gym.make_vec("Planar3RPRReach-v0", num_envs=n, vectorization_mode="vector_entry_point")
+    venv = VectorSingularityShield(
+        gym.make_vec("Planar3RPRReach-v0", num_envs=n, vectorization_mode="vector_entry_point"), k_guard=0.05
+    )
+    rng = np.random.default_rng(4)
+    plain.reset(seed=100, options={"targets": "hard"})
+    venv.reset(seed=100, options={"targets": "hard"})
+    plain_ends = shielded_ends = 0
+    reduced = 0
+    for _ in range(150):
+        actions = np.sign(rng.uniform(-1.0, 1.0, (n, 3))).astype(np.float32)
+        expected, expected_scales = _shield_row_by_row(venv.unwrapped.params, venv.unwrapped.state, actions, 0.05)
+        _, _, terminated, _, info = venv.step(actions)
+        np.testing.assert_array_equal(info["shield_scale"], expected_scales)
+        reduced += int((expected_scales < 1.0).sum())
+        shielded_ends += int(np.isin(info["termination_reason"][terminated], list(SINGULAR)).sum())
+        _, _, terminated, _, info = plain.step(actions)
+        plain_ends += int(np.isin(info["termination_reason"][terminated], list(SINGULAR)).sum())
+    assert plain_ends > 0 and reduced > 0  # the actions are dangerous and the shield acts
+    assert shielded_ends == 0
+    with pytest.raises(ValueError, match=r"k_guard must be a number in \(0, 1\), got 0"):
+        VectorSingularityShield(plain, k_guard=0)

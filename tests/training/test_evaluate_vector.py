@@ -1,0 +1,70 @@
+"""training.evaluate.evaluate_vector: all episodes at once on the native vector env, recorded as one at a time."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs
+from training.evaluate import EvaluationError, evaluate_agent, evaluate_vector, load_controller, make_vector_env
+
+
+def assert_same_records(one_by_one, batched, exact_planning_time=False):
+    """Every field equal to the last bit (the planner's wall time apart)."""
+    assert len(one_by_one) == len(batched)
+    for a, b in zip(one_by_one, batched, strict=True):
+        da, db = asdict(a), asdict(b)
+        assert da.keys() == db.keys()
+        for key in da:
+            va, vb = da[key], db[key]
+            if isinstance(va, np.ndarray):
+                np.testing.assert_array_equal(va, vb, err_msg=f"episode {a.episode}: {key}")
+            elif isinstance(va, dict):
+                skip = set() if exact_planning_time else {"planning_s"}
+                assert {k: v for k, v in va.items() if k not in skip} == {
+                    k: v for k, v in vb.items() if k not in skip
+                }, f"episode {a.episode}: {key}"
+            else:
+                assert va == vb, f"episode {a.episode}: {key}: {va} != {vb}"
+
+
+@pytest.mark.parametrize(
+    ("env_id", "controller", "targets", "shield"),
+    [
+        ("Planar3RPRReach-v0", "resolved-rate", "hard", None),  # ends in singularities: lengths differ per row
+        ("Planar3RPRReach-v0", "singularity-aware", "hard", 0.05),
+        ("Planar3RRRReachHard-v0", "planner", None, None),  # per-row plans and their figures
+        ("DeltaTrack-v0", "resolved-rate", None, None),  # the tracking metrics
+    ],
+)
+def test_vector_records_equal_the_one_at_a_time_records(env_id, controller, targets, shield):
+    """Row i of the batched run is episode i of ``evaluate_agent`` on the single env, to the last bit."""
+    env = gym.make(env_id)
+    if shield is not None:
+        env = envs.SingularityShield(env, k_guard=shield)
+    one_by_one = evaluate_agent(load_controller(controller, env), env, 8, 1000, targets)
+    batched = evaluate_vector(
+        load_controller(controller, env), make_vector_env(env_id, 8, shield=shield), 1000, targets
+    )
+    assert_same_records(one_by_one, batched)
+    if controller == "resolved-rate" and targets == "hard":  # the rows do end at different steps
+        assert len({r.length for r in batched}) > 1 and any(r.singularity_termination for r in batched)
+    if controller == "planner":
+        assert all(r.planner is not None for r in batched)
+
+
+def test_vector_evaluation_refuses_what_the_single_one_refuses():
+    """Targets on a Track id, unknown target sets and ids without a native vector env are refused by name."""
+    with pytest.raises(EvaluationError, match="--targets applies only to the Reach environments"):
+        evaluate_vector(
+            lambda o: np.zeros((len(o), 3), np.float32), make_vector_env("Planar3RPRTrack-v0", 2), 0, "hard"
+        )
+    with pytest.raises(EvaluationError, match=r"--targets must be one of \['standard', 'hard'\], got 'easy'"):
+        evaluate_vector(
+            lambda o: np.zeros((len(o), 3), np.float32), make_vector_env("Planar3RPRReach-v0", 2), 0, "easy"
+        )
+    with pytest.raises(EvaluationError, match="CartPole-v1 has no native vector env"):
+        make_vector_env("CartPole-v1", 2)
