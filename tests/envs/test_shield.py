@@ -8,7 +8,7 @@ import pytest
 
 from envs import SingularityShield
 from envs.physics import TERMINATION_REASONS
-from envs.wrappers.shield import SHIELD_SCALES
+from envs.wrappers.shield import SHIELD_SCALES, shield_actions
 
 SINGULAR = {"newton_failed", "assembly_mode_change", "singularity_crossed", "singular"}
 
@@ -118,7 +118,11 @@ def test_vector_shield_filters_each_row_as_the_rule_written_out_for_one_robot():
     reduced = 0
     for _ in range(150):
         actions = np.sign(rng.uniform(-1.0, 1.0, (n, 3))).astype(np.float32)
-        expected, expected_scales = _shield_row_by_row(venv.unwrapped.params, venv.unwrapped.state, actions, 0.05)
+        params, state = venv.unwrapped.params, venv.unwrapped.state
+        expected, expected_scales = _shield_row_by_row(params, state, actions, 0.05)
+        safe, scales = shield_actions(params, state, actions, 0.05)
+        np.testing.assert_array_equal(safe, expected)
+        np.testing.assert_array_equal(scales, expected_scales)
         _, _, terminated, _, info = venv.step(actions)
         np.testing.assert_array_equal(info["shield_scale"], expected_scales)
         reduced += int((expected_scales < 1.0).sum())
