@@ -3,6 +3,7 @@
 Usage::
 
     python -m training.demo [--episodes 50] [--out reports/demo] [--run training/pretrained/<run>]
+    python -m training.demo --from-metrics --out docs/results/demo     # re-write the reports, evaluate nothing
 
 On standard and hard targets of Planar3RPRReach-v0 (the same fixed seeds for every agent: the shipped
 policies, resolved-rate, singularity-aware and the planner, each also behind the shield), it writes
@@ -12,7 +13,9 @@ policies, resolved-rate, singularity-aware and the planner, each also behind the
 hard targets). On Planar3RPRTrack-v0 it compares the shipped Track policy with resolved-rate (with the
 reference's feed-forward velocity) in ``track.md``; each family robot with a shipped policy (the hexapod, the
 Delta, the 3-RRR, the 3-PRR) gets ``<robot>.md`` (its policies and resolved-rate on standard and hard targets),
-and the Delta's adept-cycle Track policy ``track_delta.md``.
+and the Delta's adept-cycle Track policy ``track_delta.md``. Each report is written from its metrics file
+(``metrics.json``, ``track_metrics.json``, ``<robot>_metrics.json``), and ``--from-metrics`` writes them again
+from those files alone.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from training.evaluate import (
     load_run,
     make_vector_env,
     print_table,
+    read_run_config,
     run_env_kwargs,
     wrap_for_run,
 )
@@ -47,12 +51,16 @@ __all__ = [
     "FAMILY_DEMOS",
     "PRETRAINED_HEXAPOD_RUN",
     "PRETRAINED_RUN",
+    "family_text",
     "main",
     "record_regression",
+    "render_from_metrics",
+    "report_text",
     "run_demo",
     "run_family_demo",
     "run_hexapod_demo",
     "run_track_demo",
+    "track_text",
 ]
 
 #: The run folder of the policy that ships with the project (trained by ``training.train``).
@@ -203,17 +211,38 @@ def run_demo(
     plots.condition_figure(records["hard"], params, out / "condition_number_hard.png")
     plots.save_gif(frames, out / "policy_hard.gif", fps=env.unwrapped.metadata["render_fps"])
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    table = format_table(metrics)
-    (out / "report.md").write_text(
+    (out / "report.md").write_text(report_text(metrics, env_id, seed, run, hard_run))
+    env.close()
+    return metrics
+
+
+def _episodes(metrics: dict) -> int:
+    """The episodes per row of a report's metrics (every row has the same)."""
+    return next(iter(metrics.values()))["episodes"]
+
+
+def report_text(metrics: dict, env_id: str, seed: int, run: Path, hard_run: Path | None) -> str:
+    """``report.md`` of ``run_demo``: its header, ``format_table(metrics)`` and the names of the pictures.
+
+    Args:
+        metrics: Label → aggregated metrics (``metrics.json``).
+        env_id: The evaluated env id.
+        seed: Seed of the first episode.
+        run: Run folder of the policy.
+        hard_run: Run folder of the second policy, or None.
+
+    Returns:
+        The Markdown text.
+    """
+    episodes = _episodes(metrics)
+    return (
         f"# Evaluation report\n\nEnvironment `{env_id}`, {episodes} episodes per row (reset seeds {seed}…"
         f"{seed + episodes - 1}, identical for every agent). Policy: `{_shown(run)}`"
         + (f"; second policy: `{_shown(hard_run)}`" if hard_run is not None else "")
-        + f".\n\n{table}\n"
+        + f".\n\n{format_table(metrics)}\n"
         "Pictures: `trajectories_standard.png`, `trajectories_hard.png`, `condition_number_hard.png`, "
         "`policy_hard.gif`.\n"
     )
-    env.close()
-    return metrics
 
 
 #: The family robots of the report: file stem → (title, {targets: env id}, shipped runs (first: the main policy)).
@@ -261,7 +290,7 @@ def run_family_demo(
     Returns:
         Label → aggregated metrics, or None when the robot's main policy is not shipped.
     """
-    title, ids, runs = FAMILY_DEMOS[name]
+    _title, ids, runs = FAMILY_DEMOS[name]
     shipped = [run for run in runs if run.is_dir()]
     if not shipped or shipped[0] != runs[0]:
         return None
@@ -296,13 +325,30 @@ def run_family_demo(
             env.close()
     plots.save_gif(frames, out / f"{name}_policy.gif", fps=20)
     (out / f"{name}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    (out / f"{name}.md").write_text(family_text(name, metrics, seed))
+    return metrics
+
+
+def family_text(name: str, metrics: dict, seed: int) -> str:
+    """``<name>.md`` of ``run_family_demo``: its header, ``format_table(metrics)`` and the name of the GIF.
+
+    Args:
+        name: A key of ``FAMILY_DEMOS``.
+        metrics: Label → aggregated metrics (``<name>_metrics.json``).
+        seed: Seed of the first episode.
+
+    Returns:
+        The Markdown text.
+    """
+    title, ids, runs = FAMILY_DEMOS[name]
+    shipped = [run for run in runs if run.is_dir()]
+    episodes = _episodes(metrics)
     kinds = "; ".join(f"{targets} targets: `{env_id}`" for targets, env_id in ids.items())
-    (out / f"{name}.md").write_text(
+    return (
         f"# {title}\n\n{kinds[0].upper() + kinds[1:]}. {episodes} episodes per row (reset seeds {seed}…"
         f"{seed + episodes - 1}). Policies: " + ", ".join(f"`{_shown(run)}`" for run in shipped) + ".\n\n"
         f"{format_table(metrics)}\nPicture: `{name}_policy.gif`.\n"
     )
-    return metrics
 
 
 def run_hexapod_demo(run: Path, out: Path, episodes: int, seed: int = 1000, shield: float | None = DEMO_SHIELD) -> dict:
@@ -337,16 +383,75 @@ def run_track_demo(run: Path, out: Path, episodes: int, seed: int = 1000, stem: 
         for name, (a, agent_config) in agents.items()
     }
     env.close()
-    groups = {label.split(" @ ")[0]: [m] for label, m in metrics.items()}  # one run per agent
     (out / f"{stem}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    (out / f"{stem}.md").write_text(
-        f"# Tracking on `{config['env_id']}`\n\n{episodes} episodes per row "
+    (out / f"{stem}.md").write_text(track_text(metrics, config["env_id"], seed, run))
+    return metrics
+
+
+def track_text(metrics: dict, env_id: str, seed: int, run: Path) -> str:
+    """``<stem>.md`` of ``run_track_demo``: its header, ``family_report.table`` and ``tracking_table``.
+
+    Args:
+        metrics: Label → aggregated metrics (``<stem>_metrics.json``), one run per agent.
+        env_id: The Track id.
+        seed: Seed of the first episode.
+        run: Run folder of the Track policy.
+
+    Returns:
+        The Markdown text.
+    """
+    episodes = _episodes(metrics)
+    groups = {label.split(" @ ")[0]: [m] for label, m in metrics.items()}  # one run per agent
+    return (
+        f"# Tracking on `{env_id}`\n\n{episodes} episodes per row "
         f"(reset seeds {seed}…{seed + episodes - 1}). Policy: `{_shown(run)}`; resolved-rate steers with the "
         "reference's feed-forward velocity.\n\n"
         + family_report.table(groups)
         + f"\n{family_report.tracking_table(groups)}"
     )
-    return metrics
+
+
+def render_from_metrics(out: Path, run: Path, hard_run: Path | None, seed: int = 1000) -> list[str]:
+    """Write the reports again from the metrics files of a report folder, without evaluating anything.
+
+    ``report.md`` from ``metrics.json``, ``track.md`` from ``track_metrics.json``, ``<robot>.md`` from
+    ``<robot>_metrics.json`` and ``track_<robot>.md`` from ``track_<robot>_metrics.json``, each where its metrics
+    file exists; ``run``, ``hard_run`` and ``seed`` must be those the folder was evaluated with (its reports
+    name them). Pictures are kept.
+
+    Args:
+        out: The report folder.
+        run: Run folder of the policy.
+        hard_run: Run folder of the second policy, or None.
+        seed: Seed of the first episode.
+
+    Returns:
+        The names of the reports written.
+
+    Raises:
+        EvaluationError: If the folder has no ``metrics.json``.
+    """
+    if not (out / "metrics.json").is_file():
+        raise EvaluationError(f"{str(out)!r} holds no metrics.json to render the report from")
+
+    def read(name: str) -> dict:
+        return json.loads((out / name).read_text())
+
+    written = ["report.md"]
+    (out / "report.md").write_text(
+        report_text(read("metrics.json"), read_run_config(run)["env_id"], seed, run, hard_run)
+    )
+    tracks = {"track": PRETRAINED_TRACK_RUN} | {f"track_{name}": r for name, r in FAMILY_TRACK_DEMOS.items()}
+    for stem, track_run in tracks.items():
+        if (out / f"{stem}_metrics.json").is_file():
+            env_id = read_run_config(track_run)["env_id"]
+            (out / f"{stem}.md").write_text(track_text(read(f"{stem}_metrics.json"), env_id, seed, track_run))
+            written.append(f"{stem}.md")
+    for name in FAMILY_DEMOS:
+        if (out / f"{name}_metrics.json").is_file():
+            (out / f"{name}.md").write_text(family_text(name, read(f"{name}_metrics.json"), seed))
+            written.append(f"{name}.md")
+    return written
 
 
 def record_regression(run: Path, episodes: int = 20, seed: int = 5000, targets: str | None = None) -> dict:
@@ -406,7 +511,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--record-regression", action="store_true", help="only write <run>/regression.json (for the test suite)"
     )
+    parser.add_argument(
+        "--from-metrics",
+        action="store_true",
+        help="evaluate nothing: write the reports of --out again from its metrics files (same --run, --hard-run, "
+        "--seed as when they were evaluated)",
+    )
     args = parser.parse_args(argv)
+    if args.from_metrics:
+        hard_run = Path(args.hard_run) if args.hard_run else None
+        try:
+            written = render_from_metrics(Path(args.out), Path(args.run), hard_run, args.seed)
+        except (EvaluationError, OSError) as exc:
+            parser.error(str(exc))
+        print(f"reports written to {args.out} from its metrics: {', '.join(written)}")
+        return 0
     if args.record_regression:
         try:
             print(json.dumps(record_regression(Path(args.run)), indent=2))

@@ -31,6 +31,7 @@ import envs
 from envs.physics import TERMINATION_REASONS
 from training.config import ConfigError, algorithm_class, resolve_env_wrapper
 from training.controllers import CONTROLLERS
+from training.intervals import SUCCESS_CI_NOTE, format_success_interval
 from training.records import EpisodeRecord
 
 __all__ = [
@@ -589,31 +590,34 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
 
 
 def format_table(rows: dict[str, dict[str, Any]]) -> str:
-    """A Markdown table of aggregated metrics, one row per agent/target set.
+    """A Markdown table of aggregated metrics, one row per agent/target set, and its note.
+
+    "success 95 % CI" is ``training.intervals.success_interval`` of the row's one run: rliable's stratified
+    bootstrap (95 %, percentile) of the success rate, resampling the run's episodes. A line under the table says so.
 
     Args:
         rows: Label → ``aggregate`` output.
 
     Returns:
-        The table as Markdown text.
+        The table and its note as Markdown text.
     """
     head = (
-        "| agent | targets | success | final pos. error [mm] | final orient. error [deg] | min k (mean / worst) "
-        "| singularity terminations | cost fraction | return |\n"
-        "|---|---|---|---|---|---|---|---|---|\n"
+        "| agent | targets | success | success 95 % CI | final pos. error [mm] | final orient. error [deg] "
+        "| min k (mean / worst) | singularity terminations | cost fraction | return |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = []
     for label, m in rows.items():
         agent, _, targets = label.partition(" @ ")
         lines.append(
-            f"| {agent} | {targets or '-'} | {100 * m['success_rate']:.0f} % "
+            f"| {agent} | {targets or '-'} | {100 * m['success_rate']:.0f} % | {format_success_interval([m])} "
             f"| {m['final_position_error_mm']['median']:.2f} (median) "
             f"| {m['final_orientation_error_deg']['median']:.2f} (median) "
             f"| {m['min_inverse_condition']['mean']:.3f} / {m['min_inverse_condition']['min']:.3f} "
             f"| {m['singularity_terminations']} / {m['episodes']} "
             f"| {m['cost_fraction']['mean']:.3f} | {m['return']['mean']:.1f} ± {m['return']['std']:.1f} |"
         )
-    return head + "\n".join(lines) + "\n"
+    return head + "\n".join(lines) + f"\n\n{SUCCESS_CI_NOTE}\n"
 
 
 def print_table(rows: dict[str, dict[str, Any]]) -> None:

@@ -1,7 +1,9 @@
 """Write a results table (Markdown) from the ``metrics.json`` files of ``training.evaluate`` runs.
 
 Run as ``python -m training.family_report OUT.md EVAL_DIR [EVAL_DIR ...]``; every figure of the table comes
-from those files, so re-running the evaluations and this command is how the table is updated. Evaluations of
+from those files, so re-running the evaluations and this command is how the table is updated. The success rate
+has its 95 % interval (``training.intervals``: rliable's stratified bootstrap over each run's episodes; the seeds
+are not resampled) beside its mean ± std over runs. Evaluations of
 the planner (``--controller planner``) also get a table of its plans: how often a certified path was found,
 its length against the straight line, its smallest k and the planning time per episode; Track evaluations a
 table of their tracking errors.
@@ -13,6 +15,8 @@ import argparse
 import json
 import statistics
 from pathlib import Path
+
+from training.intervals import SUCCESS_CI_NOTE, format_success_interval
 
 __all__ = ["main", "planner_table", "table", "tracking_table"]
 
@@ -28,7 +32,8 @@ def _row(label: str, metrics: list[dict], with_return: bool = False) -> str:
     episodes = sum(m["episodes"] for m in metrics)
     cost = statistics.mean(m["cost_fraction"]["mean"] for m in metrics)
     row = (
-        f"| {label} | {len(metrics)} | {statistics.mean(success):.1f}{spread} % | {position:.2f} | {orientation:.2f} "
+        f"| {label} | {len(metrics)} | {statistics.mean(success):.1f}{spread} % | {format_success_interval(metrics)} "
+        f"| {position:.2f} | {orientation:.2f} "
         f"| {k_mean:.3f} / {k_min:.3f} | {singular} / {episodes} | {cost:.3f} |"
     )
     if with_return:
@@ -39,18 +44,22 @@ def _row(label: str, metrics: list[dict], with_return: bool = False) -> str:
 
 
 def table(groups: dict[str, list[dict]], with_return: bool = False) -> str:
-    """A Markdown table with one row per group of evaluations (seeds of one agent on one target set).
+    """A Markdown table with one row per group of evaluations (seeds of one agent on one target set), and its note.
 
-    With ``with_return``, a last column holds the episode return (mean over episodes; mean ± std over runs).
+    "success 95 % CI" is ``training.intervals.success_interval`` of the group: rliable's stratified bootstrap
+    (95 %, percentile) of the mean success over the runs, resampling each run's episodes; the seeds are not
+    resampled, so it does not hold the spread over seeds (the ± of the success column). A line under the table
+    says so. With ``with_return``, a last column holds the episode return (mean over episodes; mean ± std over
+    runs).
     """
     lines = [
-        "| agent @ targets | runs | success (mean ± std over runs) | final pos. error [mm] (median) "
+        "| agent @ targets | runs | success (mean ± std over runs) | success 95 % CI | final pos. error [mm] (median) "
         "| final orient. error [°] (median) | min k (mean / worst) | singularity terminations | cost fraction |"
         + (" return (mean) |" if with_return else ""),
-        "|---|---|---|---|---|---|---|---|" + ("---|" if with_return else ""),
+        "|---|---|---|---|---|---|---|---|---|" + ("---|" if with_return else ""),
     ]
     lines += [_row(label, metrics, with_return) for label, metrics in groups.items()]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + f"\n\n{SUCCESS_CI_NOTE}\n"
 
 
 def planner_table(groups: dict[str, list[dict]]) -> str:

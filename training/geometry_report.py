@@ -15,7 +15,8 @@ ones, 2 k_hard ≤ k < k_safe: detour tasks are too rare on some robots of the f
   the nominal robot itself for reference.
 
 Writes each evaluation's folder (``training.evaluate``'s files) and ``table.md`` (every figure from their
-``metrics.json``).
+``metrics.json``). An evaluation whose ``metrics.json`` exists is kept (its run is not loaded); with
+``--from-metrics`` a missing one is an error, so the table is only written again from the stored files.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import gymnasium as gym
@@ -41,8 +43,17 @@ def without_codes(env: gym.Env) -> gym.Env:
     return gym.wrappers.TransformObservation(env, lambda obs: obs[: -2 * d * d], cut)
 
 
-def _score(agent, env: gym.Env, folder: Path, label: str, episodes: int, seed: int, targets: str) -> dict:
+def _score(
+    source: Callable[[], tuple[evaluate.Agent, gym.Env]],
+    folder: Path,
+    label: str,
+    episodes: int,
+    seed: int,
+    targets: str,
+) -> dict:
+    """The metrics of ``folder``, evaluating ``source()`` (agent, env) there first when it has none."""
     if not (folder / "metrics.json").is_file():
+        agent, env = source()
         records = evaluate.evaluate_agent(agent, env, episodes, seed, targets)
         evaluate.write_outputs(folder, label, env, records, None)
     return json.loads((folder / "metrics.json").read_text())
@@ -57,26 +68,34 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=5000)
     parser.add_argument("--out", required=True)
+    parser.add_argument(
+        "--from-metrics", action="store_true", help="evaluate nothing: write table.md from the stored metrics.json"
+    )
     args = parser.parse_args(argv)
     out = Path(args.out)
     groups: dict[str, list[dict]] = {}
+
+    def score(label: str, folder: Path, run: str, make_env: Callable[[], gym.Env], targets: str) -> None:
+        if args.from_metrics and not (folder / "metrics.json").is_file():
+            parser.error(f"--from-metrics: {folder / 'metrics.json'} is missing")
+
+        def source() -> tuple[evaluate.Agent, gym.Env]:
+            return evaluate.load_run(run)[0], make_env()
+
+        groups.setdefault(label, []).append(_score(source, folder, label, args.episodes, args.seed, targets))
+
     for targets in ("standard", "hard"):
         for run in args.family:
-            agent, _ = evaluate.load_run(run)
-            env = gym.make(args.env)
             label = f"family policy, unseen geometries @ {targets}"
             folder = out / f"{Path(run).name}-family-{targets}"
-            groups.setdefault(label, []).append(_score(agent, env, folder, label, args.episodes, args.seed, targets))
+            score(label, folder, run, lambda: gym.make(args.env), targets)
         for run in args.nominal:
-            agent, _ = evaluate.load_run(run)
             label = f"nominal policy, unseen geometries @ {targets}"
             folder = out / f"{Path(run).name}-family-{targets}"
-            env = without_codes(gym.make(args.env))
-            groups.setdefault(label, []).append(_score(agent, env, folder, label, args.episodes, args.seed, targets))
+            score(label, folder, run, lambda: without_codes(gym.make(args.env)), targets)
             label = f"nominal policy, nominal geometry @ {targets}"
             folder = out / f"{Path(run).name}-nominal-{targets}"
-            env = gym.make(args.env, geometry_variation=0.0)
-            groups.setdefault(label, []).append(_score(agent, env, folder, label, args.episodes, args.seed, targets))
+            score(label, folder, run, lambda: gym.make(args.env, geometry_variation=0.0), targets)
     variation = gym.make(args.env).unwrapped.params.geometry_variation
     text = (
         f"# One policy for a family of geometries\n\n{args.env} (base and platform scaled and sheared by up to "

@@ -12,7 +12,9 @@ planner, resolved-rate and singularity-aware control, and the plan-free runs beh
 Writes each evaluation's folder, ``table.md`` (``training.family_report``: mean ± std over seeds),
 ``timing.md`` (the plan-free policy's time per decision, as ``training.evaluate`` runs it, against the
 planner's planning time per hard episode) and ``paths_hard.png`` (the planner's and the first plan-free run's
-paths on the same hard episodes over the map of k; robots with a certified grid).
+paths on the same hard episodes over the map of k; robots with a certified grid). An evaluation whose
+``metrics.json`` exists is kept; ``--from-metrics`` only writes ``table.md`` again from those files (no
+evaluation, no timing, no picture).
 """
 
 from __future__ import annotations
@@ -65,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=5000)
     parser.add_argument("--shield", type=float, default=0.05, help="k_guard of the shielded plan-free runs")
+    parser.add_argument(
+        "--from-metrics", action="store_true", help="only write table.md again from the evaluations' metrics.json"
+    )
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -72,6 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     groups: dict[str, list[dict]] = {}
 
     def add(label: str, folder: Path, source: list[str]) -> None:
+        if args.from_metrics and not (folder / "metrics.json").is_file():
+            parser.error(f"--from-metrics: {folder / 'metrics.json'} is missing")
         _evaluate(folder, source)
         groups.setdefault(label, []).append(json.loads((folder / "metrics.json").read_text()))
 
@@ -94,6 +101,9 @@ def main(argv: list[str] | None = None) -> int:
         + family_report.table(groups)
         + (f"\nThe planner's plans:\n\n{plans}" if plans else "")
     )
+    if args.from_metrics:
+        print((out / "table.md").read_text())
+        return 0
 
     # time per decision of each plan-free run (normalise, one forward pass of one observation) against the
     # planner's planning time per episode on the same hard episodes, measured here one after the other
