@@ -11,6 +11,8 @@ from envs.wrappers import (
     PlannerResidualWrapper,
     PlannerWaypointWrapper,
     SingularityShield,
+    VectorPlannerResidualWrapper,
+    VectorPlannerWaypointWrapper,
     VectorSingularityShield,
 )
 
@@ -28,6 +30,8 @@ __all__ = [
     "PlannerResidualWrapper",
     "PlannerWaypointWrapper",
     "SingularityShield",
+    "VectorPlannerResidualWrapper",
+    "VectorPlannerWaypointWrapper",
     "VectorSingularityShield",
 ]
 

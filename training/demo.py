@@ -45,6 +45,7 @@ from training.evaluate import (
     read_run_config,
     run_env_kwargs,
     wrap_for_run,
+    wrap_vector_for_run,
 )
 
 __all__ = [
@@ -118,25 +119,28 @@ def evaluate_rows(
 ) -> list:
     """Episodes i = 0 … episodes − 1 (reset seed ``seed + i``) of ``agent`` on ``env_id``, behind the shield if set.
 
-    All episodes run at once on the id's native vector env (``training.evaluate.evaluate_vector``), except for a
-    run whose ``env_wrapper`` wraps single envs (the planner's residual and waypoint wrappers), which runs them one
-    after the other (``evaluate_agent``). The records are the same either way (a policy's batched actions aside,
-    which may differ in the last bit of float32).
+    All episodes run at once on the id's native vector env (``training.evaluate.evaluate_vector``, with the vector
+    form of the run's ``env_wrapper``), except for a run whose wrapper has no vector form (the goal view of HER),
+    which runs them one after the other (``evaluate_agent``). The records are the same either way (a policy's
+    batched actions aside, which may differ in the last bit of float32). The shield sits inside the run's wrapper:
+    it filters the action the env receives (a residual policy's sum).
     """
-    if config.get("hyperparams", {}).get("env_wrapper") or env_id not in envs.ENV_IDS:
-        env = gym.make(env_id, **run_env_kwargs(config))
-        if shield is not None:
-            env = envs.SingularityShield(env, k_guard=shield)  # inside: it filters the action the env receives
-        env = wrap_for_run(env, config)
+    if env_id in envs.ENV_IDS:
+        plain = make_vector_env(env_id, episodes, run_env_kwargs(config), shield)
+        venv = wrap_vector_for_run(plain, config)
         try:
-            return evaluate_agent(agent, env, episodes, seed, targets)
+            if venv is not None:
+                return evaluate_vector(agent, venv, seed, targets)
         finally:
-            env.close()
-    venv = make_vector_env(env_id, episodes, run_env_kwargs(config), shield)
+            plain.close()
+    env = gym.make(env_id, **run_env_kwargs(config))
+    if shield is not None:
+        env = envs.SingularityShield(env, k_guard=shield)
+    env = wrap_for_run(env, config)
     try:
-        return evaluate_vector(agent, venv, seed, targets)
+        return evaluate_agent(agent, env, episodes, seed, targets)
     finally:
-        venv.close()
+        env.close()
 
 
 def run_demo(

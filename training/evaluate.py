@@ -48,6 +48,7 @@ __all__ = [
     "parse_env_kwargs",
     "run_env_kwargs",
     "wrap_for_run",
+    "wrap_vector_for_run",
 ]
 
 #: Termination reasons that mean the robot met a singularity (Type II, and Type I for cranks and sliders).
@@ -320,6 +321,28 @@ def wrap_for_run(env: gym.Env, config: dict[str, Any]) -> gym.Env:
         return env if wrapper is None else wrapper(env)
     except (ConfigError, TypeError) as exc:
         raise EvaluationError(f"cannot wrap {env.spec.id if env.spec else env} as the run was trained: {exc}") from exc
+
+
+def wrap_vector_for_run(venv: gym.vector.VectorEnv, config: dict[str, Any]) -> gym.vector.VectorEnv | None:
+    """Apply the vector form of the run's ``env_wrapper`` (its ``vector_form``) to a native vector env.
+
+    Returns:
+        ``venv`` wrapped as the run's single envs were (``venv`` itself for a run without a wrapper), or None when
+        the run's wrapper has no vector form (``envs.GoalReachWrapper``): evaluate it on single envs.
+
+    Raises:
+        EvaluationError: If the config names an unknown wrapper.
+    """
+    try:
+        wrapper = resolve_env_wrapper(config.get("hyperparams", {}).get("env_wrapper"))
+    except ConfigError as exc:
+        raise EvaluationError(f"cannot wrap the vector env as the run was trained: {exc}") from exc
+    if wrapper is None:
+        return venv
+    cls = getattr(wrapper, "func", wrapper)
+    kwargs = getattr(wrapper, "keywords", {})
+    form = getattr(cls, "vector_form", None)
+    return None if form is None else getattr(envs, form)(venv, **kwargs)
 
 
 def _shapes(space: gym.Space) -> Any:

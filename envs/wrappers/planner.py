@@ -3,7 +3,8 @@
 ``PlannerWaypointWrapper`` shows a policy the carrot of ``envs.planner.PathFollower``; ``PlannerResidualWrapper``
 adds a policy's correction to ``envs.controllers.PlannerController``'s action. Both wrap the Reach environment of
 any robot of the family (the planner: ``envs.planner``, the certified grid's graph where the env has one, else
-OMPL).
+OMPL). ``VectorPlannerWaypointWrapper`` and ``VectorPlannerResidualWrapper`` are the same wrappers on the native
+vector env (the ``vector_form`` of the single ones).
 """
 
 from __future__ import annotations
@@ -19,7 +20,12 @@ from envs.kernels.generic import observation_layout
 from envs.params import FamilyParams
 from envs.planner import PathFollower
 
-__all__ = ["PlannerResidualWrapper", "PlannerWaypointWrapper"]
+__all__ = [
+    "PlannerResidualWrapper",
+    "PlannerWaypointWrapper",
+    "VectorPlannerResidualWrapper",
+    "VectorPlannerWaypointWrapper",
+]
 
 
 class _PlannerWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -80,6 +86,9 @@ class PlannerWaypointWrapper(_PlannerWrapper):
         planner: ``envs.planner.PathFollower``'s planner: "auto", "ompl" or "grid".
     """
 
+    #: The name of the same wrapper on the native vector env.
+    vector_form = "VectorPlannerWaypointWrapper"
+
     def __init__(self, env: gym.Env, lookahead: float = 0.1, planner: str = "auto") -> None:
         """Wrap ``env``; see the class docstring."""
         gym.utils.RecordConstructorArgs.__init__(self, lookahead=lookahead, planner=planner)
@@ -113,6 +122,9 @@ class PlannerResidualWrapper(_PlannerWrapper):
         planner: ``envs.planner.PathFollower``'s planner: "auto", "ompl" or "grid".
     """
 
+    #: The name of the same wrapper on the native vector env.
+    vector_form = "VectorPlannerResidualWrapper"
+
     def __init__(self, env: gym.Env, scale: float = 0.5, lookahead: float = 0.1, planner: str = "auto") -> None:
         """Wrap ``env``; see the class docstring."""
         if not (isinstance(scale, (int, float)) and np.isfinite(scale) and 0.0 < scale <= 2.0):
@@ -144,3 +156,120 @@ class PlannerResidualWrapper(_PlannerWrapper):
         obs, reward, terminated, truncated, info = self.env.step(self.action(action))
         info["planner_action"] = planner_action
         return self._augment(obs, info), reward, terminated, truncated, info
+
+
+class _VectorPlannerWrapper(gym.vector.VectorWrapper):
+    """The planner's wrappers on the native vector env: row i is the single env's wrapper on sub-environment i.
+
+    One ``PathFollower`` plans per row. A row is planned afresh at ``reset`` and when the vector env starts its next
+    episode (autoreset), as the single wrapper plans at each ``reset``.
+    """
+
+    def _setup(self, env: gym.vector.VectorEnv, lookahead: float, planner: str, n_extra: int) -> None:
+        gym.vector.VectorWrapper.__init__(self, env)
+        base = env.unwrapped
+        params = getattr(base, "params", None)
+        sampler = getattr(base, "_sampler", None)
+        if "targets" not in getattr(sampler, "reset_options", ()) or not isinstance(params, FamilyParams):
+            raise TypeError(
+                f"{type(self).__name__} wraps the native Reach vector envs of envs, got {type(base).__name__}"
+            )
+        self.params = params
+        self.follower = PathFollower(params, lookahead, planner)
+        box = env.single_observation_space
+        error = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)["error"]
+        self._low, self._high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
+        extra = np.ones(n_extra)
+        self.single_observation_space = spaces.Box(
+            np.concatenate([box.low, box.low[error], -extra]).astype(np.float32),
+            np.concatenate([box.high, box.high[error], extra]).astype(np.float32),
+            dtype=np.float32,
+        )
+        self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, env.num_envs)
+        self._ended = np.zeros(env.num_envs, dtype=bool)
+
+    def _offsets(self, info: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(poses, carrots, the carrots' twist offsets clipped to the error block's bounds), each (N, m)."""
+        pose = np.asarray(info["pose"], dtype=float)
+        target = np.asarray(info["target"], dtype=float)
+        carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
+        offset = np.clip(pose_error(self.params, pose, carrot), self._low, self._high)
+        return pose, carrot, offset
+
+    def _plan(self, rows: np.ndarray, info: dict[str, Any]) -> None:
+        for i in rows:
+            self.follower.reset_row(int(i), np.asarray(info["pose"][i], float), np.asarray(info["target"][i], float))
+
+    def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        raise NotImplementedError
+
+    def reset(self, *, seed: Any = None, options: dict[str, Any] | None = None):
+        """Reset the wrapped vector env and plan each reset row from its start to its target."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        mask = (options or {}).get("reset_mask")
+        rows = np.flatnonzero(mask) if mask is not None else np.arange(self.num_envs)
+        self._plan(rows, info)
+        self._ended[rows] = False
+        return self._augment(obs, info), info
+
+    def _step(self, actions: np.ndarray):
+        obs, rewards, terminated, truncated, info = self.env.step(actions)
+        mode = self.env.unwrapped.autoreset_mode
+        if mode == gym.vector.AutoresetMode.NEXT_STEP:
+            self._plan(np.flatnonzero(self._ended), info)  # the rows that started their next episode
+        elif mode == gym.vector.AutoresetMode.SAME_STEP:
+            self._plan(np.flatnonzero(terminated | truncated), info)
+        self._ended = terminated | truncated
+        return obs, rewards, terminated, truncated, info
+
+
+class VectorPlannerWaypointWrapper(_VectorPlannerWrapper):
+    """``PlannerWaypointWrapper`` on the native vector env (row i: the single wrapper on sub-environment i)."""
+
+    def __init__(self, env: gym.vector.VectorEnv, lookahead: float = 0.1, planner: str = "auto") -> None:
+        """Wrap ``env``; see ``PlannerWaypointWrapper``."""
+        self._setup(env, lookahead, planner, 0)
+
+    def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        return np.concatenate([obs, self._offsets(info)[2]], axis=1).astype(np.float32)
+
+    def step(self, actions: Any):
+        """Step the wrapped vector env; each observation gains its carrot's offset."""
+        obs, rewards, terminated, truncated, info = self._step(actions)
+        return self._augment(obs, info), rewards, terminated, truncated, info
+
+
+class VectorPlannerResidualWrapper(_VectorPlannerWrapper):
+    """``PlannerResidualWrapper`` on the native vector env (row i: the single wrapper on sub-environment i)."""
+
+    def __init__(
+        self, env: gym.vector.VectorEnv, scale: float = 0.5, lookahead: float = 0.1, planner: str = "auto"
+    ) -> None:
+        """Wrap ``env``; see ``PlannerResidualWrapper``."""
+        if not (isinstance(scale, (int, float)) and np.isfinite(scale) and 0.0 < scale <= 2.0):
+            raise ValueError(f"scale must be a number in (0, 2], got {scale!r}")
+        n = env.single_action_space.shape[0]
+        self._setup(env, lookahead, planner, n)
+        self.scale = float(scale)
+        self.controller = PlannerController(self.params, follower=self.follower)
+        self._planner_action = np.zeros((env.num_envs, n), dtype=np.float32)
+
+    def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        pose, carrot, offset = self._offsets(info)
+        self._planner_action = self.controller.steer(pose, carrot, np.zeros_like(pose))
+        return np.concatenate([obs, offset, self._planner_action], axis=1).astype(np.float32)
+
+    def actions(self, actions: Any) -> np.ndarray:
+        """The summed actions the wrapped env receives for the policy's ``actions`` (shape (N, n)), float32."""
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != self._planner_action.shape or not np.all(np.isfinite(a)):
+            raise ValueError(f"actions must be finite with shape {self._planner_action.shape}, got shape {a.shape}")
+        return np.clip(self._planner_action + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+
+    def step(self, actions: Any):
+        """Step the wrapped vector env with the summed actions; each observation gains its carrot and a_p."""
+        planner_action = self._planner_action
+        obs, rewards, terminated, truncated, info = self._step(self.actions(actions))
+        info["planner_action"] = planner_action
+        info["_planner_action"] = np.ones(self.num_envs, dtype=bool)
+        return self._augment(obs, info), rewards, terminated, truncated, info

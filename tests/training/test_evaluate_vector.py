@@ -68,3 +68,42 @@ def test_vector_evaluation_refuses_what_the_single_one_refuses():
         )
     with pytest.raises(EvaluationError, match="CartPole-v1 has no native vector env"):
         make_vector_env("CartPole-v1", 2)
+
+
+@pytest.mark.parametrize("wrapper", ["PlannerResidualWrapper", "PlannerWaypointWrapper"])
+def test_vector_planner_wrappers_equal_the_single_ones(wrapper):
+    """Row i of the planner's vector wrappers is the single wrapper on episode i (behind the shield too)."""
+    from training.evaluate import wrap_vector_for_run
+
+    config = {"hyperparams": {"env_wrapper": f"envs.{wrapper}"}}
+    n = 6
+
+    def agent(obs):  # a fixed function of the observation, row by row: batching cannot change it
+        return (0.8 * np.tanh(3.0 * obs[:, -3:] - obs[:, :3])).astype(np.float32)
+
+    env = getattr(envs, wrapper)(envs.SingularityShield(gym.make("Planar3RPRReach-v0"), k_guard=0.05))
+    one_by_one = evaluate_agent(agent, env, n, 5000, "hard")
+    venv = wrap_vector_for_run(make_vector_env("Planar3RPRReach-v0", n, shield=0.05), config)
+    assert isinstance(venv, getattr(envs, "Vector" + wrapper))
+    assert venv.single_observation_space == env.observation_space
+    assert_same_records(one_by_one, evaluate_vector(agent, venv, 5000, "hard"))
+    assert wrap_vector_for_run(make_vector_env("Planar3RPRReach-v0", 2), {"hyperparams": {}}) is not None
+    goal = {"hyperparams": {"env_wrapper": "envs.GoalReachWrapper"}}
+    assert wrap_vector_for_run(make_vector_env("Planar3RPRReach-v0", 2), goal) is None  # no vector form
+
+
+def test_vector_residual_wrapper_restarts_plans_with_the_next_episode():
+    """After an autoreset a row's plan runs from its new episode's start to its new target."""
+    venv = envs.VectorPlannerResidualWrapper(make_vector_env("Planar3RPRReach-v0", 2))
+    venv.reset(seed=11, options={"targets": "hard"})
+    rng = np.random.default_rng(0)
+    ended = np.zeros(2, dtype=bool)
+    for _ in range(400):
+        _, _, terminated, truncated, info = venv.step(rng.uniform(-1.0, 1.0, (2, 3)).astype(np.float32))
+        if ended[0]:
+            break  # row 0 has just started its second episode
+        ended = terminated | truncated
+    assert ended[0]
+    plan = venv.follower._rows[0][1]
+    np.testing.assert_allclose(plan.waypoints[0], info["pose"][0], atol=1e-12)
+    np.testing.assert_allclose(plan.waypoints[-1], info["target"][0], atol=1e-12)
