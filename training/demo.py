@@ -30,22 +30,18 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-import envs  # registers the ids
 from training import family_report, plots
 from training.evaluate import (
     EvaluationError,
     aggregate,
     evaluate_agent,
-    evaluate_vector,
+    evaluate_rows,
     format_table,
     load_controller,
     load_run,
-    make_vector_env,
     print_table,
     read_run_config,
-    run_env_kwargs,
     wrap_for_run,
-    wrap_vector_for_run,
 )
 
 __all__ = [
@@ -112,35 +108,6 @@ def _progress(total: int, desc: str):
     from tqdm.auto import tqdm
 
     return tqdm(total=total, desc=desc, unit="row", leave=False, file=sys.stderr)
-
-
-def evaluate_rows(
-    agent, config: dict, env_id: str, episodes: int, seed: int, targets: str | None, shield: float | None = None
-) -> list:
-    """Episodes i = 0 … episodes − 1 (reset seed ``seed + i``) of ``agent`` on ``env_id``, behind the shield if set.
-
-    All episodes run at once on the id's native vector env (``training.evaluate.evaluate_vector``, with the vector
-    form of the run's ``env_wrapper``), except for a run whose wrapper has no vector form (the goal view of HER),
-    which runs them one after the other (``evaluate_agent``). The records are the same either way (a policy's
-    batched actions aside, which may differ in the last bit of float32). The shield sits inside the run's wrapper:
-    it filters the action the env receives (a residual policy's sum).
-    """
-    if env_id in envs.ENV_IDS:
-        plain = make_vector_env(env_id, episodes, run_env_kwargs(config), shield)
-        venv = wrap_vector_for_run(plain, config)
-        try:
-            if venv is not None:
-                return evaluate_vector(agent, venv, seed, targets)
-        finally:
-            plain.close()
-    env = gym.make(env_id, **run_env_kwargs(config))
-    if shield is not None:
-        env = envs.SingularityShield(env, k_guard=shield)
-    env = wrap_for_run(env, config)
-    try:
-        return evaluate_agent(agent, env, episodes, seed, targets)
-    finally:
-        env.close()
 
 
 def run_demo(

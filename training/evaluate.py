@@ -7,9 +7,10 @@ Usage::
                                 [--video] [--out DIR] [--model final|best] [--planner auto|ompl|grid]
                                 [--env-kwargs KEY:VALUE ...]
 
-Writes ``metrics.json`` (aggregates), ``episodes.csv`` (one row per episode), ``trajectories.png``
-(paths over the inverse-condition-number map), ``condition_number.png`` (k over time) and, with
-``--video``, ``episodes.gif``; prints the metrics as a table.
+Without ``--video`` every episode runs at once on the id's native vector env (``evaluate_vector``); with it, one
+after the other on the single env (``evaluate_agent``), filmed. Writes ``metrics.json`` (aggregates),
+``episodes.csv`` (one row per episode), ``trajectories.png`` (paths over the inverse-condition-number map),
+``condition_number.png`` (k over time) and, with ``--video``, ``episodes.gif``; prints the metrics as a table.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ __all__ = [
     "aggregate",
     "check_compatible",
     "evaluate_agent",
+    "evaluate_rows",
     "evaluate_vector",
     "load_controller",
     "load_run",
@@ -558,6 +560,41 @@ def evaluate_vector(
     return records
 
 
+def evaluate_rows(
+    agent: Agent,
+    config: dict[str, Any],
+    env_id: str,
+    episodes: int,
+    seed: int,
+    targets: str | None,
+    shield: float | None = None,
+) -> list[EpisodeRecord]:
+    """Episodes i = 0 … episodes − 1 (reset seed ``seed + i``) of ``agent`` on ``env_id``, behind the shield if set.
+
+    All episodes run at once on the id's native vector env (``evaluate_vector``, with the vector
+    form of the run's ``env_wrapper``), except for a run whose wrapper has no vector form (the goal view of HER),
+    which runs them one after the other (``evaluate_agent``). The records are the same either way (a policy's
+    batched actions aside, which may differ in the last bit of float32). The shield sits inside the run's wrapper:
+    it filters the action the env receives (a residual policy's sum).
+    """
+    if env_id in envs.ENV_IDS:
+        plain = make_vector_env(env_id, episodes, run_env_kwargs(config), shield)
+        venv = wrap_vector_for_run(plain, config)
+        try:
+            if venv is not None:
+                return evaluate_vector(agent, venv, seed, targets)
+        finally:
+            plain.close()
+    env = gym.make(env_id, **run_env_kwargs(config))
+    if shield is not None:
+        env = envs.SingularityShield(env, k_guard=shield)
+    env = wrap_for_run(env, config)
+    try:
+        return evaluate_agent(agent, env, episodes, seed, targets)
+    finally:
+        env.close()
+
+
 def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
     """Aggregate metrics over episodes (means with standard deviations where it makes sense).
 
@@ -809,7 +846,17 @@ def main(argv: list[str] | None = None) -> int:
         if shielded and args.out is None:
             out = out.with_name(f"{out.name}-shield")
         frames: list[np.ndarray] | None = [] if args.video else None
-        records = evaluate_agent(agent, env, args.episodes, args.seed, args.targets, frames)
+        venv = None
+        if frames is None:  # every episode at once on the native vector env, where the run's wrapper has a vector form
+            plain = make_vector_env(env_id, args.episodes, env_kwargs, args.shield)
+            venv = wrap_vector_for_run(plain, config) if args.run is not None else plain
+            if venv is None:
+                plain.close()
+        if venv is not None:
+            records = evaluate_vector(agent, venv, args.seed, args.targets)
+            venv.close()
+        else:
+            records = evaluate_agent(agent, env, args.episodes, args.seed, args.targets, frames)
         label = f"{name} @ {targets}"
         metrics = write_outputs(out, label, env, records, frames)
     except (EvaluationError, ConfigError) as exc:
