@@ -17,7 +17,10 @@ at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on
 2. DAgger: ``iterations`` rounds of ``episodes`` episodes in which the learner acts (the expert instead, per
    step, with probability β: ``beta`` in the first round, 0 after) and the expert labels every state visited;
    the learner is refitted on all pairs gathered so far.
-3. Optionally ``ppo_steps`` of PPO from the distilled weights (the normalisation stays fixed).
+3. With ``select_round="best"``, the learner of the round that did best when it acted (success rate minus
+   singularity terminations per episode, on that round's training episodes; the last learner is scored on
+   ``episodes`` more) is kept, as DAgger's guarantee is for the best of its policies; with "last", the last one.
+4. Optionally ``ppo_steps`` of PPO from the distilled weights (the normalisation stays fixed).
 
 ``finetune`` (``--from-run``) fine-tunes a distilled run with PPO on the env's own reward: the critic alone is
 fitted first (``warmup_steps``, the actor frozen, so that the first policy updates use a value function of the
@@ -33,6 +36,7 @@ per decision of the learner against the expert's planning time. Episodes reset w
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 import time
@@ -71,6 +75,8 @@ class DistillConfig:
     replan_distance: float = 0.03
     lookahead: float = 0.1
     ppo_steps: int = 0
+    #: "last": keep the last round's learner; "best": the round's learner that did best when it acted.
+    select_round: str = "last"
     #: The expert's speed damping near the band (``PlannerController``'s ``damping``); the shipped plan-free policy
     #: was distilled from the undamped law.
     expert_damping: bool = False
@@ -222,6 +228,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
 
     all_obs, all_act = [obs], [act]
     rounds[0]["mse"] = fit(policy, normalizer.normalize_obs(obs), act, config, config.seed)
+    snapshots = [copy.deepcopy(policy.state_dict())]  # the learner after each round's fit
     for r in range(1, config.iterations + 1):
         clock = time.perf_counter()
         beta = config.beta if r == 1 else 0.0
@@ -235,10 +242,24 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
             {"round": r, "beta": beta, "pairs": len(data_obs), **figures, "mse": mse,
              "seconds": time.perf_counter() - clock}
         )  # fmt: skip
+        snapshots.append(copy.deepcopy(policy.state_dict()))
         log(
             f"round {r} (β {beta}): learner {figures['success_rate']:.0%} success, "
             f"{figures['singular_terminations']:.2f} singular/episode; {len(data_obs)} pairs, MSE {mse:.4f}"
         )
+    kept = len(snapshots) - 1
+    if config.select_round == "best" and config.iterations > 0:
+        # the last learner has not acted yet: score it on as many fresh training episodes
+        _, _, figures = collect(env, expert, learner, config.episodes, 0.0, seed, rng)
+        seed += config.episodes
+        rounds.append({"round": len(snapshots), "beta": 0.0, "scoring_only": True, **figures})
+        # round r's figures score the learner fitted after round r − 1 (rounds with β > 0 are the expert's too)
+        scores = {
+            r["round"] - 1: r["success_rate"] - r["singular_terminations"] for r in rounds[1:] if r["beta"] == 0.0
+        }
+        kept = max(scores, key=lambda i: (scores[i], i))
+        policy.load_state_dict(snapshots[kept])
+        log(f"kept the learner of round {kept} (score {scores[kept]:.2f}: success − singular per episode)")
     if config.ppo_steps > 0:
         model.learn(config.ppo_steps)
     model.save(run_dir / "model.zip")
@@ -253,6 +274,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     result = {
         "config": asdict(config),
         "rounds": rounds,
+        "kept_round": kept,
         "decision_s": decision_s,
         "expert_planning_s": float(np.mean(planning)) if planning else 0.0,
     }
@@ -368,6 +390,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.add_argument("--" + name.replace("_", "-"), type=float, default=getattr(defaults, name))
     parser.add_argument("--planner", default=defaults.planner, choices=("auto", "ompl", "grid"))
     parser.add_argument(
+        "--select-round",
+        default=defaults.select_round,
+        choices=("last", "best"),
+        help="keep the last round's learner or the one that did best when it acted (default %(default)s)",
+    )
+    parser.add_argument(
         "--expert-damping", action="store_true", help="label with the planner controller's damping near the band"
     )
     parser.add_argument(
@@ -413,6 +441,7 @@ def main(argv: list[str] | None = None) -> int:
         lookahead=args.lookahead,
         ppo_steps=args.ppo_steps,
         expert_damping=args.expert_damping,
+        select_round=args.select_round,
     )
     distill(config, Path(args.run_dir))
     return 0

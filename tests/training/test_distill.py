@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import gymnasium as gym
@@ -103,3 +104,31 @@ def test_the_plan_free_report_tabulates_every_agent(tmp_path):
             assert f"| {label} @ {targets} | " in table
     assert "ratio" in (out / "timing.md").read_text()
     assert (out / "paths_hard.png").stat().st_size > 0
+
+
+def test_best_round_selection_keeps_the_learner_that_did_best_when_it_acted(tmp_path):
+    """``select_round="best"`` keeps the argmax of success − singular over the rounds the learners acted in.
+
+    The saved model is that learner: where it is not the last one, its actions differ from the last learner's.
+    """
+    import torch
+
+    config = DistillConfig(
+        env_id="Planar3RRRReach-v0", env_kwargs={"targets": "mixed"}, expert_episodes=3, iterations=3, episodes=3,
+        epochs=1, select_round="best", expert_damping=True,
+    )  # fmt: skip
+    result = distill.distill(config, tmp_path, log=lambda _: None)
+    rounds = result["rounds"]
+    assert rounds[-1].get("scoring_only") and len(rounds) == config.iterations + 2
+    scores = {r["round"] - 1: r["success_rate"] - r["singular_terminations"] for r in rounds if r["beta"] == 0.0}
+    best = max(scores.values())
+    assert result["kept_round"] == max(i for i, v in scores.items() if v == best)  # ties: the later learner
+    agent, run_config = load_run(tmp_path)
+    assert run_config["hyperparams"]["env_kwargs"] == {"targets": "mixed"}
+    last = distill.distill(dataclasses.replace(config, select_round="last"), tmp_path / "last", log=lambda _: None)
+    assert last["kept_round"] == config.iterations
+    if result["kept_round"] != config.iterations:  # another learner was kept: the saved policies differ
+        other, _ = load_run(tmp_path / "last")
+        obs = np.random.default_rng(0).normal(size=(8, agent.observation_space.shape[0])).astype(np.float32)
+        with torch.no_grad():
+            assert not np.allclose(agent(obs), other(obs))
