@@ -42,6 +42,7 @@ bench: $(STAMP)
 	$(PY) -m benchmarks.bench_family_step
 	$(PY) -m benchmarks.bench_family_vector
 	$(PY) -m benchmarks.bench_family_kinematics
+	$(PY) -m benchmarks.bench_evaluate
 	$(PY) -m benchmarks.count_lines
 
 clean:

@@ -231,7 +231,7 @@ FAMILY_DEMOS: dict[str, tuple[str, dict[str, str], tuple[Path, ...]]] = {
     "planar_3rrr": (
         "Planar 3-RRR (cranks)",
         {"standard": "Planar3RRRReach-v0", "hard": "Planar3RRRReachHard-v0"},
-        (_pretrained("ppo-Planar3RRRReach-v0"),),
+        (_pretrained("ppo-Planar3RRRReach-v0"), _pretrained("distill-Planar3RRRReach-v0")),
     ),
     "planar_3prr": (
         "Planar 3-PRR (sliders)",
@@ -271,6 +271,8 @@ def run_family_demo(
         policy, config = load_run(run)
         trained_on = gym.spec(config["env_id"]).kwargs.get("targets", "standard")
         label = f"{config['algo'].upper()} policy" + ("" if i == 0 else f" ({trained_on}-trained)")
+        if config.get("distilled_from") == "planner":
+            label = "plan-free policy (distilled planner)"
         policies[label] = (policy, config)
     metrics: dict = {}
     frames: list[np.ndarray] = []
