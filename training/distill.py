@@ -51,6 +51,7 @@ import yaml
 import envs
 from envs.controllers import PlannerController
 from envs.planner import PathFollower
+from training.evaluate import EvaluationError, parse_env_kwargs
 
 __all__ = ["DistillConfig", "FinetuneConfig", "collect", "distill", "finetune", "fit", "main"]
 
@@ -99,6 +100,10 @@ class FinetuneConfig:
     gae_lambda: float = 0.95
     log_std: float = -1.6
     seed: int = 0
+    #: Env keyword arguments of the fine-tuning env only, over the distilled run's (a reward setting such as
+    #: ``termination_penalty``); the run folder keeps the distilled run's, so it is evaluated on the env it was
+    #: distilled on.
+    reward_kwargs: dict[str, Any] = field(default_factory=dict)
 
 
 def _expert(env: gym.Env, config: DistillConfig) -> PlannerController:
@@ -323,7 +328,7 @@ def finetune(source: Path, run_dir: Path, config: FinetuneConfig, log=print) -> 
     torch.manual_seed(config.seed)
     torch.set_num_threads(1)
     run_dir.mkdir(parents=True, exist_ok=True)
-    env_kwargs = source_config.get("hyperparams", {}).get("env_kwargs") or {}
+    env_kwargs = {**(source_config.get("hyperparams", {}).get("env_kwargs") or {}), **config.reward_kwargs}
     venv = make_training_env(env_id, config.n_envs, 2_000_000 * (config.seed + 1), "native", run_dir, env_kwargs)
     venv = VecNormalize.load(str(source / "vecnormalize.pkl"), venv)
     venv.training, venv.norm_reward = False, False
@@ -402,14 +407,24 @@ def main(argv: list[str] | None = None) -> int:
         "--from-run", default=None, help="fine-tune this distilled run with PPO (--ppo-steps, default 1M) instead"
     )
     parser.add_argument("--warmup-steps", type=int, default=FinetuneConfig.warmup_steps, help="critic-only steps")
+    parser.add_argument(
+        "--reward-kwargs",
+        nargs="*",
+        default=[],
+        metavar="KEY:VALUE",
+        help="env keyword arguments of the fine-tuning env only (termination_penalty:200)",
+    )
     args = parser.parse_args(argv)
     if args.from_run is not None:
         steps = args.ppo_steps or FinetuneConfig.steps
         if steps < 1 or args.warmup_steps < 0:
             parser.error(f"--ppo-steps must be ≥ 1 and --warmup-steps ≥ 0, got {steps} and {args.warmup_steps}")
         try:
-            finetune(Path(args.from_run), Path(args.run_dir), FinetuneConfig(steps, args.warmup_steps, seed=args.seed))
-        except (ValueError, FileNotFoundError) as exc:
+            config = FinetuneConfig(
+                steps, args.warmup_steps, seed=args.seed, reward_kwargs=parse_env_kwargs(args.reward_kwargs)
+            )
+            finetune(Path(args.from_run), Path(args.run_dir), config)
+        except (ValueError, FileNotFoundError, EvaluationError) as exc:
             parser.error(str(exc))
         return 0
     if args.env not in envs.ENV_IDS or "Reach" not in args.env:
@@ -419,8 +434,6 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
     if not 0.0 <= args.beta <= 1.0:
         parser.error(f"--beta must be in [0, 1], got {args.beta}")
-    from training.evaluate import EvaluationError, parse_env_kwargs
-
     try:
         env_kwargs = parse_env_kwargs(args.env_kwargs)
     except EvaluationError as exc:

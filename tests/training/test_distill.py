@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -132,3 +133,32 @@ def test_best_round_selection_keeps_the_learner_that_did_best_when_it_acted(tmp_
         obs = np.random.default_rng(0).normal(size=(8, agent.observation_space.shape[0])).astype(np.float32)
         with torch.no_grad():
             assert not np.allclose(agent(obs), other(obs))
+
+
+def test_finetuning_fits_the_critic_alone_first_then_both(tmp_path):
+    """The warm-up changes the critic and leaves the actor's weights as distilled; the PPO phase then moves them."""
+    import torch
+    from stable_baselines3 import PPO
+
+    source = tmp_path / "distilled"
+    distill.distill(DistillConfig(expert_episodes=2, iterations=0, epochs=1), source, log=lambda _: None)
+    warm = tmp_path / "warm"
+    distill.finetune(source, warm, distill.FinetuneConfig(steps=0, warmup_steps=2048, n_envs=4), log=lambda _: None)
+    both = tmp_path / "both"
+    distill.finetune(source, both, distill.FinetuneConfig(steps=4096, warmup_steps=2048, n_envs=4), log=lambda _: None)
+
+    def weights(run, part):
+        policy = PPO.load(run / "model.zip", device="cpu").policy
+        modules = {"actor": (policy.mlp_extractor.policy_net, policy.action_net), "critic": (policy.value_net,)}
+        return torch.cat([p.detach().flatten() for m in modules[part] for p in m.parameters()])
+
+    assert torch.equal(weights(source, "actor"), weights(warm, "actor"))
+    assert not torch.equal(weights(source, "critic"), weights(warm, "critic"))
+    assert not torch.equal(weights(source, "actor"), weights(both, "actor"))
+    agent, config = load_run(both)
+    assert config["finetuned_from"] == str(source)
+    assert len(evaluate_agent(agent, gym.make("Planar3RPRReach-v0"), 1, 5000, "hard")) == 1
+    with pytest.raises(ValueError, match=r"must be a training\.distill run folder"):
+        ppo_run = Path(__file__).resolve().parents[2] / "training" / "pretrained" / "ppo-Planar3RPRReach-v0"
+        distill.finetune(ppo_run, tmp_path / "x", distill.FinetuneConfig(steps=1), log=lambda _: None)
+    assert not (tmp_path / "x").exists()
