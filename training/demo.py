@@ -41,6 +41,7 @@ from training.evaluate import (
     load_run,
     print_table,
     read_run_config,
+    run_env_kwargs,
     wrap_for_run,
 )
 
@@ -443,7 +444,7 @@ def record_regression(run: Path, episodes: int = 20, seed: int = 5000, targets: 
         The recorded dict.
     """
     policy, config = load_run(run)
-    env = wrap_for_run(gym.make(config["env_id"]), config)
+    env = wrap_for_run(gym.make(config["env_id"], **run_env_kwargs(config)), config)
     if "targets" not in type(env.unwrapped).reset_options:
         targets, option = "track", None
     else:

@@ -14,7 +14,7 @@ from PIL import Image
 from envs import PLANAR_3RPR_IDS
 from training import demo
 from training.demo import PRETRAINED_RUN
-from training.evaluate import aggregate, evaluate_agent, load_run, wrap_for_run
+from training.evaluate import aggregate, evaluate_agent, load_run, run_env_kwargs, wrap_for_run
 
 #: Keys of regression.json and their types.
 REGRESSION_KEYS = {
@@ -241,13 +241,38 @@ def test_shipped_crank_policies_keep_their_recorded_performance(run):
     assert_keeps_record(metrics, record)
 
 
+#: The shipped plan-free policies of the other robots (``training.distill``), each with its regression.json.
+PLAN_FREE_RUNS = [demo._pretrained("distill-Planar3RRRReach-v0")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("run", PLAN_FREE_RUNS, ids=lambda r: r.name)
+def test_shipped_plan_free_policies_keep_their_recorded_performance(run):
+    """A plan-free policy (no planner at run time) keeps its record on its robot's hard targets (two-sided)."""
+    if not (run / "regression.json").is_file():
+        pytest.skip(f"{run.name} not shipped")
+    record = json.loads((run / "regression.json").read_text())
+    assert set(record) == set(REGRESSION_KEYS)
+    agent, config = load_run(run)
+    assert config["distilled_from"] == "planner" and config["env_id"] == record["env_id"]
+    env = wrap_for_run(gym.make(record["env_id"], **run_env_kwargs(config)), config)
+    try:
+        metrics = aggregate(evaluate_agent(agent, env, record["episodes"], record["seed"], record["targets"]))
+    finally:
+        env.close()
+    assert_keeps_record(metrics, record)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["delta", "planar_3rrr", "planar_3prr"])
 def test_demo_reports_each_crank_robot(name, tmp_path):
     """The main job's section of each new robot: its policy, resolved-rate and the planner on its targets, a GIF."""
     metrics = demo.run_family_demo(name, tmp_path, episodes=2, shield=None)
-    _title, ids, _runs = demo.FAMILY_DEMOS[name]
-    assert set(metrics) == {f"{agent} @ {t}" for agent in ("PPO policy", "resolved-rate", "planner") for t in ids}
+    _title, ids, runs = demo.FAMILY_DEMOS[name]
+    agents = ["PPO policy", "resolved-rate", "planner"]
+    if any(run.name.startswith("distill-") and run.is_dir() for run in runs):
+        agents.append("plan-free policy (distilled planner)")
+    assert set(metrics) == {f"{agent} @ {t}" for agent in agents for t in ids}
     text = (tmp_path / f"{name}.md").read_text()
     assert all(env_id in text for env_id in ids.values())
     with Image.open(tmp_path / f"{name}_policy.gif") as gif:
