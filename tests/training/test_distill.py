@@ -45,7 +45,7 @@ def test_the_labels_are_the_planner_controllers_actions():
     expert = distill._expert(env, config)
     obs, act, figures = collect(env, expert, None, 2, 1.0, 123, np.random.default_rng(0))
     assert obs.shape == (400, 18) and act.shape == (400, 3)
-    # the law the shipped plan-free policy was distilled from: undamped, straight at the target on a one-segment plan
+    # the default expert law: undamped, straight at the target on a one-segment plan
     reference = PlannerController(env.unwrapped.params, cross_track=False, damping=config.expert_damping)
     np.testing.assert_allclose(np.stack([reference(o[None])[0] for o in obs]), act, atol=1e-6)
     assert figures["success_rate"] == 1.0 and figures["singular_terminations"] == 0.0
