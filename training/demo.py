@@ -51,6 +51,7 @@ __all__ = [
     "PRETRAINED_RUN",
     "family_text",
     "main",
+    "policy_label",
     "record_regression",
     "render_from_metrics",
     "report_text",
@@ -111,6 +112,28 @@ def _progress(total: int, desc: str):
     return tqdm(total=total, desc=desc, unit="row", leave=False, file=sys.stderr)
 
 
+def policy_label(config: dict, main: bool) -> str:
+    """A shipped policy's row label from its run config.
+
+    "plan-free policy (distilled planner)" for a ``training.distill`` run; else "<ALGO> policy", followed for a
+    policy other than the section's ``main`` one by the targets it was trained on and its kind, e.g. "PPO policy
+    (mixed, residual over the planner)" or "PPO policy (hard-trained)".
+    """
+    if config.get("distilled_from") == "planner":
+        return "plan-free policy (distilled planner)"
+    name = f"{config['algo'].upper()} policy"
+    if main:
+        return name
+    targets = run_env_kwargs(config).get("targets") or gym.spec(config["env_id"]).kwargs.get("targets", "standard")
+    wrapper = str(config.get("hyperparams", {}).get("env_wrapper") or "")
+    kind = f"{targets}-trained"
+    if "PlannerResidualWrapper" in wrapper:
+        kind = f"{targets}, residual over the planner"
+    elif "PlannerWaypointWrapper" in wrapper:
+        kind = f"{targets}, waypoint"
+    return f"{name} ({kind})"
+
+
 def run_demo(
     run: Path,
     out: Path,
@@ -145,14 +168,7 @@ def run_demo(
     filmed = next(iter(agents))
     if hard_run is not None:
         hard_policy, hard_config = load_run(hard_run)
-        trained_on = gym.spec(hard_config["env_id"]).kwargs.get("targets", "standard")
-        kind = f"{trained_on}-trained"
-        wrapper = str(hard_config.get("hyperparams", {}).get("env_wrapper") or "")
-        if "PlannerResidualWrapper" in wrapper:
-            kind = f"{trained_on}, residual over the planner"
-        elif "PlannerWaypointWrapper" in wrapper:
-            kind = f"{trained_on}, waypoint"
-        filmed = f"{hard_config['algo'].upper()} policy ({kind})"
+        filmed = policy_label(hard_config, main=False)
         agents[filmed] = (hard_policy, hard_config)
     if PRETRAINED_PLAN_FREE_RUN.is_dir() and PRETRAINED_PLAN_FREE_RUN != run:
         plan_free, plan_free_config = load_run(PRETRAINED_PLAN_FREE_RUN)
@@ -232,7 +248,11 @@ FAMILY_DEMOS: dict[str, tuple[str, dict[str, str], tuple[Path, ...]]] = {
     "planar_3rrr": (
         "Planar 3-RRR (cranks)",
         {"standard": "Planar3RRRReach-v0", "hard": "Planar3RRRReachHard-v0"},
-        (_pretrained("ppo-Planar3RRRReach-v0"), _pretrained("distill-Planar3RRRReach-v0")),
+        (
+            _pretrained("ppo-Planar3RRRReach-v0"),
+            _pretrained("ppo-residual-Planar3RRRReach-v0"),
+            _pretrained("distill-Planar3RRRReach-v0"),
+        ),
     ),
     "planar_3prr": (
         "Planar 3-PRR (sliders)",
@@ -270,11 +290,7 @@ def run_family_demo(
     policies = {}
     for i, run in enumerate(shipped):
         policy, config = load_run(run)
-        trained_on = gym.spec(config["env_id"]).kwargs.get("targets", "standard")
-        label = f"{config['algo'].upper()} policy" + ("" if i == 0 else f" ({trained_on}-trained)")
-        if config.get("distilled_from") == "planner":
-            label = "plan-free policy (distilled planner)"
-        policies[label] = (policy, config)
+        policies[policy_label(config, main=i == 0)] = (policy, config)
     metrics: dict = {}
     frames: list[np.ndarray] = []
     with _progress(len(ids) * (len(policies) + 2) * (2 if shield is not None else 1), name) as bar:

@@ -269,9 +269,9 @@ def test_demo_reports_each_crank_robot(name, tmp_path):
     """The main job's section of each new robot: its policy, resolved-rate and the planner on its targets, a GIF."""
     metrics = demo.run_family_demo(name, tmp_path, episodes=2, shield=None)
     _title, ids, runs = demo.FAMILY_DEMOS[name]
-    agents = ["PPO policy", "resolved-rate", "planner"]
-    if any(run.name.startswith("distill-") and run.is_dir() for run in runs):
-        agents.append("plan-free policy (distilled planner)")
+    agents = ["resolved-rate", "planner"]
+    agents += [demo.policy_label(load_run(run)[1], main=i == 0) for i, run in enumerate(runs) if run.is_dir()]
+    assert "PPO policy" in agents
     assert set(metrics) == {f"{agent} @ {t}" for agent in agents for t in ids}
     text = (tmp_path / f"{name}.md").read_text()
     assert all(env_id in text for env_id in ids.values())
