@@ -241,20 +241,22 @@ def test_shipped_crank_policies_keep_their_recorded_performance(run):
     assert_keeps_record(metrics, record)
 
 
-#: The shipped plan-free policies of the other robots (``training.distill``), each with its regression.json.
-PLAN_FREE_RUNS = [demo._pretrained("distill-Planar3RRRReach-v0")]
+#: The shipped plan-free (``training.distill``) and residual policies of the other robots, with their regression.json.
+PLAN_FREE_RUNS = [demo._pretrained("distill-Planar3RRRReach-v0"), demo._pretrained("ppo-residual-Planar3RRRReach-v0")]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("run", PLAN_FREE_RUNS, ids=lambda r: r.name)
 def test_shipped_plan_free_policies_keep_their_recorded_performance(run):
-    """A plan-free policy (no planner at run time) keeps its record on its robot's hard targets (two-sided)."""
+    """A plan-free or residual policy keeps its record on its robot's hard targets (two-sided), with its wrapper."""
     if not (run / "regression.json").is_file():
         pytest.skip(f"{run.name} not shipped")
     record = json.loads((run / "regression.json").read_text())
     assert set(record) == set(REGRESSION_KEYS)
     agent, config = load_run(run)
-    assert config["distilled_from"] == "planner" and config["env_id"] == record["env_id"]
+    wrapper = str(config.get("hyperparams", {}).get("env_wrapper"))
+    assert config.get("distilled_from") == "planner" or "PlannerResidualWrapper" in wrapper
+    assert config["env_id"] == record["env_id"]
     env = wrap_for_run(gym.make(record["env_id"], **run_env_kwargs(config)), config)
     try:
         metrics = aggregate(evaluate_agent(agent, env, record["episodes"], record["seed"], record["targets"]))
