@@ -60,6 +60,13 @@ def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[
     return (proposed * scales[:, None]).astype(np.float32), scales
 
 
+def _guard(k_guard: Any) -> float:
+    """``k_guard`` as a float, refused unless a number in (0, 1)."""
+    if not (isinstance(k_guard, (int, float)) and 0.0 < float(k_guard) < 1.0):
+        raise ValueError(f"k_guard must be a number in (0, 1), got {k_guard!r}")
+    return float(k_guard)
+
+
 class SingularityShield(gym.Wrapper):
     """Replace actions that would cross or approach a Type II singularity by scaled-down ones.
 
@@ -79,9 +86,7 @@ class SingularityShield(gym.Wrapper):
         base = env.unwrapped
         if not (hasattr(base, "params") and hasattr(base, "state")):
             raise TypeError(f"SingularityShield needs a parallel-robot environment of envs, got {type(base).__name__}")
-        if not (isinstance(k_guard, (int, float)) and 0.0 < float(k_guard) < 1.0):
-            raise ValueError(f"k_guard must be a number in (0, 1), got {k_guard!r}")
-        self.k_guard = float(k_guard)
+        self.k_guard = _guard(k_guard)
 
     def safe_action(self, action: Any) -> tuple[np.ndarray, float]:
         """The action to apply instead of ``action`` and its scale.
@@ -127,9 +132,7 @@ class VectorSingularityShield(gym.vector.VectorWrapper):
         base = env.unwrapped
         if not (hasattr(base, "params") and hasattr(base, "state")):
             raise TypeError(f"VectorSingularityShield needs a native vector env of envs, got {type(base).__name__}")
-        if not (isinstance(k_guard, (int, float)) and 0.0 < float(k_guard) < 1.0):
-            raise ValueError(f"k_guard must be a number in (0, 1), got {k_guard!r}")
-        self.k_guard = float(k_guard)
+        self.k_guard = _guard(k_guard)
 
     def step(self, actions: Any):
         """Step with the shielded actions; ``infos["shield_scale"]`` records the scales used."""
