@@ -28,12 +28,57 @@ __all__ = [
 ]
 
 
+def _augmented_box(box: spaces.Box, params: FamilyParams, n_extra: int) -> tuple[np.ndarray, np.ndarray, spaces.Box]:
+    """The error block's bounds and the observation box with the carrot's offset and ``n_extra`` entries appended.
+
+    Returns:
+        (lower and upper bounds of the error block of ``box``, float64; the box with the offset (the error
+        block's bounds) and ``n_extra`` entries in [−1, 1] appended).
+    """
+    error = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)["error"]
+    low, high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
+    extra = np.ones(n_extra)
+    augmented = spaces.Box(
+        np.concatenate([box.low, box.low[error], -extra]).astype(np.float32),
+        np.concatenate([box.high, box.high[error], extra]).astype(np.float32),
+        dtype=np.float32,
+    )
+    return low, high, augmented
+
+
+def _carrot_offsets(wrapper: Any, pose: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each row's carrot and its twist offset from the pose, clipped to the error block's bounds.
+
+    Args:
+        wrapper: A planner wrapper (its ``follower`` plans row i, its ``params``, ``_low`` and ``_high``).
+        pose: Poses of rows 0 … N − 1, shape (N, m) [m, rad].
+        target: Their targets, shape (N, m).
+
+    Returns:
+        (poses, carrots, offsets), each (N, m).
+    """
+    pose, target = np.asarray(pose, dtype=float), np.asarray(target, dtype=float)
+    carrot = np.stack([wrapper.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
+    offset = np.clip(pose_error(wrapper.params, pose, carrot), wrapper._low, wrapper._high)
+    return pose, carrot, offset
+
+
+def _residual_scale(scale: Any) -> float:
+    """``scale`` as a float, refused unless a number in (0, 2]."""
+    if not (isinstance(scale, (int, float)) and np.isfinite(scale) and 0.0 < scale <= 2.0):
+        raise ValueError(f"scale must be a number in (0, 2], got {scale!r}")
+    return float(scale)
+
+
+def _summed(planner_action: np.ndarray, scale: float, action: np.ndarray) -> np.ndarray:
+    """clip(a_p + scale · clip(a_π, −1, 1), −1, 1) as float32 (any leading shape)."""
+    return np.clip(planner_action + scale * np.clip(action, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+
+
 class _PlannerWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """What the planner's wrappers share: the check of the env, the path follower and the waypoint's bounds."""
 
-    def _setup(
-        self, env: gym.Env, lookahead: float, planner: str, extra_low: np.ndarray, extra_high: np.ndarray
-    ) -> None:
+    def _setup(self, env: gym.Env, lookahead: float, planner: str, n_extra: int) -> None:
         gym.Wrapper.__init__(self, env)
         base = env.unwrapped
         params = getattr(base, "params", None)
@@ -41,22 +86,12 @@ class _PlannerWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             raise TypeError(f"{type(self).__name__} wraps the Reach environments of envs, got {type(base).__name__}")
         self.params = params
         self.follower = PathFollower(params, lookahead, planner)
-        box = env.observation_space
-        robot = params.robot
-        error = observation_layout(robot.pose_space.name, robot.n_actuators, False)["error"]
-        self._low, self._high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
-        self.observation_space = spaces.Box(
-            np.concatenate([box.low, box.low[error], extra_low]).astype(np.float32),
-            np.concatenate([box.high, box.high[error], extra_high]).astype(np.float32),
-            dtype=np.float32,
-        )
+        self._low, self._high, self.observation_space = _augmented_box(env.observation_space, params, n_extra)
 
     def _offset(self, info: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(pose, carrot, the carrot's twist offset clipped to the error block's bounds) of ``info``, each (m,)."""
-        pose = np.asarray(info["pose"], dtype=float)
-        carrot = self.follower.carrot(0, pose, np.asarray(info["target"], dtype=float))
-        offset = np.clip(pose_error(self.params, pose[None], carrot[None])[0], self._low, self._high)
-        return pose, carrot, offset
+        pose, carrot, offset = _carrot_offsets(self, np.asarray(info["pose"])[None], np.asarray(info["target"])[None])
+        return pose[0], carrot[0], offset[0]
 
     def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
         raise NotImplementedError
@@ -92,7 +127,7 @@ class PlannerWaypointWrapper(_PlannerWrapper):
     def __init__(self, env: gym.Env, lookahead: float = 0.1, planner: str = "auto") -> None:
         """Wrap ``env``; see the class docstring."""
         gym.utils.RecordConstructorArgs.__init__(self, lookahead=lookahead, planner=planner)
-        self._setup(env, lookahead, planner, np.empty(0), np.empty(0))
+        self._setup(env, lookahead, planner, 0)
 
     def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
         return np.concatenate([obs, self._offset(info)[2]]).astype(np.float32)
@@ -127,12 +162,10 @@ class PlannerResidualWrapper(_PlannerWrapper):
 
     def __init__(self, env: gym.Env, scale: float = 0.5, lookahead: float = 0.1, planner: str = "auto") -> None:
         """Wrap ``env``; see the class docstring."""
-        if not (isinstance(scale, (int, float)) and np.isfinite(scale) and 0.0 < scale <= 2.0):
-            raise ValueError(f"scale must be a number in (0, 2], got {scale!r}")
+        self.scale = _residual_scale(scale)
         gym.utils.RecordConstructorArgs.__init__(self, scale=scale, lookahead=lookahead, planner=planner)
         n = env.action_space.shape[0] if isinstance(env.action_space, spaces.Box) else 0  # _setup refuses others
-        self._setup(env, lookahead, planner, -np.ones(n), np.ones(n))
-        self.scale = float(scale)
+        self._setup(env, lookahead, planner, n)
         # one plan per episode, shared by the observation and the action
         self.controller = PlannerController(self.params, follower=self.follower)
         self._planner_action = np.zeros(n, dtype=np.float32)
@@ -148,7 +181,7 @@ class PlannerResidualWrapper(_PlannerWrapper):
         if a.shape != self._planner_action.shape or not np.all(np.isfinite(a)):
             n = self._planner_action.size
             raise ValueError(f"action must be {n} finite numbers, got shape {a.shape} with values {a!r}")
-        return np.clip(self._planner_action + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+        return _summed(self._planner_action, self.scale, a)
 
     def step(self, action: Any):
         """Step the wrapped env with the summed action; the observation gains the carrot and a_p."""
@@ -176,25 +209,15 @@ class _VectorPlannerWrapper(gym.vector.VectorWrapper):
             )
         self.params = params
         self.follower = PathFollower(params, lookahead, planner)
-        box = env.single_observation_space
-        error = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)["error"]
-        self._low, self._high = box.low[error].astype(np.float64), box.high[error].astype(np.float64)
-        extra = np.ones(n_extra)
-        self.single_observation_space = spaces.Box(
-            np.concatenate([box.low, box.low[error], -extra]).astype(np.float32),
-            np.concatenate([box.high, box.high[error], extra]).astype(np.float32),
-            dtype=np.float32,
+        self._low, self._high, self.single_observation_space = _augmented_box(
+            env.single_observation_space, params, n_extra
         )
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, env.num_envs)
         self._ended = np.zeros(env.num_envs, dtype=bool)
 
     def _offsets(self, info: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(poses, carrots, the carrots' twist offsets clipped to the error block's bounds), each (N, m)."""
-        pose = np.asarray(info["pose"], dtype=float)
-        target = np.asarray(info["target"], dtype=float)
-        carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
-        offset = np.clip(pose_error(self.params, pose, carrot), self._low, self._high)
-        return pose, carrot, offset
+        return _carrot_offsets(self, info["pose"], info["target"])
 
     def _plan(self, rows: np.ndarray, info: dict[str, Any]) -> None:
         for i in rows:
@@ -246,11 +269,9 @@ class VectorPlannerResidualWrapper(_VectorPlannerWrapper):
         self, env: gym.vector.VectorEnv, scale: float = 0.5, lookahead: float = 0.1, planner: str = "auto"
     ) -> None:
         """Wrap ``env``; see ``PlannerResidualWrapper``."""
-        if not (isinstance(scale, (int, float)) and np.isfinite(scale) and 0.0 < scale <= 2.0):
-            raise ValueError(f"scale must be a number in (0, 2], got {scale!r}")
+        self.scale = _residual_scale(scale)
         n = env.single_action_space.shape[0]
         self._setup(env, lookahead, planner, n)
-        self.scale = float(scale)
         self.controller = PlannerController(self.params, follower=self.follower)
         self._planner_action = np.zeros((env.num_envs, n), dtype=np.float32)
 
@@ -264,7 +285,7 @@ class VectorPlannerResidualWrapper(_VectorPlannerWrapper):
         a = np.asarray(actions, dtype=np.float64)
         if a.shape != self._planner_action.shape or not np.all(np.isfinite(a)):
             raise ValueError(f"actions must be finite with shape {self._planner_action.shape}, got shape {a.shape}")
-        return np.clip(self._planner_action + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+        return _summed(self._planner_action, self.scale, a)
 
     def step(self, actions: Any):
         """Step the wrapped vector env with the summed actions; each observation gains its carrot and a_p."""
