@@ -568,8 +568,12 @@ def evaluate_rows(
     seed: int,
     targets: str | None,
     shield: float | None = None,
+    env_kwargs: dict[str, Any] | None = None,
 ) -> list[EpisodeRecord]:
     """Episodes i = 0 … episodes − 1 (reset seed ``seed + i``) of ``agent`` on ``env_id``, behind the shield if set.
+
+    The env is built with ``env_kwargs`` (default: the run's own, ``run_env_kwargs(config)``); ``config`` is the
+    run's config ({} for a classical controller).
 
     All episodes run at once on the id's native vector env (``evaluate_vector``, with the vector
     form of the run's ``env_wrapper``), except for a run whose wrapper has no vector form (the goal view of HER),
@@ -577,15 +581,16 @@ def evaluate_rows(
     batched actions aside, which may differ in the last bit of float32). The shield sits inside the run's wrapper:
     it filters the action the env receives (a residual policy's sum).
     """
+    env_kwargs = run_env_kwargs(config) if env_kwargs is None else env_kwargs
     if env_id in envs.ENV_IDS:
-        plain = make_vector_env(env_id, episodes, run_env_kwargs(config), shield)
+        plain = make_vector_env(env_id, episodes, env_kwargs, shield)
         venv = wrap_vector_for_run(plain, config)
         try:
             if venv is not None:
                 return evaluate_vector(agent, venv, seed, targets)
         finally:
             plain.close()
-    env = gym.make(env_id, **run_env_kwargs(config))
+    env = gym.make(env_id, **env_kwargs)
     if shield is not None:
         env = envs.SingularityShield(env, k_guard=shield)
     env = wrap_for_run(env, config)
@@ -846,15 +851,11 @@ def main(argv: list[str] | None = None) -> int:
         if shielded and args.out is None:
             out = out.with_name(f"{out.name}-shield")
         frames: list[np.ndarray] | None = [] if args.video else None
-        venv = None
-        if frames is None:  # every episode at once on the native vector env, where the run's wrapper has a vector form
-            plain = make_vector_env(env_id, args.episodes, env_kwargs, args.shield)
-            venv = wrap_vector_for_run(plain, config) if args.run is not None else plain
-            if venv is None:
-                plain.close()
-        if venv is not None:
-            records = evaluate_vector(agent, venv, args.seed, args.targets)
-            venv.close()
+        if frames is None:  # every episode at once where the env (and the run's wrapper) has a vector form
+            run_config = config if args.run is not None else {}
+            records = evaluate_rows(
+                agent, run_config, env_id, args.episodes, args.seed, args.targets, args.shield, env_kwargs
+            )
         else:
             records = evaluate_agent(agent, env, args.episodes, args.seed, args.targets, frames)
         label = f"{name} @ {targets}"
