@@ -20,7 +20,7 @@ at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on
 3. With ``select_round="best"``, the learner of the round that did best when it acted (success rate minus
    singularity terminations per episode, on that round's training episodes; the last learner is scored on
    ``episodes`` more) is kept, as DAgger's guarantee is for the best of its policies; with "last", the last one.
-4. Optionally ``ppo_steps`` of PPO from the distilled weights (the normalisation stays fixed).
+4. Optionally ``ppo_steps`` of PPO fine-tuning of the folder, in place (``finetune``).
 
 ``finetune`` (``--from-run``) fine-tunes a distilled run with PPO on the env's own reward: the critic alone is
 fitted first (``warmup_steps``, the actor frozen, so that the first policy updates use a value function of the
@@ -265,8 +265,6 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         kept = max(scores, key=lambda i: (scores[i], i))
         policy.load_state_dict(snapshots[kept])
         log(f"kept the learner of round {kept} (score {scores[kept]:.2f}: success − singular per episode)")
-    if config.ppo_steps > 0:
-        model.learn(config.ppo_steps)
     model.save(run_dir / "model.zip")
     normalizer.save(str(run_dir / "vecnormalize.pkl"))
     # time per decision of the learner (one observation) against the expert's planning time per episode
@@ -300,6 +298,8 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     }
     (run_dir / "config.yml").write_text(yaml.safe_dump(run_config, sort_keys=False))
     (run_dir / "command.txt").write_text(" ".join(["python -m training.distill", *sys.argv[1:]]) + "\n")
+    if config.ppo_steps > 0:  # fine-tune the folder in place
+        result["finetune"] = finetune(run_dir, run_dir, FinetuneConfig(steps=config.ppo_steps, seed=config.seed), log)
     return result
 
 
