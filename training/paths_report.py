@@ -17,65 +17,49 @@ from __future__ import annotations
 
 import argparse
 import sys
-from importlib import resources
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
-from training import plots
+from training import demo, plots
 from training.evaluate import evaluate_rows, load_controller, load_run
 
-__all__ = ["ROBOTS", "main", "robot_paths"]
+__all__ = ["main", "robot_paths", "robots"]
 
 
-def _pretrained(name: str) -> Path:
-    return Path(str(resources.files("training").joinpath("pretrained", name)))
+def robots() -> dict[str, tuple[str, str, tuple[Path, ...]]]:
+    """Robot stem → (title, Reach id of its hard targets, its shipped runs): the main job's robots with hard targets.
 
-
-#: Robot stem → (title, Reach id of its hard targets, shipped runs shown: label → run folder).
-ROBOTS: dict[str, tuple[str, str, dict[str, Path]]] = {
-    "planar_3rpr": (
-        "Planar 3-RPR (detours)",
-        "Planar3RPRReachHard-v0",
-        {
-            "plan-free policy": _pretrained("distill-Planar3RPRReachMixed-v0"),
-            "residual over the planner": _pretrained("ppo-Planar3RPRReachMixed-v0"),
-        },
-    ),
-    "planar_3rrr": (
-        "Planar 3-RRR (ill-conditioned targets next to its Type II band)",
-        "Planar3RRRReachHard-v0",
-        {
-            "plan-free policy": _pretrained("distill-Planar3RRRReach-v0"),
-            "PPO policy": _pretrained("ppo-Planar3RRRReach-v0"),
-        },
-    ),
-    "hexapod": (
-        "Stewart–Gough hexapod (ill-conditioned targets toward Fichter's singularity)",
-        "StewartGoughReachHard-v0",
-        {"PPO policy (hard-trained)": _pretrained("ppo-StewartGoughReachHard-v0")},
-    ),
-    "delta": (
-        "Delta (ill-conditioned targets at the workspace's edge)",
-        "DeltaReachHard-v0",
-        {"PPO policy": _pretrained("ppo-DeltaReach-v0")},
-    ),
-}
+    The 3-RPR's runs are its plan-free and residual policies; the other robots' are their sections' in
+    ``training.demo.FAMILY_DEMOS``.
+    """
+    out = {
+        "planar_3rpr": (
+            "Planar 3-RPR (detours)",
+            "Planar3RPRReachHard-v0",
+            (demo.PRETRAINED_PLAN_FREE_RUN, demo.PRETRAINED_MIXED_RUN),
+        )
+    }
+    for name, (title, ids, runs) in demo.FAMILY_DEMOS.items():
+        if "hard" in ids:
+            out[name] = (title, ids["hard"], runs)
+    return out
 
 
 def robot_paths(name: str, out: Path, episodes: int, seed: int) -> tuple[int, dict[str, object]]:
     """Evaluate a robot's agents on its hard episodes and draw the chosen one; (its index, label → its record)."""
-    title, env_id, runs = ROBOTS[name]
+    title, env_id, runs = robots()[name]
     env = gym.make(env_id)
     agents: dict[str, tuple[object, dict]] = {
         "planner": (load_controller("planner", env), {}),
         "resolved-rate": (load_controller("resolved-rate", env), {}),
     }
-    for label, run in runs.items():
-        if run.is_dir():
-            agents[label] = load_run(run)
+    shipped = [run for run in runs if run.is_dir()]
+    for i, run in enumerate(shipped):  # labelled as in the main job
+        agent, config = load_run(run)
+        agents[demo.policy_label(config, main=i == 0 and name != "planar_3rpr")] = (agent, config)
     records = {
         label: evaluate_rows(agent, config, env_id, episodes, seed, "hard") for label, (agent, config) in agents.items()
     }
@@ -94,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--episodes", type=int, default=20, help="hard episodes searched for the one drawn")
     parser.add_argument("--seed", type=int, default=5000, help="reset seed of the first episode")
-    parser.add_argument("--robots", nargs="*", default=list(ROBOTS), choices=list(ROBOTS))
+    parser.add_argument("--robots", nargs="*", default=list(robots()), choices=list(robots()))
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes must be ≥ 1, got {args.episodes}")
@@ -112,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     for name in args.robots:
         _, episode = robot_paths(name, out, args.episodes, args.seed)
-        lines += [f"## {ROBOTS[name][0]}", "", f"![{name}]({name}.png)", ""]
+        lines += [f"## {robots()[name][0]}", "", f"![{name}]({name}.png)", ""]
         lines += ["| agent | outcome | min k | steps |", "|---|---|---|---|"]
         for label, rec in episode.items():
             outcome = "reached" if rec.success else (rec.termination_reason or "not reached")
