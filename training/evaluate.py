@@ -405,8 +405,8 @@ def _episode_record(
         episode: Its index.
         last: The last step's info of this episode (scalars).
         total: Sum of its rewards.
-        series: "pose", "target" (T + 1, m), "inverse_condition_number", "position_error", "orientation_error"
-            (T + 1,): from the reset to the last step.
+        series: "pose", "target" (T + 1, m), "inverse_condition_number", "position_error", "orientation_error",
+            "is_success" (T + 1,): from the reset to the last step.
         costs: ``cost`` per step, shape (T,).
         planner: The planning agent's ``episode_metrics``, or None.
     """
@@ -419,6 +419,7 @@ def _episode_record(
             series["position_error"], series["orientation_error"], costs, poses[:, :d], goal[:, :d],
             float(base.params.dt),
         )  # fmt: skip
+    reached = np.flatnonzero(series["is_success"])
     return EpisodeRecord(
         episode=episode,
         success=bool(last["is_success"]),
@@ -435,11 +436,12 @@ def _episode_record(
         inverse_condition=series["inverse_condition_number"],
         tracking=tracking,
         planner=planner,
+        time_to_target_s=float(reached[0] * base.params.dt) if reached.size else None,
     )
 
 
 #: The per-step info entries an episode record keeps.
-_SERIES = ("pose", "target", "inverse_condition_number", "position_error", "orientation_error")
+_SERIES = ("pose", "target", "inverse_condition_number", "position_error", "orientation_error", "is_success")
 
 
 def evaluate_agent(
@@ -635,6 +637,8 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
                 },
             }
         }
+    reached = [r.time_to_target_s for r in records if r.time_to_target_s is not None]
+    time_to_target = {"time_to_target_s": {**stats(reached), "episodes": len(reached)}} if reached else {}
     return {
         "episodes": len(records),
         "success_rate": float(np.mean([r.success for r in records])),
@@ -651,6 +655,7 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
         "episode_length": stats([r.length for r in records]),
         **tracking,
         **planner,
+        **time_to_target,
     }
 
 

@@ -11,7 +11,8 @@ standard and hard targets: the planner, the distilled plan-free runs (each seed)
 planner, resolved-rate and singularity-aware control, and the plan-free runs behind ``envs.SingularityShield``.
 Writes each evaluation's folder, ``table.md`` (``training.family_report``: mean ± std over seeds),
 ``timing.md`` (the plan-free policy's time per decision, as ``training.evaluate`` runs it, against the
-planner's planning time per hard episode) and ``paths_hard.png`` (the planner's and the first plan-free run's
+planner's planning time per hard episode; and its time to the target against the planner's on the hard episodes
+both reach) and ``paths_hard.png`` (the planner's and the first plan-free run's
 paths on the same hard episodes over the map of k; robots with a certified grid). An evaluation whose
 ``metrics.json`` exists is kept; ``--from-metrics`` only writes ``table.md`` again from those files (no
 evaluation, no timing, no picture).
@@ -20,6 +21,7 @@ evaluation, no timing, no picture).
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import statistics
 import sys
@@ -55,6 +57,47 @@ def _decision_seconds(run: str, env_id: str, repeats: int = 2000) -> float:
         for _ in range(repeats):
             agent(batch)
     return (time.perf_counter() - clock) / repeats
+
+
+def _times_to_target(folder: Path) -> dict[int, float]:
+    """Episode → time to the target [s] of an evaluation folder's ``episodes.csv`` (episodes that reached it)."""
+    with (folder / "episodes.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    if rows and "time_to_target_s" not in rows[0]:
+        raise SystemExit(f"{folder / 'episodes.csv'} has no time_to_target_s: delete {folder} to evaluate it again")
+    return {int(row["episode"]): float(row["time_to_target_s"]) for row in rows if row["time_to_target_s"]}
+
+
+def time_to_target_table(out: Path, runs: list[str]) -> str:
+    """Markdown: each plan-free run's time to the hard targets against the planner's, on the episodes both reach.
+
+    Per run, the mean over those episodes of the plan-free policy's time and of the planner's (``planner-hard``),
+    and of their ratio; the table gives the mean ± std of these over runs.
+    """
+    planner = _times_to_target(out / "planner-hard")
+    columns: dict[str, list[float]] = {"pairs": [], "policy": [], "planner": [], "ratio": []}
+    for run in runs:
+        policy = _times_to_target(out / f"{Path(run).name}-hard")
+        both = sorted(set(policy) & set(planner))
+        if not both:
+            continue
+        columns["pairs"].append(len(both))
+        columns["policy"].append(statistics.mean(policy[e] for e in both))
+        columns["planner"].append(statistics.mean(planner[e] for e in both))
+        columns["ratio"].append(statistics.mean(policy[e] / planner[e] for e in both))
+
+    def cell(values: list[float], digits: int) -> str:
+        if not values:
+            return "-"
+        spread = f" ± {statistics.stdev(values):.{digits}f}" if len(values) > 1 else ""
+        return f"{statistics.mean(values):.{digits}f}{spread}"
+
+    return (
+        "| hard episodes both reach (per run) | plan-free policy: time to the target [s] | planner: time to the "
+        "target [s] | ratio plan-free / planner |\n|---|---|---|---|\n"
+        f"| {cell(columns['pairs'], 1)} | {cell(columns['policy'], 2)} | {cell(columns['planner'], 2)} "
+        f"| {cell(columns['ratio'], 2)} |\n"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -115,7 +158,10 @@ def main(argv: list[str] | None = None) -> int:
         "| plan-free policy: time per decision [ms] (mean ± std over runs) | planner: planning time per hard "
         "episode [ms] (mean) | ratio |\n|---|---|---|\n"
         f"| {statistics.mean(decision_ms):.3f}{spread} | {planning_ms:.2f} "
-        f"| {planning_ms / statistics.mean(decision_ms):.0f}× |\n"
+        f"| {planning_ms / statistics.mean(decision_ms):.0f}× |\n\n"
+        "Time to the target (the end of the first step within the success tolerances), mean over the hard "
+        "episodes both the plan-free run and the planner reach, mean ± std over runs:\n\n"
+        + time_to_target_table(out, args.runs)
     )
 
     # the planner's and the first plan-free run's paths on the same hard episodes

@@ -33,6 +33,8 @@ class EpisodeRecord:
         planner: For an agent that plans (``PlannerController``), its ``episode_metrics()`` at the episode's
             end: whether a certified path was found, planned length / straight length, the planned path's
             smallest k and the planning time [s]; None otherwise.
+        time_to_target_s: Time from the reset to the end of the first step within the success tolerances [s]
+            (steps × dt); None if no step was.
     """
 
     episode: int
@@ -50,6 +52,7 @@ class EpisodeRecord:
     inverse_condition: np.ndarray = field(repr=False)
     tracking: dict[str, float] | None = field(default=None, repr=False)
     planner: dict[str, float] | None = field(default=None, repr=False)
+    time_to_target_s: float | None = None
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, for ``episodes.csv`` (the tracking metrics go to ``metrics.json``)."""
