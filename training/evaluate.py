@@ -44,6 +44,7 @@ __all__ = [
     "evaluate_rows",
     "evaluate_vector",
     "load_controller",
+    "load_model",
     "load_run",
     "main",
     "make_vector_env",
@@ -232,15 +233,15 @@ def read_run_config(run_dir: str | Path) -> dict[str, Any]:
     return config
 
 
-def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str, Any]]:
-    """Load a trained policy and its observation normalisation from a run folder.
+def load_model(run_dir: str | Path, which: str = "final") -> tuple[Any, Any, dict[str, Any]]:
+    """Load a run folder's SB3 model and its observation normalisation.
 
     Args:
-        run_dir: The run folder written by ``training.train``.
+        run_dir: The run folder written by ``training.train`` (or the RL Zoo, or ``training.distill``).
         which: "final" (``model.zip``) or "best" (``best_model.zip`` of the periodic evaluations).
 
     Returns:
-        (a batched deterministic agent, the run's configuration).
+        (the model on the CPU, its ``VecNormalize`` in evaluation mode or None, the run's configuration).
 
     Raises:
         EvaluationError: If the folder, the model or the normalisation statistics are missing or corrupt.
@@ -289,6 +290,23 @@ def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str
         except Exception as exc:
             raise EvaluationError(f"cannot load {str(stats)!r}: {type(exc).__name__}: {exc}") from exc
         normalizer.training = False
+    return model, normalizer, config
+
+
+def load_run(run_dir: str | Path, which: str = "final") -> tuple[Agent, dict[str, Any]]:
+    """Load a trained policy and its observation normalisation from a run folder.
+
+    Args:
+        run_dir: The run folder written by ``training.train``.
+        which: "final" (``model.zip``) or "best" (``best_model.zip`` of the periodic evaluations).
+
+    Returns:
+        (a batched deterministic agent, the run's configuration).
+
+    Raises:
+        EvaluationError: If the folder, the model or the normalisation statistics are missing or corrupt.
+    """
+    model, normalizer, config = load_model(run_dir, which)
 
     def agent(obs: np.ndarray) -> np.ndarray:
         if normalizer is not None:

@@ -10,7 +10,8 @@ Evaluates (``training.evaluate``, ``--episodes`` from reset seed ``--seed``, hel
 standard and hard targets: the planner, the distilled plan-free runs (each seed), the residual policy over the
 planner, resolved-rate and singularity-aware control, and the plan-free runs behind ``envs.SingularityShield``.
 Writes each evaluation's folder, ``table.md`` (``training.family_report``: mean ± std over seeds),
-``timing.md`` (the plan-free policy's time per decision, as ``training.evaluate`` runs it, against the
+``timing.md`` (the plan-free policy's time per decision, as ``training.evaluate`` runs it and exported by
+``training.export``, against the
 planner's planning time per hard episode; and its time to the target against the planner's on the hard episodes
 both reach) and ``paths_hard.png`` (the planner's and the first plan-free run's
 paths on the same hard episodes over the map of k; robots with a certified grid). An evaluation whose
@@ -25,13 +26,14 @@ import csv
 import json
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import gymnasium as gym
 
 import envs  # noqa: F401  (registers the ids)
-from training import evaluate, family_report, plots
+from training import evaluate, export, family_report, plots
 
 __all__ = ["main"]
 
@@ -42,21 +44,31 @@ def _evaluate(out: Path, args: list[str]) -> Path:
     return out
 
 
-def _decision_seconds(run: str, env_id: str, repeats: int = 2000) -> float:
-    """Wall time of one decision of a run's policy (observation normalised, deterministic action), one at a time."""
+def _decision_seconds(run: str, env_id: str, folder: Path, repeats: int = 2000) -> tuple[float, float]:
+    """Wall time of one decision of a run's policy, one observation at a time: (through SB3, exported).
+
+    Through SB3: ``training.evaluate.load_run``'s agent (VecNormalize, then ``predict``), as the evaluations run
+    it. Exported: the same policy as one TorchScript function (``training.export``), as a robot would run it.
+    """
     import torch
 
     agent, _ = evaluate.load_run(run)
+    deployed = torch.jit.load(str(export.export_run(run, folder / f"{Path(run).name}.pt")))
     env = gym.make(env_id)
     obs, _ = env.reset(seed=0)
     batch = obs[None]
-    with torch.no_grad():
+    tensor = torch.as_tensor(batch)
+
+    def clock(decide) -> float:
         for _ in range(50):
-            agent(batch)
-        clock = time.perf_counter()
+            decide()
+        start = time.perf_counter()
         for _ in range(repeats):
-            agent(batch)
-    return (time.perf_counter() - clock) / repeats
+            decide()
+        return (time.perf_counter() - start) / repeats
+
+    with torch.inference_mode():
+        return clock(lambda: agent(batch)), clock(lambda: deployed(tensor))
 
 
 def _times_to_target(folder: Path) -> dict[int, float]:
@@ -152,13 +164,22 @@ def main(argv: list[str] | None = None) -> int:
     # planner's planning time per episode on the same hard episodes, measured here one after the other
     planner_metrics = json.loads((out / "planner-hard" / "metrics.json").read_text())
     planning_ms = 1e3 * planner_metrics["planner"]["planning_s"]["mean"]
-    decision_ms = [1e3 * _decision_seconds(run, args.env) for run in args.runs]
-    spread = f" ± {statistics.stdev(decision_ms):.3f}" if len(decision_ms) > 1 else ""
+    with tempfile.TemporaryDirectory() as scratch:
+        seconds = [_decision_seconds(run, args.env, Path(scratch)) for run in args.runs]
+    sb3_ms, exported_ms = ([1e3 * s[i] for s in seconds] for i in (0, 1))
+
+    def ms(values: list[float]) -> str:
+        spread = f" ± {statistics.stdev(values):.3f}" if len(values) > 1 else ""
+        return f"{statistics.mean(values):.3f}{spread}"
+
     (out / "timing.md").write_text(
-        "| plan-free policy: time per decision [ms] (mean ± std over runs) | planner: planning time per hard "
-        "episode [ms] (mean) | ratio |\n|---|---|---|\n"
-        f"| {statistics.mean(decision_ms):.3f}{spread} | {planning_ms:.2f} "
-        f"| {planning_ms / statistics.mean(decision_ms):.0f}× |\n\n"
+        "| plan-free policy: time per decision through SB3 [ms] | exported (TorchScript) [ms] | planner: planning "
+        "time per hard episode [ms] (mean) | ratio, through SB3 | ratio, exported |\n|---|---|---|---|---|\n"
+        f"| {ms(sb3_ms)} | {ms(exported_ms)} | {planning_ms:.2f} | {planning_ms / statistics.mean(sb3_ms):.0f}× "
+        f"| {planning_ms / statistics.mean(exported_ms):.0f}× |\n\n"
+        "Times per decision: one observation at a time, mean ± std over runs; through SB3 is VecNormalize and "
+        "`predict`, as `training.evaluate` runs it; exported is `training.export`'s TorchScript function of the "
+        "same policy.\n\n"
         "Time to the target (the end of the first step within the success tolerances), mean over the hard "
         "episodes both the plan-free run and the planner reach, mean ± std over runs:\n\n"
         + time_to_target_table(out, args.runs)
