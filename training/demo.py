@@ -238,12 +238,21 @@ FAMILY_DEMOS: dict[str, tuple[str, dict[str, str], tuple[Path, ...]]] = {
     "hexapod": (
         "Stewart–Gough hexapod",
         {"standard": "StewartGoughReach-v0", "hard": "StewartGoughReachHard-v0"},
-        (PRETRAINED_HEXAPOD_RUN, PRETRAINED_HEXAPOD_HARD_RUN),
+        (
+            PRETRAINED_HEXAPOD_RUN,
+            PRETRAINED_HEXAPOD_HARD_RUN,
+            _pretrained("ppo-residual-StewartGoughReachHard-v0"),
+            _pretrained("distill-StewartGoughReachHard-v0"),
+        ),
     ),
     "delta": (
         "Delta robot (cranks, translational plate)",
         {"standard": "DeltaReach-v0", "hard": "DeltaReachHard-v0"},
-        (_pretrained("ppo-DeltaReach-v0"),),
+        (
+            _pretrained("ppo-DeltaReach-v0"),
+            _pretrained("ppo-residual-DeltaReachHard-v0"),
+            _pretrained("distill-DeltaReachHard-v0"),
+        ),
     ),
     "planar_3rrr": (
         "Planar 3-RRR (cranks)",

@@ -172,9 +172,10 @@ def test_demo_reports_the_hexapod(pretrained_run, tmp_path):
     """The main job's report has the hexapod section: policy, resolved-rate and planner, standard and hard, a GIF."""
     out = tmp_path / "demo"
     metrics = demo.run_hexapod_demo(demo.PRETRAINED_HEXAPOD_RUN, out, episodes=2)
-    agents = ["PPO policy", "resolved-rate", "planner"]
-    if demo.PRETRAINED_HEXAPOD_HARD_RUN.is_dir():
-        agents.append("PPO policy (hard-trained)")
+    _title, _ids, runs = demo.FAMILY_DEMOS["hexapod"]
+    agents = ["resolved-rate", "planner"]
+    agents += [demo.policy_label(load_run(run)[1], main=i == 0) for i, run in enumerate(runs) if run.is_dir()]
+    assert agents[2] == "PPO policy"
     expected = {
         f"{agent}{shield} @ {targets}"
         for agent in agents
@@ -242,7 +243,11 @@ def test_shipped_crank_policies_keep_their_recorded_performance(run):
 
 
 #: The shipped plan-free (``training.distill``) and residual policies of the other robots, with their regression.json.
-PLAN_FREE_RUNS = [demo._pretrained("distill-Planar3RRRReach-v0"), demo._pretrained("ppo-residual-Planar3RRRReach-v0")]
+PLAN_FREE_RUNS = [
+    demo._pretrained(f"{kind}-{env_id}")
+    for env_id in ("Planar3RRRReach-v0", "StewartGoughReachHard-v0", "DeltaReachHard-v0")
+    for kind in ("distill", "ppo-residual")
+]
 
 
 @pytest.mark.slow
