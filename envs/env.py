@@ -275,6 +275,7 @@ _ARGUMENTS_DOC = """
     | `singularity_weight` | float | `1.0` | w_s |
     | `action_weight` | float | `0.01` | w_a |
     | `termination_penalty` | float | `50.0` | P |
+    | `success_reward` | float | `0.0` | b, added at every step that ends within the success tolerances |
     | `success_position_tolerance` | float | `0.01` | [m] |
     | `success_orientation_tolerance` | float | `0.05` | [rad] |
     | `track_period` | float | `8.0` | Track reference period [s] |
@@ -356,9 +357,11 @@ class FamilyReachEnv(FamilyEnvBase):
 
     ## Rewards
     r = −(w_p ‖p* − p‖ + w_o ℓ_c θ_err) − w_s ((k_safe − k)/k_safe)² [k < k_safe] − w_a ‖a‖² − P [terminated],
-    − w_s1 ((k_I,safe − k_I)/k_I,safe)² [k_I < k_I,safe], with θ_err the angle of R* Rᵀ (the last term, Type I, is 0
-    for legs). Each term is in `info` and the reward is their sum; `info["cost"]` = 1 while k < k_safe or
-    k_I < k_I,safe, and `info["cost_actuator_singularity"]` = 1 while k_I < k_I,safe (the Type I part alone).
+    − w_s1 ((k_I,safe − k_I)/k_I,safe)² [k_I < k_I,safe] + b [success], with θ_err the angle of R* Rᵀ (the Type I
+    term is 0 for legs; b = `success_reward`, 0 by default, is paid at every step that ends with
+    `info["is_success"]`). Each term is in `info` (the last as `info["reward_success"]`) and the reward is their
+    sum; `info["cost"]` = 1 while k < k_safe or k_I < k_I,safe, and `info["cost_actuator_singularity"]` = 1 while
+    k_I < k_I,safe (the Type I part alone).
 
     ## Starting State
     Tasks are certified, not guessed (a 6-D pose space cannot be gridded): start and target are drawn

@@ -45,6 +45,7 @@ class FamilyParams:
         singularity_weight: w_s.
         action_weight: w_a.
         termination_penalty: P.
+        success_reward: b: reward added at every step that ends within the success tolerances (not terminated).
         success_position_tolerance: [m].
         success_orientation_tolerance: [rad].
         newton_tolerance: Residual max_i |Φ_i| of the correction [m²].
@@ -110,6 +111,7 @@ class FamilyParams:
     singularity_weight: float = 1.0
     action_weight: float = 0.01
     termination_penalty: float = 50.0
+    success_reward: float = 0.0
     success_position_tolerance: float = 0.01
     success_orientation_tolerance: float = 0.05
     newton_tolerance: float = 1e-12

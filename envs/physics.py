@@ -75,12 +75,14 @@ def wrap_angle(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
+#: The reward terms by their info keys, in the order the step sums them.
 REWARD_TERMS = (
     "reward_tracking",
     "reward_singularity",
     "reward_action",
     "reward_termination",
     "reward_actuator_singularity",
+    "reward_success",
 )
 #: The scalar entries of a single env's ``info``, in order; "is_success" becomes a bool, then come
 #: "termination_reason", "pose" and "target", then the Type I entries (``TYPE_I_INFO``).
@@ -89,6 +91,7 @@ INFO_KEYS = (
     "reward_singularity",
     "reward_action",
     "reward_termination",
+    "reward_success",
     "position_error",
     "orientation_error",
     "inverse_condition_number",
@@ -430,11 +433,12 @@ def reward_terms(
         target: Target poses, shape (N, m).
         inverse_condition: k, shape (N,).
         action: Applied actions, shape (N, n).
-        reason: Termination reason codes, shape (N,).
+        reason: Termination reason codes, shape (N,) (a terminated step has no success term).
         actuator_condition: k_I, shape (N,) (default 1: no Type I penalty, as for legs).
 
     Returns:
-        The ``REWARD_TERMS``, each shape (N,).
+        The ``REWARD_TERMS``, each shape (N,); ``reward_success`` is ``success_reward`` where reason is 0 and x is
+        within the success tolerances of target, else 0.
     """
     m = params.robot.n_pose
     x, target = _rows(x, m, "x"), _rows(target, m, "target")

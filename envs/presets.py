@@ -495,6 +495,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         "singularity_weight",
         "action_weight",
         "termination_penalty",
+        "success_reward",
         "actuator_singularity_weight",
         "stroke_margin",
         "min_distance",

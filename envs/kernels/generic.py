@@ -77,6 +77,7 @@ __all__ = [
 from envs.kernels.layout import (
     C_A,
     C_B,
+    C_BONUS,
     C_BRANCH,
     C_DT,
     C_E,
@@ -126,6 +127,7 @@ from envs.kernels.layout import (
     C_WS1,
     E_ACTION,
     E_ACTUATOR,
+    E_BONUS,
     E_COST,
     E_COST1,
     E_FIXED,
@@ -270,7 +272,7 @@ def pack_family(params) -> np.ndarray:
     c[C_RK4] = 1.0 if params.integrator == "rk4" else 0.0
     c[C_WP], c[C_WO] = params.position_weight, params.orientation_weight
     c[C_WS], c[C_WA] = params.singularity_weight, params.action_weight
-    c[C_PENALTY] = params.termination_penalty
+    c[C_PENALTY], c[C_BONUS] = params.termination_penalty, params.success_reward
     c[C_SUCC_P], c[C_SUCC_O] = params.success_position_tolerance, params.success_orientation_tolerance
     c[C_NEWTON_TOL], c[C_NEWTON_IT] = params.newton_tolerance, params.newton_max_iterations
     c[C_JUMP], c[C_MAX_SUBSTEP], c[C_MAX_SUBSTEPS] = params.jump_tolerance, params.max_substep, params.max_substeps
@@ -1168,13 +1170,15 @@ def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
         pose, target = (xi[0], xi[1], xi[2]), (g[0], g[1], g[2])
         applied = (action[i, 0], action[i, 1], action[i, 2])
         tr, si, ac, te, ep, eo = planar.reward_terms(c, pose, target, k[i], applied, reason[i])
+        success = reason[i] == 0 and planar.is_success(c, ep, eo)
+        bonus = c[C_BONUS] if success else 0.0
         o_eval[E_TRACKING, i], o_eval[E_SINGULARITY, i], o_eval[E_ACTION, i], o_eval[E_TERMINATION, i] = tr, si, ac, te
-        o_eval[E_REWARD, i] = tr + si + ac + te
+        o_eval[E_BONUS, i] = bonus
+        o_eval[E_REWARD, i] = tr + si + ac + te + bonus
         o_eval[E_ACTUATOR, i] = 0.0  # legs: no Type I singularity
         o_eval[E_K1, i] = k1[i]
         o_eval[E_COST1, i] = 0.0
         o_eval[E_POSITION_ERROR, i], o_eval[E_ORIENTATION_ERROR, i] = ep, eo
-        success = reason[i] == 0 and planar.is_success(c, ep, eo)
         o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
         o_eval[E_COST, i] = 1.0 if k[i] < c[C_SAFE] else 0.0
         o_eval[E_K, i] = k[i]
@@ -1204,16 +1208,18 @@ def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
     if k1i < safe1:
         gap1 = (safe1 - k1i) / safe1
         actuator = -c[C_WS1] * gap1 * gap1
+    success = (not terminated) and position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
+    bonus = c[C_BONUS] if success else 0.0
     o_eval[E_TRACKING, i] = tracking
     o_eval[E_SINGULARITY, i] = singularity
     o_eval[E_ACTION, i] = -c[C_WA] * a2
     o_eval[E_TERMINATION, i] = termination
-    o_eval[E_REWARD, i] = tracking + singularity - c[C_WA] * a2 + termination + actuator
+    o_eval[E_BONUS, i] = bonus
+    o_eval[E_REWARD, i] = tracking + singularity - c[C_WA] * a2 + termination + actuator + bonus
     o_eval[E_ACTUATOR, i] = actuator
     o_eval[E_K1, i] = k1i
     o_eval[E_POSITION_ERROR, i] = position_error
     o_eval[E_ORIENTATION_ERROR, i] = orientation_error
-    success = (not terminated) and position_error <= c[C_SUCC_P] and orientation_error <= c[C_SUCC_O]
     o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
     o_eval[E_COST, i] = 1.0 if ki < safe or k1i < safe1 else 0.0
     o_eval[E_COST1, i] = 1.0 if k1i < safe1 else 0.0

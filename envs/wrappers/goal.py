@@ -5,8 +5,9 @@ robot actually reached and asks the environment for the reward it would have pai
 observation split into ``observation`` / ``achieved_goal`` / ``desired_goal`` and a vectorised
 ``compute_reward``. ``GoalReachWrapper`` provides both on top of `Planar3RPRReach-v0` (or its hard
 variant) without touching the dynamics: ``compute_reward`` calls the environment's own batched
-``core.reward_terms`` for the tracking and conditioning terms and takes the action and termination terms
-from ``info``, so for the goal the episode really had it returns exactly the reward ``step`` paid.
+``envs.physics.reward_terms`` for the tracking, conditioning and success terms (success judged on the relabelled
+goal, never at a terminated step) and takes the action and termination terms from ``info``, so for the goal the
+episode really had it returns exactly the reward ``step`` paid.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.kernels.generic import observation_layout
-from envs.physics import reward_terms
+from envs.physics import TERMINATION_REASONS, reward_terms
 
 __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]
 
@@ -102,8 +103,10 @@ class GoalReachWrapper(gym.Wrapper):
         """The reward of a transition had the goal been ``desired_goal`` (batched, for HER).
 
         reward = tracking(achieved, desired) + singularity(k) + info's action term + info's termination
-        term (+ info's Type I term, for the family), summed in the order ``step`` sums them; the first two
-        come from ``core.reward_terms``.
+        term (+ info's Type I term, for the family) + success(achieved, desired), summed in the order ``step``
+        sums them; the tracking, singularity and success terms come from ``envs.physics.reward_terms``, the last
+        with the step's termination reason (``info["termination_reason"]``): ``success_reward`` where the step
+        did not terminate and ``achieved`` is within the success tolerances of ``desired``.
 
         Args:
             achieved_goal: Poses reached, shape (3,) or (B, 3).
@@ -127,7 +130,9 @@ class GoalReachWrapper(gym.Wrapper):
         k = np.array([i["inverse_condition_number"] for i in infos], dtype=np.float64)
         action = np.array([i["reward_action"] for i in infos], dtype=np.float64)
         termination = np.array([i["reward_termination"] for i in infos], dtype=np.float64)
-        terms = reward_terms(self.params, achieved, desired, k, np.zeros((n, self._n)), np.zeros(n, dtype=np.int64))
+        reason = np.array([TERMINATION_REASONS.index(i["termination_reason"]) for i in infos], dtype=np.int64)
+        terms = reward_terms(self.params, achieved, desired, k, np.zeros((n, self._n)), reason)
         actuator = np.array([i["reward_actuator_singularity"] for i in infos], dtype=np.float64)  # goal-free Type I
         reward = terms["reward_tracking"] + terms["reward_singularity"] + action + termination + actuator
+        reward += terms["reward_success"]
         return float(reward[0]) if single else reward

@@ -31,13 +31,14 @@ MAX_EPISODE_STEPS = {
     "ParallelRobotTrack-v0": 400,
 }
 
-#: The reward terms, whose sum is the reward (the last, Type I, is 0 for legs).
+#: The reward terms, whose sum is the reward (the Type I term is 0 for legs; the success term 0 by default).
 REWARD_TERMS = (
     "reward_tracking",
     "reward_singularity",
     "reward_action",
     "reward_termination",
     "reward_actuator_singularity",
+    "reward_success",
 )
 
 #: Every key an info dict must carry (reset and step).

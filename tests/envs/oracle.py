@@ -13,7 +13,7 @@ Written from the math of ``docs/environments.md`` and the env docstrings on the 
    (q, x); the first reason that applies, in the documented order: newton_failed, assembly_mode_change,
    singularity_crossed, singular, out_of_bounds, actuator_singular.
 5. r = −(w_p e_p + w_o ℓ_c e_o) − w_s ((k_safe − k)/k_safe)² [k < k_safe] − w_a ‖a‖² − P [terminated]
-   − w_s1 ((k_I,safe − k_I)/k_I,safe)² [k_I < k_I,safe].
+   − w_s1 ((k_I,safe − k_I)/k_I,safe)² [k_I < k_I,safe] + b [not terminated, e_p ≤ tol_p and e_o ≤ tol_o].
 
 Everything this oracle reads from an environment goes through ``settings_of`` and ``state_of`` below (its
 ``unwrapped.params`` and ``unwrapped.state``): adapting the oracle to a new layout of ``envs`` is done here.
@@ -76,6 +76,7 @@ _FIELDS = (
     "singularity_weight",
     "action_weight",
     "termination_penalty",
+    "success_reward",
     "success_position_tolerance",
     "success_orientation_tolerance",
     "newton_tolerance",
@@ -302,6 +303,11 @@ def reward_terms(
         "reward_action": -settings.action_weight * float(np.sum(action * action)),
         "reward_termination": -settings.termination_penalty if reason else 0.0,
     }
+    success = (
+        not reason
+        and position_error <= settings.success_position_tolerance
+        and orientation_error <= settings.success_orientation_tolerance
+    )
     if k < settings.safe_threshold:
         terms["reward_singularity"] = (
             -settings.singularity_weight * ((settings.safe_threshold - k) / settings.safe_threshold) ** 2
@@ -311,6 +317,7 @@ def reward_terms(
         terms["reward_actuator_singularity"] = (
             -settings.actuator_singularity_weight * ((safe1 - k1) / safe1) ** 2 if k1 < safe1 else 0.0
         )
+    terms["reward_success"] = settings.success_reward if success else 0.0
     return terms
 
 

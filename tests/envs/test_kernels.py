@@ -351,9 +351,9 @@ def test_mismatched_batches_are_refused(params, rng):
 def test_packed_constants_follow_params():
     """Every constant the kernels read comes from the params (a changed weight changes the reward)."""
     robot = Planar3RPR()
-    p = _params(position_weight=2.0, termination_penalty=7.0, stroke_limits=(0.25, 1.1))
+    p = _params(position_weight=2.0, termination_penalty=7.0, success_reward=3.0, stroke_limits=(0.25, 1.1))
     c = p.packed
-    assert c[family_layout.C_WP] == 2.0 and c[family_layout.C_PENALTY] == 7.0
+    assert c[family_layout.C_WP] == 2.0 and c[family_layout.C_PENALTY] == 7.0 and c[family_layout.C_BONUS] == 3.0
     assert (c[family_layout.C_LMIN], c[family_layout.C_LMAX]) == (0.25, 1.1)
     base = c[family_layout.C_B : family_layout.C_B + 9].reshape(3, 3)
     np.testing.assert_array_equal(base[:, :2], robot.base)

@@ -52,6 +52,7 @@ WEIGHTS = {
     "singularity_weight": 1.7,
     "action_weight": 0.05,
     "termination_penalty": 37.0,
+    "success_reward": 4.0,
 }
 TYPE_ONE_WEIGHTS = {"actuator_singularity_weight": 2.3}
 #: The relative offset of a threshold from the value it brackets.
