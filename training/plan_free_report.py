@@ -71,6 +71,11 @@ def _decision_seconds(run: str, env_id: str, folder: Path, repeats: int = 2000) 
         return clock(lambda: agent(batch)), clock(lambda: deployed(tensor))
 
 
+def _ratio(value: float) -> str:
+    """A speed ratio: whole numbers from 10 on, two significant digits below (0.14×, 6.2×)."""
+    return f"{value:.0f}×" if value >= 10 else f"{value:.2g}×"
+
+
 def _times_to_target(folder: Path) -> dict[int, float]:
     """Episode → time to the target [s] of an evaluation folder's ``episodes.csv`` (episodes that reached it)."""
     with (folder / "episodes.csv").open() as handle:
@@ -152,7 +157,8 @@ def main(argv: list[str] | None = None) -> int:
     plans = family_report.planner_table(groups)
     (out / "table.md").write_text(
         f"{args.episodes} episodes per run and target set from reset seed {args.seed} on `{args.env}` "
-        f"(plan-free: {len(args.runs)} seeds, mean ± std over seeds; shield k_guard = {args.shield}).\n\n"
+        f"(plan-free: {len(args.runs)} seed{'s' if len(args.runs) > 1 else ''}, mean ± std over seeds; shield "
+        f"k_guard = {args.shield}).\n\n"
         + family_report.table(groups)
         + (f"\nThe planner's plans:\n\n{plans}" if plans else "")
     )
@@ -175,8 +181,8 @@ def main(argv: list[str] | None = None) -> int:
     (out / "timing.md").write_text(
         "| plan-free policy: time per decision through SB3 [ms] | exported (TorchScript) [ms] | planner: planning "
         "time per hard episode [ms] (mean) | ratio, through SB3 | ratio, exported |\n|---|---|---|---|---|\n"
-        f"| {ms(sb3_ms)} | {ms(exported_ms)} | {planning_ms:.2f} | {planning_ms / statistics.mean(sb3_ms):.0f}× "
-        f"| {planning_ms / statistics.mean(exported_ms):.0f}× |\n\n"
+        f"| {ms(sb3_ms)} | {ms(exported_ms)} | {planning_ms:.2f} | {_ratio(planning_ms / statistics.mean(sb3_ms))} "
+        f"| {_ratio(planning_ms / statistics.mean(exported_ms))} |\n\n"
         "Times per decision: one observation at a time, mean ± std over runs; through SB3 is VecNormalize and "
         "`predict`, as `training.evaluate` runs it; exported is `training.export`'s TorchScript function of the "
         "same policy.\n\n"
