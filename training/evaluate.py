@@ -43,6 +43,7 @@ __all__ = [
     "evaluate_agent",
     "evaluate_rows",
     "evaluate_vector",
+    "evaluation_env_kwargs",
     "load_controller",
     "load_model",
     "load_run",
@@ -323,6 +324,27 @@ def run_env_kwargs(config: dict[str, Any]) -> dict[str, Any]:
     return dict(config.get("hyperparams", {}).get("env_kwargs") or {})
 
 
+#: Env keyword arguments that change the reward only. An evaluation leaves them at the id's values, so that every
+#: agent's return is the same reward's and returns compare across agents (a run trained with ``success_reward``
+#: is scored without it).
+REWARD_ONLY_KWARGS = frozenset(
+    {
+        "position_weight",
+        "orientation_weight",
+        "singularity_weight",
+        "action_weight",
+        "actuator_singularity_weight",
+        "termination_penalty",
+        "success_reward",
+    }
+)
+
+
+def evaluation_env_kwargs(config: dict[str, Any]) -> dict[str, Any]:
+    """``run_env_kwargs(config)`` without the ``REWARD_ONLY_KWARGS``: the env a run is evaluated on."""
+    return {key: value for key, value in run_env_kwargs(config).items() if key not in REWARD_ONLY_KWARGS}
+
+
 def wrap_for_run(env: gym.Env, config: dict[str, Any]) -> gym.Env:
     """Apply the run's ``env_wrapper`` (for example the goal view HER trains on), if it has one.
 
@@ -592,7 +614,8 @@ def evaluate_rows(
 ) -> list[EpisodeRecord]:
     """Episodes i = 0 … episodes − 1 (reset seed ``seed + i``) of ``agent`` on ``env_id``, behind the shield if set.
 
-    The env is built with ``env_kwargs`` (default: the run's own, ``run_env_kwargs(config)``); ``config`` is the
+    The env is built with ``env_kwargs`` (default: the run's own but its reward, ``evaluation_env_kwargs(config)``);
+    ``config`` is the
     run's config ({} for a classical controller).
 
     All episodes run at once on the id's native vector env (``evaluate_vector``, with the vector
@@ -601,7 +624,7 @@ def evaluate_rows(
     batched actions aside, which may differ in the last bit of float32). The shield sits inside the run's wrapper:
     it filters the action the env receives (a residual policy's sum).
     """
-    env_kwargs = run_env_kwargs(config) if env_kwargs is None else env_kwargs
+    env_kwargs = evaluation_env_kwargs(config) if env_kwargs is None else env_kwargs
     if env_id in envs.ENV_IDS:
         plain = make_vector_env(env_id, episodes, env_kwargs, shield)
         venv = wrap_vector_for_run(plain, config)
@@ -838,8 +861,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.run is not None:
             config = read_run_config(args.run)
             env_id = args.env or config["env_id"]
-            if env_id == config["env_id"]:  # the run's env as it was trained, unless the command line says otherwise
-                run_kwargs = run_env_kwargs(config)
+            if env_id == config["env_id"]:  # the run's env as it was trained (its reward aside), unless told otherwise
+                run_kwargs = evaluation_env_kwargs(config)
         else:
             env_id = args.env or "Planar3RPRReach-v0"
         if env_id not in envs.ENV_IDS:

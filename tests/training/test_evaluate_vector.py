@@ -107,3 +107,25 @@ def test_vector_residual_wrapper_restarts_plans_with_the_next_episode():
     plan = venv.follower._rows[0][1]
     np.testing.assert_allclose(plan.waypoints[0], info["pose"][0], atol=1e-12)
     np.testing.assert_allclose(plan.waypoints[-1], info["target"][0], atol=1e-12)
+
+
+def test_evaluation_scores_every_run_with_its_ids_reward(make_run_folder):
+    """A run trained with a success bonus (and hard targets) is scored on hard targets without the bonus.
+
+    Oracle: the same agent, one episode at a time, on the env built by hand with the non-reward setting only.
+    """
+    import yaml
+
+    from training.evaluate import evaluate_rows, evaluation_env_kwargs, load_run
+
+    run = make_run_folder("ppo")
+    config = yaml.safe_load((run / "config.yml").read_text())
+    config["hyperparams"]["env_kwargs"] = {"targets": "hard", "success_reward": 5.0, "action_weight": 3.0}
+    (run / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    agent, config = load_run(run)
+    assert evaluation_env_kwargs(config) == {"targets": "hard"}
+    batched = evaluate_rows(agent, config, "Planar3RPRReach-v0", 4, 700, None)
+    env = gym.make("Planar3RPRReach-v0", targets="hard")
+    one_by_one = evaluate_agent(agent, env, 4, 700)
+    assert [r.episode_return for r in batched] == pytest.approx([r.episode_return for r in one_by_one], abs=1e-4)
+    assert [r.targets[0].tolist() for r in batched] == [r.targets[0].tolist() for r in one_by_one]
