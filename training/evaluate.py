@@ -460,6 +460,7 @@ def _episode_record(
             float(base.params.dt),
         )  # fmt: skip
     reached = np.flatnonzero(series["is_success"])
+    dt = getattr(getattr(base, "params", None), "dt", None)  # the family envs' control period; else unknown
     return EpisodeRecord(
         episode=episode,
         success=bool(last["is_success"]),
@@ -476,7 +477,7 @@ def _episode_record(
         inverse_condition=series["inverse_condition_number"],
         tracking=tracking,
         planner=planner,
-        time_to_target_s=float(reached[0] * base.params.dt) if reached.size else None,
+        time_to_target_s=float(reached[0] * dt) if reached.size and dt is not None else None,
     )
 
 

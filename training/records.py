@@ -34,7 +34,7 @@ class EpisodeRecord:
             end: whether a certified path was found, planned length / straight length, the planned path's
             smallest k and the planning time [s]; None otherwise.
         time_to_target_s: Time from the reset to the end of the first step within the success tolerances [s]
-            (steps × dt); None if no step was.
+            (steps × dt); None if no step was, or if the env has no ``params.dt``.
     """
 
     episode: int
