@@ -71,6 +71,14 @@ def _decision_seconds(run: str, env_id: str, folder: Path, repeats: int = 2000) 
         return clock(lambda: agent(batch)), clock(lambda: deployed(tensor))
 
 
+def _mean_std(values: list[float], digits: int) -> str:
+    """Mean ± std of values with ``digits`` decimals (the mean alone for one value, "-" for none)."""
+    if not values:
+        return "-"
+    spread = f" ± {statistics.stdev(values):.{digits}f}" if len(values) > 1 else ""
+    return f"{statistics.mean(values):.{digits}f}{spread}"
+
+
 def _ratio(value: float) -> str:
     """A speed ratio: whole numbers from 10 on, two significant digits below (0.14×, 6.2×)."""
     return f"{value:.0f}×" if value >= 10 else f"{value:.2g}×"
@@ -103,17 +111,11 @@ def time_to_target_table(out: Path, runs: list[str]) -> str:
         columns["planner"].append(statistics.mean(planner[e] for e in both))
         columns["ratio"].append(statistics.mean(policy[e] / planner[e] for e in both))
 
-    def cell(values: list[float], digits: int) -> str:
-        if not values:
-            return "-"
-        spread = f" ± {statistics.stdev(values):.{digits}f}" if len(values) > 1 else ""
-        return f"{statistics.mean(values):.{digits}f}{spread}"
-
     return (
         "| hard episodes both reach (per run) | plan-free policy: time to the target [s] | planner: time to the "
         "target [s] | ratio plan-free / planner |\n|---|---|---|---|\n"
-        f"| {cell(columns['pairs'], 1)} | {cell(columns['policy'], 2)} | {cell(columns['planner'], 2)} "
-        f"| {cell(columns['ratio'], 2)} |\n"
+        f"| {_mean_std(columns['pairs'], 1)} | {_mean_std(columns['policy'], 2)} | {_mean_std(columns['planner'], 2)} "
+        f"| {_mean_std(columns['ratio'], 2)} |\n"
     )
 
 
@@ -174,14 +176,11 @@ def main(argv: list[str] | None = None) -> int:
         seconds = [_decision_seconds(run, args.env, Path(scratch)) for run in args.runs]
     sb3_ms, exported_ms = ([1e3 * s[i] for s in seconds] for i in (0, 1))
 
-    def ms(values: list[float]) -> str:
-        spread = f" ± {statistics.stdev(values):.3f}" if len(values) > 1 else ""
-        return f"{statistics.mean(values):.3f}{spread}"
-
     (out / "timing.md").write_text(
         "| plan-free policy: time per decision through SB3 [ms] | exported (TorchScript) [ms] | planner: planning "
         "time per hard episode [ms] (mean) | ratio, through SB3 | ratio, exported |\n|---|---|---|---|---|\n"
-        f"| {ms(sb3_ms)} | {ms(exported_ms)} | {planning_ms:.2f} | {_ratio(planning_ms / statistics.mean(sb3_ms))} "
+        f"| {_mean_std(sb3_ms, 3)} | {_mean_std(exported_ms, 3)} | {planning_ms:.2f} "
+        f"| {_ratio(planning_ms / statistics.mean(sb3_ms))} "
         f"| {_ratio(planning_ms / statistics.mean(exported_ms))} |\n\n"
         "Times per decision: one observation at a time, mean ± std over runs; through SB3 is VecNormalize and "
         "`predict`, as `training.evaluate` runs it; exported is `training.export`'s TorchScript function of the "
