@@ -11,13 +11,31 @@ from envs.kernels import generic as fk
 from envs.tasks.grid import WorkspaceMap, WorkspaceSpec, certify_workspace
 from kinematics import DistanceConstraintMechanism, StewartGough
 
-__all__ = ["HARD_KINDS", "INTEGRATORS", "TARGET_MODES", "TASK_REGIONS", "TRACK_SHAPES", "FamilyParams"]
+__all__ = [
+    "HARD_KINDS",
+    "INTEGRATORS",
+    "REWARD_FIELDS",
+    "TARGET_MODES",
+    "TASK_REGIONS",
+    "TRACK_SHAPES",
+    "FamilyParams",
+]
 
 TARGET_MODES = ("standard", "hard", "mixed")
 HARD_KINDS = ("detour", "ill_conditioned", "crossing")
 TASK_REGIONS = ("box", "grid")
 TRACK_SHAPES = ("sinusoid", "circle")
 INTEGRATORS = ("euler", "rk4")
+#: The fields of ``FamilyParams`` that change the reward only (weights, termination penalty, success bonus).
+REWARD_FIELDS = (
+    "position_weight",
+    "orientation_weight",
+    "singularity_weight",
+    "action_weight",
+    "termination_penalty",
+    "success_reward",
+    "actuator_singularity_weight",
+)
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ import numpy as np
 
 from envs import hardware
 from envs.kernels import generic as fk
-from envs.params import HARD_KINDS, INTEGRATORS, TASK_REGIONS, TRACK_SHAPES, FamilyParams
+from envs.params import HARD_KINDS, INTEGRATORS, REWARD_FIELDS, TASK_REGIONS, TRACK_SHAPES, FamilyParams
 from kinematics import (
     Delta,
     DistanceConstraintMechanism,
@@ -489,17 +489,7 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
         "segment_spacing",
     ):
         values[name] = _number(name, args[name])
-    for name in (
-        "position_weight",
-        "orientation_weight",
-        "singularity_weight",
-        "action_weight",
-        "termination_penalty",
-        "success_reward",
-        "actuator_singularity_weight",
-        "stroke_margin",
-        "min_distance",
-    ):
+    for name in (*REWARD_FIELDS, "stroke_margin", "min_distance"):
         values[name] = _number(name, args[name], allow_zero=True)
     if box_derived:
         values["sample_low"], values["sample_high"] = _fit_task_box(

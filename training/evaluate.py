@@ -29,6 +29,7 @@ import numpy as np
 import yaml
 
 import envs
+from envs.params import REWARD_FIELDS
 from envs.physics import TERMINATION_REASONS
 from training.config import ConfigError, algorithm_class, resolve_env_wrapper
 from training.controllers import CONTROLLERS
@@ -324,25 +325,13 @@ def run_env_kwargs(config: dict[str, Any]) -> dict[str, Any]:
     return dict(config.get("hyperparams", {}).get("env_kwargs") or {})
 
 
-#: Env keyword arguments that change the reward only. An evaluation leaves them at the id's values, so that every
-#: agent's return is the same reward's and returns compare across agents (a run trained with ``success_reward``
-#: is scored without it).
-REWARD_ONLY_KWARGS = frozenset(
-    {
-        "position_weight",
-        "orientation_weight",
-        "singularity_weight",
-        "action_weight",
-        "actuator_singularity_weight",
-        "termination_penalty",
-        "success_reward",
-    }
-)
-
-
 def evaluation_env_kwargs(config: dict[str, Any]) -> dict[str, Any]:
-    """``run_env_kwargs(config)`` without the ``REWARD_ONLY_KWARGS``: the env a run is evaluated on."""
-    return {key: value for key, value in run_env_kwargs(config).items() if key not in REWARD_ONLY_KWARGS}
+    """``run_env_kwargs(config)`` without the reward-only settings (``envs.params.REWARD_FIELDS``).
+
+    An evaluation leaves them at the id's values, so that every agent's return is the same reward's and returns
+    compare across agents (a run trained with ``success_reward`` is scored without it).
+    """
+    return {key: value for key, value in run_env_kwargs(config).items() if key not in REWARD_FIELDS}
 
 
 def wrap_for_run(env: gym.Env, config: dict[str, Any]) -> gym.Env:
