@@ -16,9 +16,14 @@ at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on
    the expert's actions (mean squared error, Adam) on the (observation, action) pairs.
 2. DAgger: ``iterations`` rounds of ``episodes`` episodes in which the learner acts (the expert instead, per
    step, with probability β: ``beta`` in the first round, 0 after) and the expert labels every state visited;
-   the learner is refitted on all pairs gathered so far.
+   the learner is refitted on all pairs gathered so far. With ``band_weight`` w > 0 each pair's squared error is
+   weighted by 1 + w · clip((k_safe − k) / (k_safe − k_hard), 0, 1), where k is the inverse condition number of
+   J_x at the pair's state and k_safe, k_hard are the env's ``safe_threshold`` and ``hard_threshold``: the few
+   states near the band, where an error of a few per cent of the rate range ends the episode, weigh up to 1 + w
+   times the many far from it.
 3. With ``select_round="best"``, the learner of the round that did best when it acted (success rate minus
-   singularity terminations per episode, on that round's training episodes; the last learner is scored on
+   singularity terminations per episode (every reason of ``training.evaluate.SINGULARITY_REASONS``, Newton
+   failures and assembly-mode changes included), on that round's training episodes; the last learner is scored on
    ``episodes`` more) is kept, as DAgger's guarantee is for the best of its policies; with "last", the last one.
 4. Optionally ``ppo_steps`` of PPO fine-tuning of the folder, in place (``finetune``).
 
@@ -51,9 +56,9 @@ import yaml
 import envs
 from envs.controllers import PlannerController
 from envs.planner import PathFollower
-from training.evaluate import EvaluationError, parse_env_kwargs
+from training.evaluate import SINGULARITY_REASONS, EvaluationError, parse_env_kwargs
 
-__all__ = ["DistillConfig", "FinetuneConfig", "collect", "distill", "finetune", "fit", "main"]
+__all__ = ["DistillConfig", "FinetuneConfig", "band_weights", "collect", "distill", "finetune", "fit", "main"]
 
 
 @dataclass(frozen=True)
@@ -81,6 +86,8 @@ class DistillConfig:
     #: The expert's speed damping near the band (``PlannerController``'s ``damping``); the shipped plan-free policy
     #: was distilled from the undamped law.
     expert_damping: bool = False
+    #: w of the band weighting of the fit (0: every pair weighs the same; see the module docstring).
+    band_weight: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -120,7 +127,7 @@ def collect(
     beta: float,
     first_seed: int,
     rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, float]]:
     """Run episodes, acting with the learner (or the expert with probability ``beta``), labelled by the expert.
 
     Args:
@@ -133,24 +140,27 @@ def collect(
         rng: The generator of the β draws.
 
     Returns:
-        (observations (S, D) float32, expert actions (S, n) float32, figures: success rate, singularity
-        terminations per episode, mean episode length, mean planning time [s]).
+        (observations (S, D) float32, expert actions (S, n) float32, the true inverse condition number of J_x at
+        each observation's state (S,) float64 (from the env's info), figures: success rate, singularity
+        terminations per episode (the reasons of ``training.evaluate.SINGULARITY_REASONS``), mean episode length,
+        mean planning time [s]).
     """
-    observations, actions = [], []
+    observations, actions, conditioning = [], [], []
     successes = singular = steps = 0
     expert.log.clear()  # the plans of these episodes alone
     for i in range(episodes):
-        obs, _ = env.reset(seed=first_seed + i)
+        obs, info = env.reset(seed=first_seed + i)
         while True:
             label = expert(obs[None])[0]
             observations.append(obs)
             actions.append(label)
+            conditioning.append(float(info["inverse_condition_number"]))
             act = label if learner is None or rng.random() < beta else learner(obs)
             obs, _, terminated, truncated, info = env.step(act)
             steps += 1
             if terminated or truncated:
                 successes += bool(info.get("is_success", False))
-                singular += info.get("termination_reason") in ("singular", "singularity_crossed", "actuator_singular")
+                singular += info.get("termination_reason") in SINGULARITY_REASONS
                 break
     plans = list(expert.log)
     figures = {
@@ -160,16 +170,61 @@ def collect(
         "mean_planning_s": float(np.mean([p.seconds for p in plans])) if plans else 0.0,
         "plans_per_episode": len(plans) / episodes,
     }
-    return np.asarray(observations, dtype=np.float32), np.asarray(actions, dtype=np.float32), figures
+    return (
+        np.asarray(observations, dtype=np.float32),
+        np.asarray(actions, dtype=np.float32),
+        np.asarray(conditioning, dtype=np.float64),
+        figures,
+    )
 
 
-def fit(policy: Any, observations: np.ndarray, actions: np.ndarray, config: DistillConfig, seed: int) -> float:
-    """Fit the policy's Gaussian mean to ``actions`` (S, n) at normalised ``observations`` (S, D); final MSE."""
+def band_weights(k: np.ndarray, safe_threshold: float, hard_threshold: float, weight: float) -> np.ndarray:
+    """Per-pair fit weights 1 + w · clip((k_safe − k) / (k_safe − k_hard), 0, 1) (see the module docstring).
+
+    Args:
+        k: Inverse condition numbers of J_x at the pairs' states, shape (S,), dimensionless in [0, 1].
+        safe_threshold: k_safe, the env's ``safe_threshold`` (the weight is 1 at and above it).
+        hard_threshold: k_hard < k_safe, the env's ``hard_threshold`` (the weight is 1 + w at and below it).
+        weight: w ≥ 0.
+
+    Returns:
+        Weights, shape (S,), in [1, 1 + w].
+
+    Raises:
+        ValueError: If w is negative or not finite, or k_hard ≥ k_safe.
+    """
+    if not (np.isfinite(weight) and weight >= 0.0):
+        raise ValueError(f"band weight must be finite and ≥ 0, got {weight}")
+    if not hard_threshold < safe_threshold:
+        raise ValueError(f"hard_threshold must be < safe_threshold, got {hard_threshold} and {safe_threshold}")
+    depth = np.clip((safe_threshold - np.asarray(k, dtype=np.float64)) / (safe_threshold - hard_threshold), 0.0, 1.0)
+    return 1.0 + weight * depth
+
+
+def fit(
+    policy: Any,
+    observations: np.ndarray,
+    actions: np.ndarray,
+    config: DistillConfig,
+    seed: int,
+    weights: np.ndarray | None = None,
+) -> float:
+    """Fit the policy's Gaussian mean to ``actions`` (S, n) at normalised ``observations`` (S, D).
+
+    ``weights`` (S,), positive, weigh each pair's squared error (None: all the same); the loss of a batch is
+    Σ w_i ‖μ(o_i) − a_i‖² / (n Σ w_i). Returns the last epoch's (weighted) mean squared error.
+    """
     import torch
 
     generator = torch.Generator().manual_seed(seed)
     obs_t = torch.as_tensor(observations)
     act_t = torch.as_tensor(np.clip(actions, -1.0, 1.0))
+    if weights is None:
+        weights = np.ones(len(observations))
+    weights = np.asarray(weights, dtype=np.float32)
+    if weights.shape != (len(observations),) or not np.all(weights > 0.0) or not np.all(np.isfinite(weights)):
+        raise ValueError(f"weights must be ({len(observations)},), finite and > 0, got shape {weights.shape}")
+    w_t = torch.as_tensor(weights)
     optimizer = torch.optim.Adam(policy.parameters(), lr=config.learning_rate)
     loss_value = float("nan")
     for _ in range(config.epochs):
@@ -178,12 +233,13 @@ def fit(policy: Any, observations: np.ndarray, actions: np.ndarray, config: Dist
         for start in range(0, len(order), config.batch_size):
             index = order[start : start + config.batch_size]
             mean = policy.get_distribution(obs_t[index]).distribution.mean
-            loss = torch.mean((mean - act_t[index]) ** 2)
+            w = w_t[index]
+            loss = torch.sum(w[:, None] * (mean - act_t[index]) ** 2) / (torch.sum(w) * mean.shape[1])
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
-            total += float(loss.detach()) * len(index)
-        loss_value = total / len(order)
+            total += float(loss.detach()) * float(torch.sum(w))
+        loss_value = total / float(torch.sum(w_t))
     return loss_value
 
 
@@ -212,7 +268,13 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     expert = _expert(env, config)
     seed = 1_000_000 * (config.seed + 1)
     clock = time.perf_counter()
-    obs, act, figures = collect(env, expert, None, config.expert_episodes, 1.0, seed, rng)
+    params = env.unwrapped.params
+
+    def weigh(k: np.ndarray) -> np.ndarray:
+        return band_weights(k, params.safe_threshold, params.hard_threshold, config.band_weight)
+
+    weigh(np.zeros(1))  # refuse a bad band weight before any episode
+    obs, act, k, figures = collect(env, expert, None, config.expert_episodes, 1.0, seed, rng)
     seed += config.expert_episodes
     rounds = [{"round": 0, "beta": 1.0, "pairs": len(obs), **figures, "seconds": time.perf_counter() - clock}]
     log(f"expert: {figures['success_rate']:.0%} success, {len(obs)} pairs")
@@ -231,18 +293,20 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         action, _ = model.predict(normalizer.normalize_obs(o[None]), deterministic=True)
         return np.clip(action[0], -1.0, 1.0)
 
-    all_obs, all_act = [obs], [act]
-    rounds[0]["mse"] = fit(policy, normalizer.normalize_obs(obs), act, config, config.seed)
+    all_obs, all_act, all_k = [obs], [act], [k]
+    rounds[0]["mse"] = fit(policy, normalizer.normalize_obs(obs), act, config, config.seed, weigh(k))
     snapshots = [copy.deepcopy(policy.state_dict())]  # the learner after each round's fit
     for r in range(1, config.iterations + 1):
         clock = time.perf_counter()
         beta = config.beta if r == 1 else 0.0
-        obs, act, figures = collect(env, expert, learner, config.episodes, beta, seed, rng)
+        obs, act, k, figures = collect(env, expert, learner, config.episodes, beta, seed, rng)
         seed += config.episodes
         all_obs.append(obs)
         all_act.append(act)
+        all_k.append(k)
         data_obs, data_act = np.concatenate(all_obs), np.concatenate(all_act)
-        mse = fit(policy, normalizer.normalize_obs(data_obs), data_act, config, config.seed + r)
+        data_weights = weigh(np.concatenate(all_k))
+        mse = fit(policy, normalizer.normalize_obs(data_obs), data_act, config, config.seed + r, data_weights)
         rounds.append(
             {"round": r, "beta": beta, "pairs": len(data_obs), **figures, "mse": mse,
              "seconds": time.perf_counter() - clock}
@@ -255,7 +319,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     kept = len(snapshots) - 1
     if config.select_round == "best" and config.iterations > 0:
         # the last learner has not acted yet: score it on as many fresh training episodes
-        _, _, figures = collect(env, expert, learner, config.episodes, 0.0, seed, rng)
+        _, _, _, figures = collect(env, expert, learner, config.episodes, 0.0, seed, rng)
         seed += config.episodes
         rounds.append({"round": len(snapshots), "beta": 0.0, "scoring_only": True, **figures})
         # round r's figures score the learner fitted after round r − 1 (rounds with β > 0 are the expert's too)
@@ -391,7 +455,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     for name in ("expert_episodes", "iterations", "episodes", "epochs", "batch_size", "ppo_steps"):
         parser.add_argument("--" + name.replace("_", "-"), type=int, default=getattr(defaults, name))
-    for name in ("beta", "learning_rate", "replan_distance", "lookahead"):
+    for name in ("beta", "learning_rate", "replan_distance", "lookahead", "band_weight"):
         parser.add_argument("--" + name.replace("_", "-"), type=float, default=getattr(defaults, name))
     parser.add_argument("--planner", default=defaults.planner, choices=("auto", "ompl", "grid"))
     parser.add_argument(
@@ -434,6 +498,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
     if not 0.0 <= args.beta <= 1.0:
         parser.error(f"--beta must be in [0, 1], got {args.beta}")
+    if not (np.isfinite(args.band_weight) and args.band_weight >= 0.0):
+        parser.error(f"--band-weight must be finite and ≥ 0, got {args.band_weight}")
     try:
         env_kwargs = parse_env_kwargs(args.env_kwargs)
     except EvaluationError as exc:
@@ -455,6 +521,7 @@ def main(argv: list[str] | None = None) -> int:
         ppo_steps=args.ppo_steps,
         expert_damping=args.expert_damping,
         select_round=args.select_round,
+        band_weight=args.band_weight,
     )
     distill(config, Path(args.run_dir))
     return 0

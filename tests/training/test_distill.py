@@ -43,12 +43,73 @@ def test_the_labels_are_the_planner_controllers_actions():
     env = gym.make(ENV)
     config = DistillConfig(replan_distance=1e9)  # plan once per episode, as the plain controller does
     expert = distill._expert(env, config)
-    obs, act, figures = collect(env, expert, None, 2, 1.0, 123, np.random.default_rng(0))
-    assert obs.shape == (400, 18) and act.shape == (400, 3)
+    obs, act, k, figures = collect(env, expert, None, 2, 1.0, 123, np.random.default_rng(0))
+    assert obs.shape == (400, 18) and act.shape == (400, 3) and k.shape == (400,)
+    # k is the state's own: the observation's k column (noise-free here), not the next state's
+    np.testing.assert_allclose(k, obs[:, -1], rtol=1e-6)
     # the default expert law: undamped, straight at the target on a one-segment plan
     reference = PlannerController(env.unwrapped.params, cross_track=False, damping=config.expert_damping)
     np.testing.assert_allclose(np.stack([reference(o[None])[0] for o in obs]), act, atol=1e-6)
     assert figures["success_rate"] == 1.0 and figures["singular_terminations"] == 0.0
+
+
+def test_collect_counts_every_singularity_termination():
+    """Newton failures are singularity terminations too (as in training.evaluate), not only a k below the bound.
+
+    Resolved-rate on the 3-RRR's hard targets ends reset seed 13 with a Newton failure and seed 16 below the bound
+    (found by hand); the oracle counts every termination but leaving the bounds, on the same episodes stepped here.
+    """
+    from envs.controllers import ResolvedRateController
+
+    env = gym.make("Planar3RRRReach-v0", targets="hard")
+    expert = distill._expert(env, DistillConfig(expert_damping=True))
+    driver = ResolvedRateController(env.unwrapped.params)
+    _, _, _, figures = collect(env, expert, lambda o: driver(o[None])[0], 4, 0.0, 13, np.random.default_rng(0))
+    reasons = []
+    for seed in range(13, 17):
+        obs, _ = env.reset(seed=seed)
+        while True:
+            obs, _, terminated, truncated, info = env.step(driver(obs[None])[0])
+            if terminated or truncated:
+                reasons.append(info["termination_reason"])
+                break
+    assert "newton_failed" in reasons and "singular" in reasons
+    expected = sum(r not in ("", "out_of_bounds") for r in reasons) / len(reasons)
+    assert figures["singular_terminations"] == expected
+
+
+def test_band_weights_rise_linearly_from_the_safe_to_the_hard_threshold():
+    """1 at and above k_safe, 1 + w at and below k_hard, linear between (values worked by hand)."""
+    k = np.array([0.5, 0.1, 0.08, 0.065, 0.03, 0.0])
+    np.testing.assert_allclose(distill.band_weights(k, 0.1, 0.03, 7.0), [1.0, 1.0, 3.0, 4.5, 8.0, 8.0])
+    np.testing.assert_allclose(distill.band_weights(k, 0.1, 0.03, 0.0), np.ones(6))
+    for weight in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="band weight must be finite and ≥ 0"):
+            distill.band_weights(k, 0.1, 0.03, weight)
+    with pytest.raises(ValueError, match=r"hard_threshold must be < safe_threshold, got 0\.1 and 0\.1"):
+        distill.band_weights(k, 0.1, 0.1, 1.0)
+
+
+def test_a_weighted_fit_converges_to_the_weighted_mean_of_conflicting_labels():
+    """Pairs that share an observation but disagree: the weighted least-squares answer is Σ w a / Σ w per point."""
+    import torch
+    from stable_baselines3 import PPO
+
+    torch.manual_seed(0)
+    env = gym.make(ENV)
+    model = PPO("MlpPolicy", env, device="cpu", policy_kwargs={"net_arch": [64, 64]}, seed=0)
+    rng = np.random.default_rng(1)
+    points = rng.normal(size=(4, 18)).astype(np.float32)
+    low, high = rng.uniform(-0.8, 0.0, size=(4, 3)), rng.uniform(0.0, 0.8, size=(4, 3))
+    obs = np.repeat(points, 200, axis=0)  # each point 200 times: half labelled low (weight 1), half high (weight 4)
+    act = np.where((np.arange(800) % 200 < 100)[:, None], np.repeat(low, 200, 0), np.repeat(high, 200, 0))
+    weights = np.where(np.arange(800) % 200 < 100, 1.0, 4.0)
+    fit(model.policy, obs, act.astype(np.float32), DistillConfig(epochs=60, batch_size=64), 0, weights)
+    with torch.no_grad():
+        mean = model.policy.get_distribution(torch.as_tensor(points)).distribution.mean.numpy()
+    np.testing.assert_allclose(mean, (low + 4.0 * high) / 5.0, atol=0.03)
+    with pytest.raises(ValueError, match=r"weights must be \(800,\), finite and > 0, got shape \(3,\)"):
+        fit(model.policy, obs, act.astype(np.float32), DistillConfig(epochs=1), 0, np.ones(3))
 
 
 def test_fit_lowers_the_error_to_a_known_linear_expert():
