@@ -88,6 +88,9 @@ class DistillConfig:
     expert_damping: bool = False
     #: w of the band weighting of the fit (0: every pair weighs the same; see the module docstring).
     band_weight: float = 0.0
+    #: Anneal each fit's learning rate to 0 on a cosine over its epochs (False: constant ``learning_rate``), so
+    #: that the learner a round keeps is a converged iterate rather than the last of Adam's full-size steps.
+    lr_decay: bool = False
 
 
 @dataclass(frozen=True)
@@ -212,7 +215,8 @@ def fit(
     """Fit the policy's Gaussian mean to ``actions`` (S, n) at normalised ``observations`` (S, D).
 
     ``weights`` (S,), positive, weigh each pair's squared error (None: all the same); the loss of a batch is
-    Σ w_i ‖μ(o_i) − a_i‖² / (n Σ w_i). Returns the last epoch's (weighted) mean squared error.
+    Σ w_i ‖μ(o_i) − a_i‖² / (n Σ w_i). Adam at ``config.learning_rate``, annealed to 0 on a cosine over the
+    ``config.epochs`` epochs with ``config.lr_decay``. Returns the last epoch's (weighted) mean squared error.
     """
     import torch
 
@@ -226,6 +230,8 @@ def fit(
         raise ValueError(f"weights must be ({len(observations)},), finite and > 0, got shape {weights.shape}")
     w_t = torch.as_tensor(weights)
     optimizer = torch.optim.Adam(policy.parameters(), lr=config.learning_rate)
+    steps = config.epochs * -(-len(obs_t) // config.batch_size)
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=steps) if config.lr_decay else None
     loss_value = float("nan")
     for _ in range(config.epochs):
         order = torch.randperm(len(obs_t), generator=generator)
@@ -238,6 +244,8 @@ def fit(
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
+            if schedule is not None:
+                schedule.step()
             total += float(loss.detach()) * float(torch.sum(w))
         loss_value = total / float(torch.sum(w_t))
     return loss_value
@@ -468,6 +476,9 @@ def main(argv: list[str] | None = None) -> int:
         "--expert-damping", action="store_true", help="label with the planner controller's damping near the band"
     )
     parser.add_argument(
+        "--lr-decay", action="store_true", help="anneal each fit's learning rate to 0 on a cosine over its epochs"
+    )
+    parser.add_argument(
         "--from-run", default=None, help="fine-tune this distilled run with PPO (--ppo-steps, default 1M) instead"
     )
     parser.add_argument("--warmup-steps", type=int, default=FinetuneConfig.warmup_steps, help="critic-only steps")
@@ -522,6 +533,7 @@ def main(argv: list[str] | None = None) -> int:
         expert_damping=args.expert_damping,
         select_round=args.select_round,
         band_weight=args.band_weight,
+        lr_decay=args.lr_decay,
     )
     distill(config, Path(args.run_dir))
     return 0

@@ -112,6 +112,32 @@ def test_a_weighted_fit_converges_to_the_weighted_mean_of_conflicting_labels():
         fit(model.policy, obs, act.astype(np.float32), DistillConfig(epochs=1), 0, np.ones(3))
 
 
+@pytest.mark.parametrize("decay", [False, True])
+def test_the_fits_learning_rate_follows_a_cosine_to_zero_with_lr_decay(monkeypatch, decay):
+    """The rate at Adam step t of T is lr · (1 + cos(π t / T)) / 2 with ``lr_decay``, else lr throughout."""
+    import math
+
+    import torch
+    from stable_baselines3 import PPO
+
+    rates = []
+    adam = torch.optim.Adam
+
+    class Recording(adam):
+        def step(self, closure=None):
+            rates.append(self.param_groups[0]["lr"])
+            return super().step(closure)
+
+    monkeypatch.setattr(torch.optim, "Adam", Recording)
+    model = PPO("MlpPolicy", gym.make(ENV), device="cpu", policy_kwargs={"net_arch": [16]}, seed=0)
+    x = np.random.default_rng(0).normal(size=(100, 18)).astype(np.float32)
+    config = DistillConfig(epochs=3, batch_size=32, learning_rate=2e-3, lr_decay=decay)
+    fit(model.policy, x, np.zeros((100, 3), np.float32), config, 0)
+    total = 3 * 4  # epochs × ⌈100 / 32⌉ batches
+    expected = [2e-3 * (1 + math.cos(math.pi * t / total)) / 2 if decay else 2e-3 for t in range(total)]
+    np.testing.assert_allclose(rates, expected, rtol=1e-9, atol=1e-15)
+
+
 def test_fit_lowers_the_error_to_a_known_linear_expert():
     """The policy's mean learns a fixed linear map of the observation (an expert whose answer is known)."""
     import torch
