@@ -219,7 +219,8 @@ class PlannerController(ResolvedRateController):
     ``envs.planner.PathFollower``: ``lookahead`` ahead of the platform's closest point on the path, and the
     target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
     Near a thin Type II band a step at full speed leaves a certified line by millimetres where k falls by a
-    third (the 3-RRR): with ``damping`` the action is scaled by clip((k / k_safe)², 0.05, 1), k the observed one,
+    third (the 3-RRR): with ``damping`` the action is scaled by clip((k / k_d)², 0.05, 1), k the observed one and
+    k_d the ``damping_threshold`` (default the env's k_safe),
     and with ``cross_track`` a one-segment plan is followed as any other (``envs.planner.PathFollower``).
 
     Args:
@@ -232,7 +233,11 @@ class PlannerController(ResolvedRateController):
         planner: The follower's planner: "auto" (the certified grid's graph where there is one, else OMPL),
             "ompl" or "grid".
         cross_track: The follower's ``cross_track``: steer along one-segment plans too (``envs.planner``).
-        damping: Slow down as the observed k falls below k_safe (see above).
+        damping: Slow down as the observed k falls below k_d (see above).
+        damping_threshold: k_d, the k below which the damping slows down, in (0, 1]; None: ``params.safe_threshold``.
+
+    Raises:
+        ValueError: If ``damping_threshold`` is not in (0, 1].
     """
 
     name = "planner"
@@ -247,9 +252,15 @@ class PlannerController(ResolvedRateController):
         planner: str = "auto",
         cross_track: bool = True,
         damping: bool = True,
+        damping_threshold: float | None = None,
     ) -> None:
         super().__init__(params, gain, max_speed)
         self.damping = bool(damping)
+        if damping_threshold is None:
+            damping_threshold = params.safe_threshold
+        if not 0.0 < damping_threshold <= 1.0:
+            raise ValueError(f"damping_threshold must be in (0, 1], got {damping_threshold}")
+        self.damping_threshold = float(damping_threshold)
         layout = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)
         self._k_column = layout["k"].start
         if follower is None:
@@ -269,7 +280,7 @@ class PlannerController(ResolvedRateController):
         action = self.steer(pose, carrot, velocity)
         if self.damping:
             k = np.asarray(obs, dtype=np.float64)[:, self._k_column]
-            action = action * np.clip((k / self.params.safe_threshold) ** 2, 0.05, 1.0)[:, None].astype(np.float32)
+            action = action * np.clip((k / self.damping_threshold) ** 2, 0.05, 1.0)[:, None].astype(np.float32)
         return action
 
     def _target(self, pose: np.ndarray, error: np.ndarray) -> np.ndarray:

@@ -86,6 +86,8 @@ class DistillConfig:
     #: The expert's speed damping near the band (``PlannerController``'s ``damping``); the shipped plan-free policy
     #: was distilled from the undamped law.
     expert_damping: bool = False
+    #: k_d of the expert's damping (``PlannerController``'s ``damping_threshold``); None: the env's k_safe.
+    damping_threshold: float | None = None
     #: w of the band weighting of the fit (0: every pair weighs the same; see the module docstring).
     band_weight: float = 0.0
     #: Anneal each fit's learning rate to 0 on a cosine over its epochs (False: constant ``learning_rate``), so
@@ -119,7 +121,9 @@ class FinetuneConfig:
 def _expert(env: gym.Env, config: DistillConfig) -> PlannerController:
     params = env.unwrapped.params
     follower = PathFollower(params, config.lookahead, config.planner, config.replan_distance)
-    return PlannerController(params, follower=follower, damping=config.expert_damping)
+    return PlannerController(
+        params, follower=follower, damping=config.expert_damping, damping_threshold=config.damping_threshold
+    )
 
 
 def collect(
@@ -476,6 +480,12 @@ def main(argv: list[str] | None = None) -> int:
         "--expert-damping", action="store_true", help="label with the planner controller's damping near the band"
     )
     parser.add_argument(
+        "--damping-threshold",
+        type=float,
+        default=None,
+        help="k below which the expert's damping slows down (with --expert-damping; default the env's k_safe)",
+    )
+    parser.add_argument(
         "--lr-decay", action="store_true", help="anneal each fit's learning rate to 0 on a cosine over its epochs"
     )
     parser.add_argument(
@@ -509,6 +519,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
     if not 0.0 <= args.beta <= 1.0:
         parser.error(f"--beta must be in [0, 1], got {args.beta}")
+    if args.damping_threshold is not None and not (args.expert_damping and 0.0 < args.damping_threshold <= 1.0):
+        parser.error(f"--damping-threshold needs --expert-damping and a value in (0, 1], got {args.damping_threshold}")
     if not (np.isfinite(args.band_weight) and args.band_weight >= 0.0):
         parser.error(f"--band-weight must be finite and ≥ 0, got {args.band_weight}")
     try:
@@ -534,6 +546,7 @@ def main(argv: list[str] | None = None) -> int:
         select_round=args.select_round,
         band_weight=args.band_weight,
         lr_decay=args.lr_decay,
+        damping_threshold=args.damping_threshold,
     )
     distill(config, Path(args.run_dir))
     return 0

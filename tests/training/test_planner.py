@@ -124,3 +124,34 @@ def test_damped_planner_crosses_the_3rrr_band_where_full_speed_meets_it(seed):
     full_speed = evaluate_agent(PlannerController(params, damping=False), env, 1, seed)[0]
     assert damped.success and not damped.singularity_termination
     assert full_speed.singularity_termination
+
+
+@pytest.mark.parametrize("threshold", [None, 0.2])
+def test_the_damping_scales_the_undamped_action_by_k_over_its_threshold_squared(threshold):
+    """Damped action = undamped action · clip((k / k_d)², 0.05, 1), k the state's, k_d the threshold or k_safe.
+
+    k is taken from the env's info (not from the observation the controller reads); both controllers see the same
+    observations of one hard 3-RRR episode driven by the undamped one, so they plan the same path.
+    """
+    import gymnasium as gym
+
+    from envs.controllers import PlannerController
+
+    env = gym.make("Planar3RRRReachHard-v0")
+    params = env.unwrapped.params
+    damped = PlannerController(params, damping_threshold=threshold)
+    undamped = PlannerController(params, damping=False)
+    k_d = params.safe_threshold if threshold is None else threshold
+    obs, info = env.reset(seed=5045)
+    factors = []
+    for _ in range(40):
+        full = undamped(obs[None])[0]
+        factor = np.clip((info["inverse_condition_number"] / k_d) ** 2, 0.05, 1.0)
+        np.testing.assert_allclose(damped(obs[None])[0], full * factor, rtol=1e-5, atol=1e-7)
+        factors.append(factor)
+        obs, _, terminated, truncated, info = env.step(full)
+        if terminated or truncated:
+            break
+    assert min(factors) < 0.9  # the episode comes near the band: the damping acted
+    with pytest.raises(ValueError, match=r"damping_threshold must be in \(0, 1\], got 0.0"):
+        PlannerController(params, damping_threshold=0.0)
