@@ -219,8 +219,10 @@ class PlannerController(ResolvedRateController):
     ``envs.planner.PathFollower``: ``lookahead`` ahead of the platform's closest point on the path, and the
     target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
     Near a thin Type II band a step at full speed leaves a certified line by millimetres where k falls by a
-    third (the 3-RRR): with ``damping`` the action is scaled by clip((k / k_d)², 0.05, 1), k the observed one and
-    k_d the ``damping_threshold`` (default the env's k_safe),
+    third (the 3-RRR): with ``damping`` the action a is slowed by f = clip((k / k_d)², 0.05, 1), k the observed one
+    and k_d the ``damping_threshold`` (default the env's k_safe): with ``damping_kind`` "scale" a ← f a (the
+    gain falls too, to f K at an ill-conditioned target), with "cap" a ← a · min(1, f / ‖a‖∞) (the largest
+    actuator rate is capped at f of its range; small corrections near the target keep the full gain K),
     and with ``cross_track`` a one-segment plan is followed as any other (``envs.planner.PathFollower``).
 
     Args:
@@ -235,9 +237,10 @@ class PlannerController(ResolvedRateController):
         cross_track: The follower's ``cross_track``: steer along one-segment plans too (``envs.planner``).
         damping: Slow down as the observed k falls below k_d (see above).
         damping_threshold: k_d, the k below which the damping slows down, in (0, 1]; None: ``params.safe_threshold``.
+        damping_kind: "scale" or "cap" (see above).
 
     Raises:
-        ValueError: If ``damping_threshold`` is not in (0, 1].
+        ValueError: If ``damping_threshold`` is not in (0, 1] or ``damping_kind`` is unknown.
     """
 
     name = "planner"
@@ -253,6 +256,7 @@ class PlannerController(ResolvedRateController):
         cross_track: bool = True,
         damping: bool = True,
         damping_threshold: float | None = None,
+        damping_kind: str = "scale",
     ) -> None:
         super().__init__(params, gain, max_speed)
         self.damping = bool(damping)
@@ -261,6 +265,9 @@ class PlannerController(ResolvedRateController):
         if not 0.0 < damping_threshold <= 1.0:
             raise ValueError(f"damping_threshold must be in (0, 1], got {damping_threshold}")
         self.damping_threshold = float(damping_threshold)
+        if damping_kind not in ("scale", "cap"):
+            raise ValueError(f"damping_kind must be 'scale' or 'cap', got {damping_kind!r}")
+        self.damping_kind = damping_kind
         layout = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)
         self._k_column = layout["k"].start
         if follower is None:
@@ -280,7 +287,11 @@ class PlannerController(ResolvedRateController):
         action = self.steer(pose, carrot, velocity)
         if self.damping:
             k = np.asarray(obs, dtype=np.float64)[:, self._k_column]
-            action = action * np.clip((k / self.damping_threshold) ** 2, 0.05, 1.0)[:, None].astype(np.float32)
+            factor = np.clip((k / self.damping_threshold) ** 2, 0.05, 1.0)[:, None]
+            if self.damping_kind == "cap":
+                largest = np.max(np.abs(action), axis=-1, keepdims=True)
+                factor = np.minimum(1.0, factor / np.maximum(largest, 1e-12))
+            action = action * factor.astype(np.float32)
         return action
 
     def _target(self, pose: np.ndarray, error: np.ndarray) -> np.ndarray:

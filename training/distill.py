@@ -88,6 +88,8 @@ class DistillConfig:
     expert_damping: bool = False
     #: k_d of the expert's damping (``PlannerController``'s ``damping_threshold``); None: the env's k_safe.
     damping_threshold: float | None = None
+    #: The expert's ``PlannerController`` ``damping_kind``: "scale" or "cap".
+    damping_kind: str = "scale"
     #: w of the band weighting of the fit (0: every pair weighs the same; see the module docstring).
     band_weight: float = 0.0
     #: Anneal each fit's learning rate to 0 on a cosine over its epochs (False: constant ``learning_rate``), so
@@ -122,7 +124,11 @@ def _expert(env: gym.Env, config: DistillConfig) -> PlannerController:
     params = env.unwrapped.params
     follower = PathFollower(params, config.lookahead, config.planner, config.replan_distance)
     return PlannerController(
-        params, follower=follower, damping=config.expert_damping, damping_threshold=config.damping_threshold
+        params,
+        follower=follower,
+        damping=config.expert_damping,
+        damping_threshold=config.damping_threshold,
+        damping_kind=config.damping_kind,
     )
 
 
@@ -486,6 +492,12 @@ def main(argv: list[str] | None = None) -> int:
         help="k below which the expert's damping slows down (with --expert-damping; default the env's k_safe)",
     )
     parser.add_argument(
+        "--damping-kind",
+        default=DistillConfig.damping_kind,
+        choices=("scale", "cap"),
+        help="the expert's damping: scale the action, or cap its largest rate (default %(default)s)",
+    )
+    parser.add_argument(
         "--lr-decay", action="store_true", help="anneal each fit's learning rate to 0 on a cosine over its epochs"
     )
     parser.add_argument(
@@ -547,6 +559,7 @@ def main(argv: list[str] | None = None) -> int:
         band_weight=args.band_weight,
         lr_decay=args.lr_decay,
         damping_threshold=args.damping_threshold,
+        damping_kind=args.damping_kind,
     )
     distill(config, Path(args.run_dir))
     return 0

@@ -126,9 +126,11 @@ def test_damped_planner_crosses_the_3rrr_band_where_full_speed_meets_it(seed):
     assert full_speed.singularity_termination
 
 
-@pytest.mark.parametrize("threshold", [None, 0.2])
-def test_the_damping_scales_the_undamped_action_by_k_over_its_threshold_squared(threshold):
-    """Damped action = undamped action · clip((k / k_d)², 0.05, 1), k the state's, k_d the threshold or k_safe.
+@pytest.mark.parametrize(("threshold", "kind"), [(None, "scale"), (0.2, "scale"), (None, "cap"), (0.2, "cap")])
+def test_the_damping_slows_the_undamped_action_by_k_over_its_threshold_squared(threshold, kind):
+    """Damped action: f · a ("scale") or a · min(1, f / max |a_i|) ("cap"), a the undamped action.
+
+    f = clip((k / k_d)², 0.05, 1), k the state's and k_d the threshold or k_safe.
 
     k is taken from the env's info (not from the observation the controller reads); both controllers see the same
     observations of one hard 3-RRR episode driven by the undamped one, so they plan the same path.
@@ -139,7 +141,7 @@ def test_the_damping_scales_the_undamped_action_by_k_over_its_threshold_squared(
 
     env = gym.make("Planar3RRRReachHard-v0")
     params = env.unwrapped.params
-    damped = PlannerController(params, damping_threshold=threshold)
+    damped = PlannerController(params, damping_threshold=threshold, damping_kind=kind)
     undamped = PlannerController(params, damping=False)
     k_d = params.safe_threshold if threshold is None else threshold
     obs, info = env.reset(seed=5045)
@@ -147,6 +149,8 @@ def test_the_damping_scales_the_undamped_action_by_k_over_its_threshold_squared(
     for _ in range(40):
         full = undamped(obs[None])[0]
         factor = np.clip((info["inverse_condition_number"] / k_d) ** 2, 0.05, 1.0)
+        if kind == "cap":
+            factor = min(1.0, factor / np.max(np.abs(full)))
         np.testing.assert_allclose(damped(obs[None])[0], full * factor, rtol=1e-5, atol=1e-7)
         factors.append(factor)
         obs, _, terminated, truncated, info = env.step(full)
@@ -155,3 +159,5 @@ def test_the_damping_scales_the_undamped_action_by_k_over_its_threshold_squared(
     assert min(factors) < 0.9  # the episode comes near the band: the damping acted
     with pytest.raises(ValueError, match=r"damping_threshold must be in \(0, 1\], got 0.0"):
         PlannerController(params, damping_threshold=0.0)
+    with pytest.raises(ValueError, match="damping_kind must be 'scale' or 'cap', got 'clip'"):
+        PlannerController(params, damping_kind="clip")
