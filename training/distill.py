@@ -533,6 +533,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--beta must be in [0, 1], got {args.beta}")
     if args.damping_threshold is not None and not (args.expert_damping and 0.0 < args.damping_threshold <= 1.0):
         parser.error(f"--damping-threshold needs --expert-damping and a value in (0, 1], got {args.damping_threshold}")
+    if args.damping_kind != DistillConfig.damping_kind and not args.expert_damping:
+        parser.error(f"--damping-kind {args.damping_kind} needs --expert-damping")
     if not (np.isfinite(args.band_weight) and args.band_weight >= 0.0):
         parser.error(f"--band-weight must be finite and ≥ 0, got {args.band_weight}")
     try:

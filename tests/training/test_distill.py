@@ -176,6 +176,15 @@ def test_bad_options_are_refused(capsys):
     with pytest.raises(SystemExit):
         distill.main(["--run-dir", "x", "--beta", "2"])
     assert "--beta must be in [0, 1], got 2.0" in capsys.readouterr().err
+    for argv, message in (
+        (["--band-weight", "-1"], "--band-weight must be finite and ≥ 0, got -1.0"),
+        (["--damping-threshold", "0.2"], "--damping-threshold needs --expert-damping and a value in (0, 1], got 0.2"),
+        (["--expert-damping", "--damping-threshold", "0"], "a value in (0, 1], got 0.0"),
+        (["--damping-kind", "cap"], "--damping-kind cap needs --expert-damping"),
+    ):
+        with pytest.raises(SystemExit):
+            distill.main(["--run-dir", "x", *argv])
+        assert message in capsys.readouterr().err
 
 
 def test_the_plan_free_report_tabulates_every_agent(tmp_path):
