@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import statistics
 from pathlib import Path
 
@@ -123,6 +124,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("evals", nargs="+", help="folders holding a metrics.json")
     parser.add_argument("--with-return", action="store_true", help="add a column of the episode return")
     parser.add_argument(
+        "--by-recipe",
+        action="store_true",
+        help="keep the run's name without its seed suffix: rows 'ppo (distill-lrd) @ hard' group seeds of one recipe",
+    )
+    parser.add_argument(
         "--by-env", action="store_true", help="group by env id too: rows 'agent @ env (targets)' (from metrics.json)"
     )
     args = parser.parse_args(argv)
@@ -132,7 +138,9 @@ def main(argv: list[str] | None = None) -> int:
         agent, targets = metrics["label"].rsplit(" @ ", 1)
         shielded = " + shield" in agent or "shield" in Path(folder).name
         agent = agent.replace(" + shield", "")
-        if not agent.endswith(("(ompl)", "(grid)", "(auto)")):  # the planner's kind stays in the label
+        if args.by_recipe and agent.endswith(")") and " (" in agent:  # "ppo (run-s0)" → "ppo (run)"
+            agent = re.sub(r"-s\d+\)$", ")", agent)
+        elif not agent.endswith(("(ompl)", "(grid)", "(auto)")):  # the planner's kind stays in the label
             agent = agent.split(" (")[0]  # "ppo (run-s0)" → "ppo": seeds are grouped
         label = f"{agent}{' + shield' if shielded else ''} @ {targets}"
         if args.by_env:

@@ -63,3 +63,22 @@ def test_the_return_column_is_optional(tmp_path):
     text = with_return.read_text()
     assert "| return (mean) |" in text
     assert text.splitlines()[2].endswith("| 1.000 | -15.0 ± 7.1 |")
+
+
+def test_by_recipe_groups_the_seeds_of_each_run_name(tmp_path):
+    """--by-recipe: runs named R-sN make one row per R; without it every ppo run is one row."""
+    folders = []
+    for i, (label, success) in enumerate(
+        [("ppo (a-lrd-s0) @ hard", 1.0), ("ppo (a-lrd-s1) @ hard", 0.8), ("ppo (a-cap-s0) @ hard", 0.5)]
+    ):
+        folder = tmp_path / f"e{i}"
+        folder.mkdir()
+        (folder / "metrics.json").write_text(json.dumps(_metrics(label, success)))
+        folders.append(str(folder))
+    out = tmp_path / "table.md"
+    family_report.main([str(out), *folders, "--by-recipe"])
+    text = out.read_text()
+    assert "| ppo (a-lrd) @ hard | 2 | 90.0 ± 14.1 % |" in text
+    assert "| ppo (a-cap) @ hard | 1 | 50.0 % |" in text
+    family_report.main([str(out), *folders])
+    assert "| ppo @ hard | 3 | 76.7 ± 25.2 % |" in out.read_text()
