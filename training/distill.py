@@ -83,8 +83,8 @@ class DistillConfig:
     ppo_steps: int = 0
     #: "last": keep the last round's learner; "best": the round's learner that did best when it acted.
     select_round: str = "last"
-    #: The expert's speed damping near the band (``PlannerController``'s ``damping``); the shipped plan-free policy
-    #: was distilled from the undamped law.
+    #: The expert's speed damping near the band (``PlannerController``'s ``damping``; the shipped plan-free
+    #: policies were distilled with it).
     expert_damping: bool = False
     #: k_d of the expert's damping (``PlannerController``'s ``damping_threshold``); None: the env's k_safe.
     damping_threshold: float | None = None
@@ -236,8 +236,10 @@ def fit(
     if weights is None:
         weights = np.ones(len(observations))
     weights = np.asarray(weights, dtype=np.float32)
-    if weights.shape != (len(observations),) or not np.all(weights > 0.0) or not np.all(np.isfinite(weights)):
+    if weights.shape != (len(observations),):
         raise ValueError(f"weights must be ({len(observations)},), finite and > 0, got shape {weights.shape}")
+    if not np.all(np.isfinite(weights) & (weights > 0.0)):
+        raise ValueError(f"weights must be ({len(observations)},), finite and > 0, got a minimum of {weights.min()}")
     w_t = torch.as_tensor(weights)
     optimizer = torch.optim.Adam(policy.parameters(), lr=config.learning_rate)
     steps = config.epochs * -(-len(obs_t) // config.batch_size)
