@@ -19,6 +19,16 @@ from training.evaluate import evaluate_agent, load_run
 ENV = "Planar3RPRReachMixed-v0"
 
 
+def _small_model(net_arch: list[int] | None = None):
+    """An SB3 PPO model on ENV whose policy the fit tests train (seeded, CPU)."""
+    import torch
+    from stable_baselines3 import PPO
+
+    torch.manual_seed(0)
+    arch = [64, 64] if net_arch is None else net_arch
+    return PPO("MlpPolicy", gym.make(ENV), device="cpu", policy_kwargs={"net_arch": arch}, seed=0)
+
+
 def test_the_follower_replans_when_pushed_off_its_path():
     """With replan_distance, a pose 5 cm off the path gets a new plan from it; without, the old plan stays."""
     env = gym.make("Planar3RPRReachHard-v0")
@@ -93,11 +103,8 @@ def test_band_weights_rise_linearly_from_the_safe_to_the_hard_threshold():
 def test_a_weighted_fit_converges_to_the_weighted_mean_of_conflicting_labels():
     """Pairs that share an observation but disagree: the weighted least-squares answer is Σ w a / Σ w per point."""
     import torch
-    from stable_baselines3 import PPO
 
-    torch.manual_seed(0)
-    env = gym.make(ENV)
-    model = PPO("MlpPolicy", env, device="cpu", policy_kwargs={"net_arch": [64, 64]}, seed=0)
+    model = _small_model()
     rng = np.random.default_rng(1)
     points = rng.normal(size=(4, 18)).astype(np.float32)
     low, high = rng.uniform(-0.8, 0.0, size=(4, 3)), rng.uniform(0.0, 0.8, size=(4, 3))
@@ -118,7 +125,6 @@ def test_the_fits_learning_rate_follows_a_cosine_to_zero_with_lr_decay(monkeypat
     import math
 
     import torch
-    from stable_baselines3 import PPO
 
     rates = []
     adam = torch.optim.Adam
@@ -129,7 +135,7 @@ def test_the_fits_learning_rate_follows_a_cosine_to_zero_with_lr_decay(monkeypat
             return super().step(closure)
 
     monkeypatch.setattr(torch.optim, "Adam", Recording)
-    model = PPO("MlpPolicy", gym.make(ENV), device="cpu", policy_kwargs={"net_arch": [16]}, seed=0)
+    model = _small_model([16])
     x = np.random.default_rng(0).normal(size=(100, 18)).astype(np.float32)
     config = DistillConfig(epochs=3, batch_size=32, learning_rate=2e-3, lr_decay=decay)
     fit(model.policy, x, np.zeros((100, 3), np.float32), config, 0)
@@ -140,12 +146,7 @@ def test_the_fits_learning_rate_follows_a_cosine_to_zero_with_lr_decay(monkeypat
 
 def test_fit_lowers_the_error_to_a_known_linear_expert():
     """The policy's mean learns a fixed linear map of the observation (an expert whose answer is known)."""
-    import torch
-    from stable_baselines3 import PPO
-
-    torch.manual_seed(0)
-    env = gym.make(ENV)
-    model = PPO("MlpPolicy", env, device="cpu", policy_kwargs={"net_arch": [64, 64]}, seed=0)
+    model = _small_model()
     rng = np.random.default_rng(0)
     x = rng.normal(size=(4000, 18)).astype(np.float32)
     y = np.tanh(x[:, :3] - 0.5 * x[:, 3:6]).astype(np.float32)
