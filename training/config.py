@@ -56,7 +56,12 @@ NOISE_KEYS = ("noise_type", "noise_std")
 NOISE_TYPES = {"normal": "NormalActionNoise", "ornstein-uhlenbeck": "OrnsteinUhlenbeckActionNoise"}
 
 #: Wrappers that ``env_wrapper`` may name (the RL Zoo's key; an allow-list, nothing is imported by name).
-ENV_WRAPPERS = ("envs.GoalReachWrapper", "envs.PlannerResidualWrapper", "envs.PlannerWaypointWrapper")
+ENV_WRAPPERS = (
+    "envs.GoalReachWrapper",
+    "envs.PlannerResidualWrapper",
+    "envs.PlannerWaypointWrapper",
+    "envs.PreviousActionWrapper",
+)
 
 #: Replay buffers that ``replay_buffer_class`` may name.
 REPLAY_BUFFERS = ("HerReplayBuffer",)

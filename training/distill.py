@@ -27,6 +27,10 @@ at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on
    ``episodes`` more) is kept, as DAgger's guarantee is for the best of its policies; with "last", the last one.
 4. Optionally ``ppo_steps`` of PPO fine-tuning of the folder, in place (``finetune``).
 
+With ``previous_action`` the learner sees its own previous action too (``envs.PreviousActionWrapper``, named as
+the run's ``env_wrapper``): the direction it is moving in, which tells the way around already taken where the
+pose alone leaves two about equally good; the expert still reads the env's own observation.
+
 ``finetune`` (``--from-run``) fine-tunes a distilled run with PPO on the env's own reward: the critic alone is
 fitted first (``warmup_steps``, the actor frozen, so that the first policy updates use a value function of the
 distilled policy rather than a random one), then actor and critic together with a small step (learning rate
@@ -56,6 +60,7 @@ import yaml
 import envs
 from envs.controllers import PlannerController
 from envs.planner import PathFollower
+from training.config import resolve_env_wrapper
 from training.evaluate import SINGULARITY_REASONS, EvaluationError, parse_env_kwargs
 
 __all__ = ["DistillConfig", "FinetuneConfig", "band_weights", "collect", "distill", "finetune", "fit", "main"]
@@ -95,6 +100,8 @@ class DistillConfig:
     #: Anneal each fit's learning rate to 0 on a cosine over its epochs (False: constant ``learning_rate``), so
     #: that the learner a round keeps is a converged iterate rather than the last of Adam's full-size steps.
     lr_decay: bool = False
+    #: The learner also sees its own previous action (``envs.PreviousActionWrapper``; the run's ``env_wrapper``).
+    previous_action: bool = False
 
 
 @dataclass(frozen=True)
@@ -144,7 +151,8 @@ def collect(
     """Run episodes, acting with the learner (or the expert with probability ``beta``), labelled by the expert.
 
     Args:
-        env: A ``gym.make`` Reach environment.
+        env: A ``gym.make`` Reach environment, possibly wrapped in ``envs.PreviousActionWrapper`` (the expert then
+            reads the env's own observation, the first columns).
         expert: The labelling planner controller (its plan log is cleared first, then holds these episodes' plans).
         learner: A function of one observation (D,) to an action (n,), or None (the expert acts).
         episodes: Number of episodes; episode i resets with seed ``first_seed + i``.
@@ -161,10 +169,11 @@ def collect(
     observations, actions, conditioning = [], [], []
     successes = singular = steps = 0
     expert.log.clear()  # the plans of these episodes alone
+    width = env.unwrapped.observation_space.shape[0]  # the env's own observation, without a wrapper's columns
     for i in range(episodes):
         obs, info = env.reset(seed=first_seed + i)
         while True:
-            label = expert(obs[None])[0]
+            label = expert(obs[None, :width])[0]
             observations.append(obs)
             actions.append(label)
             conditioning.append(float(info["inverse_condition_number"]))
@@ -263,11 +272,17 @@ def fit(
     return loss_value
 
 
-def _normalizer(env_id: str, observations: np.ndarray, env_kwargs: dict[str, Any] | None = None):
+def _make_env(config: DistillConfig) -> gym.Env:
+    """The learner's env: ``config.env_id`` with its keyword arguments, and the previous action if asked for."""
+    env = gym.make(config.env_id, **config.env_kwargs)
+    return envs.PreviousActionWrapper(env) if config.previous_action else env
+
+
+def _normalizer(config: DistillConfig, observations: np.ndarray):
     """A frozen ``VecNormalize`` (observations only) with the mean and variance of ``observations``."""
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    vec = VecNormalize(DummyVecEnv([lambda: gym.make(env_id, **(env_kwargs or {}))]), norm_obs=True, norm_reward=False)
+    vec = VecNormalize(DummyVecEnv([lambda: _make_env(config)]), norm_obs=True, norm_reward=False)
     vec.obs_rms.mean = observations.mean(axis=0).astype(np.float64)
     vec.obs_rms.var = observations.var(axis=0).astype(np.float64)
     vec.obs_rms.count = float(len(observations))
@@ -284,7 +299,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     torch.set_num_threads(1)
     run_dir.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(config.seed)
-    env = gym.make(config.env_id, **config.env_kwargs)
+    env = _make_env(config)
     expert = _expert(env, config)
     seed = 1_000_000 * (config.seed + 1)
     clock = time.perf_counter()
@@ -298,7 +313,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     seed += config.expert_episodes
     rounds = [{"round": 0, "beta": 1.0, "pairs": len(obs), **figures, "seconds": time.perf_counter() - clock}]
     log(f"expert: {figures['success_rate']:.0%} success, {len(obs)} pairs")
-    normalizer = _normalizer(config.env_id, obs, config.env_kwargs)
+    normalizer = _normalizer(config, obs)
     model = PPO(
         "MlpPolicy",
         normalizer,
@@ -371,6 +386,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         "normalize": {"norm_obs": True, "norm_reward": False},
         "policy_kwargs": {"net_arch": list(config.net_arch), "log_std_init": -1.0},
         **({"env_kwargs": dict(config.env_kwargs)} if config.env_kwargs else {}),
+        **({"env_wrapper": "envs.PreviousActionWrapper"} if config.previous_action else {}),
     }
     run_config = {
         "algo": "ppo",
@@ -413,7 +429,9 @@ def finetune(source: Path, run_dir: Path, config: FinetuneConfig, log=print) -> 
     torch.set_num_threads(1)
     run_dir.mkdir(parents=True, exist_ok=True)
     env_kwargs = {**(source_config.get("hyperparams", {}).get("env_kwargs") or {}), **config.reward_kwargs}
-    venv = make_training_env(env_id, config.n_envs, 2_000_000 * (config.seed + 1), "native", run_dir, env_kwargs)
+    wrapper = resolve_env_wrapper(source_config.get("hyperparams", {}).get("env_wrapper"))
+    vec = "native" if wrapper is None else "dummy"  # a wrapper applies to single envs
+    venv = make_training_env(env_id, config.n_envs, 2_000_000 * (config.seed + 1), vec, run_dir, env_kwargs, wrapper)
     venv = VecNormalize.load(str(source / "vecnormalize.pkl"), venv)
     venv.training, venv.norm_reward = False, False
     model = PPO.load(
@@ -503,6 +521,11 @@ def main(argv: list[str] | None = None) -> int:
         "--lr-decay", action="store_true", help="anneal each fit's learning rate to 0 on a cosine over its epochs"
     )
     parser.add_argument(
+        "--previous-action",
+        action="store_true",
+        help="the learner also sees its own previous action (envs.PreviousActionWrapper)",
+    )
+    parser.add_argument(
         "--from-run", default=None, help="fine-tune this distilled run with PPO (--ppo-steps, default 1M) instead"
     )
     parser.add_argument("--warmup-steps", type=int, default=FinetuneConfig.warmup_steps, help="critic-only steps")
@@ -564,6 +587,7 @@ def main(argv: list[str] | None = None) -> int:
         lr_decay=args.lr_decay,
         damping_threshold=args.damping_threshold,
         damping_kind=args.damping_kind,
+        previous_action=args.previous_action,
     )
     distill(config, Path(args.run_dir))
     return 0

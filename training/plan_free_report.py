@@ -52,9 +52,9 @@ def _decision_seconds(run: str, env_id: str, folder: Path, repeats: int = 2000) 
     """
     import torch
 
-    agent, _ = evaluate.load_run(run)
+    agent, config = evaluate.load_run(run)
     deployed = torch.jit.load(str(export.export_run(run, folder / f"{Path(run).name}.pt")))
-    env = gym.make(env_id)
+    env = evaluate.wrap_for_run(gym.make(env_id), config)
     obs, _ = env.reset(seed=0)
     batch = obs[None]
     tensor = torch.as_tensor(batch)
@@ -197,8 +197,8 @@ def main(argv: list[str] | None = None) -> int:
         runs = {}
         planner = evaluate.load_controller("planner", env)
         runs["planner"] = evaluate.evaluate_agent(planner, env, 4, args.seed, "hard")
-        agent, _ = evaluate.load_run(args.runs[0])
-        runs["plan-free"] = evaluate.evaluate_agent(agent, env, 4, args.seed, "hard")
+        agent, config = evaluate.load_run(args.runs[0])
+        runs["plan-free"] = evaluate.evaluate_agent(agent, evaluate.wrap_for_run(env, config), 4, args.seed, "hard")
         plots.trajectories_figure(runs, env.unwrapped.params, workspace, out / "paths_hard.png")
     print((out / "table.md").read_text())
     return 0

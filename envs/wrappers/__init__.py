@@ -1,4 +1,4 @@
-"""Wrappers of the environments: the singularity shield, the goal view for HER and the planner's wrappers."""
+"""Wrappers of the environments: the shield, the goal view for HER, the planner's wrappers, the previous action."""
 
 from envs.wrappers.goal import GoalReachWrapper
 from envs.wrappers.planner import (
@@ -7,12 +7,14 @@ from envs.wrappers.planner import (
     VectorPlannerResidualWrapper,
     VectorPlannerWaypointWrapper,
 )
+from envs.wrappers.previous_action import PreviousActionWrapper
 from envs.wrappers.shield import SingularityShield, VectorSingularityShield
 
 __all__ = [
     "GoalReachWrapper",
     "PlannerResidualWrapper",
     "PlannerWaypointWrapper",
+    "PreviousActionWrapper",
     "SingularityShield",
     "VectorPlannerResidualWrapper",
     "VectorPlannerWaypointWrapper",

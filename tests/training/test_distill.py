@@ -63,6 +63,26 @@ def test_the_labels_are_the_planner_controllers_actions():
     assert figures["success_rate"] == 1.0 and figures["singular_terminations"] == 0.0
 
 
+def test_with_the_previous_action_the_learner_sees_it_and_the_expert_does_not():
+    """Wrapped in PreviousActionWrapper, the observations gain the previous action and the labels stay the same.
+
+    Each recorded observation ends with the action executed one step before (zeros at an episode's first), and the
+    labels are those of the unwrapped run: the expert reads the env's own observation.
+    """
+    from envs import PreviousActionWrapper
+
+    config = DistillConfig(replan_distance=1e9)
+    plain = gym.make(ENV)
+    obs_p, act_p, _, _ = collect(plain, distill._expert(plain, config), None, 2, 1.0, 123, np.random.default_rng(0))
+    wrapped = PreviousActionWrapper(gym.make(ENV))
+    obs_w, act_w, _, _ = collect(wrapped, distill._expert(wrapped, config), None, 2, 1.0, 123, np.random.default_rng(0))
+    np.testing.assert_array_equal(act_w, act_p)
+    np.testing.assert_array_equal(obs_w[:, :18], obs_p)
+    previous = np.concatenate([np.zeros((1, 3), np.float32), np.clip(act_p[:-1], -1.0, 1.0)])
+    previous[200] = 0.0  # the second episode's first step (200 steps each)
+    np.testing.assert_array_equal(obs_w[:, 18:], previous)
+
+
 def test_collect_counts_every_singularity_termination():
     """Newton failures are singularity terminations too (as in training.evaluate), not only a k below the bound.
 
@@ -169,6 +189,21 @@ def test_a_tiny_run_is_a_run_folder_the_evaluation_scores(tmp_path):
     assert len(records) == 2
 
 
+def test_a_run_with_the_previous_action_names_its_wrapper_and_is_scored_through_it(tmp_path):
+    """The run folder's config names envs.PreviousActionWrapper; training.evaluate wraps the env the same way."""
+    from training import evaluate
+
+    config = DistillConfig(expert_episodes=2, iterations=0, epochs=1, previous_action=True)
+    distill.distill(config, tmp_path / "run", log=lambda _: None)
+    agent, run_config = load_run(tmp_path / "run")
+    assert run_config["hyperparams"]["env_wrapper"] == "envs.PreviousActionWrapper"
+    assert agent.observation_space.shape == (21,)
+    out = tmp_path / "eval"
+    argv = ["--run", str(tmp_path / "run"), "--env", "Planar3RPRReach-v0", "--targets", "hard", "--episodes", "2"]
+    assert evaluate.main([*argv, "--seed", "5000", "--out", str(out)]) == 0
+    assert json.loads((out / "metrics.json").read_text())["episodes"] == 2
+
+
 def test_bad_options_are_refused(capsys):
     """Unknown ids and out-of-range options are named."""
     with pytest.raises(SystemExit):
@@ -188,12 +223,14 @@ def test_bad_options_are_refused(capsys):
         assert message in capsys.readouterr().err
 
 
-def test_the_plan_free_report_tabulates_every_agent(tmp_path):
+@pytest.mark.parametrize("previous_action", [False, True])
+def test_the_plan_free_report_tabulates_every_agent(tmp_path, previous_action):
     """A tiny run through training.plan_free_report: each agent's row, the timing and the paths picture."""
     from training import plan_free_report
 
     run = tmp_path / "run"
-    distill.distill(DistillConfig(expert_episodes=2, iterations=0, epochs=1), run, log=lambda _: None)
+    config = DistillConfig(expert_episodes=2, iterations=0, epochs=1, previous_action=previous_action)
+    distill.distill(config, run, log=lambda _: None)
     out = tmp_path / "report"
     plan_free_report.main(["--runs", str(run), "--env", "Planar3RPRReach-v0", "--episodes", "1", "--out", str(out)])
     table = (out / "table.md").read_text()
