@@ -238,9 +238,12 @@ class PlannerController(ResolvedRateController):
         damping: Slow down as the observed k falls below k_d (see above).
         damping_threshold: k_d, the k below which the damping slows down, in (0, 1]; None: ``params.safe_threshold``.
         damping_kind: "scale" or "cap" (see above).
+        replan_distance: The follower's ``replan_distance`` [m]: plan afresh whenever the platform is farther than
+            this from its path; None: once per episode (with a ``follower`` given, the follower's own applies).
 
     Raises:
-        ValueError: If ``damping_threshold`` is not in (0, 1] or ``damping_kind`` is unknown.
+        ValueError: If ``damping_threshold`` is not in (0, 1], ``damping_kind`` is unknown or ``replan_distance``
+            is not a positive distance.
     """
 
     name = "planner"
@@ -257,6 +260,7 @@ class PlannerController(ResolvedRateController):
         damping: bool = True,
         damping_threshold: float | None = None,
         damping_kind: str = "scale",
+        replan_distance: float | None = None,
     ) -> None:
         super().__init__(params, gain, max_speed)
         self.damping = bool(damping)
@@ -271,7 +275,7 @@ class PlannerController(ResolvedRateController):
         layout = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)
         self._k_column = layout["k"].start
         if follower is None:
-            follower = PathFollower(params, lookahead, planner, cross_track=cross_track)
+            follower = PathFollower(params, lookahead, planner, replan_distance, cross_track=cross_track)
         self.follower = follower
 
     @property

@@ -132,13 +132,15 @@ def tracking_metrics(
 # -- agents ----------------------------------------------------------------------------------------
 
 
-def load_controller(name: str, env: gym.Env, planner: str | None = None) -> Agent:
+def load_controller(name: str, env: gym.Env, planner: str | None = None, replan_distance: float | None = None) -> Agent:
     """A classical controller for an environment.
 
     Args:
         name: "resolved-rate", "singularity-aware" or "planner".
         env: The environment (its parameters configure the controller).
         planner: The planner controller's planner ("auto", "ompl" or "grid"); None: "auto".
+        replan_distance: The planner controller's ``replan_distance`` [m] (replan when this far off the path);
+            None: one plan per episode.
 
     Returns:
         A batched agent: observations (N, D) → actions (N, n).
@@ -150,7 +152,10 @@ def load_controller(name: str, env: gym.Env, planner: str | None = None) -> Agen
     if name not in CONTROLLERS:
         raise EvaluationError(f"unknown controller {name!r}; valid choices: {sorted(CONTROLLERS)}")
     try:
-        return CONTROLLERS[name](params, planner=planner) if planner else CONTROLLERS[name](params)
+        options = {"planner": planner} if planner else {}
+        if replan_distance is not None:
+            options["replan_distance"] = replan_distance
+        return CONTROLLERS[name](params, **options)
     except ValueError as exc:  # the grid planner on a robot without a certified grid
         raise EvaluationError(
             f"controller {name!r} cannot drive {env.spec.id if env.spec else 'this env'}: {exc}"
@@ -831,6 +836,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="the planner controller's planner (default auto: the certified grid where the env has one, else OMPL)",
     )
     parser.add_argument(
+        "--replan-distance",
+        type=float,
+        default=None,
+        metavar="METRES",
+        help="the planner controller plans afresh whenever the platform is farther than this from its path "
+        "(default: one plan per episode)",
+    )
+    parser.add_argument(
         "--shield",
         type=float,
         default=None,
@@ -879,10 +892,14 @@ def main(argv: list[str] | None = None) -> int:
             name = f"{config['algo']} ({Path(args.run).name}){shielded}"
             out = Path(args.out) if args.out else Path(args.run) / f"eval-{env_id}-{targets}"
         else:
-            if args.planner is not None and args.controller != "planner":
-                raise EvaluationError(f"--planner applies to --controller planner, not {args.controller!r}")
-            agent = load_controller(args.controller, env, planner=args.planner)
+            for option in ("planner", "replan_distance"):
+                if getattr(args, option) is not None and args.controller != "planner":
+                    flag = "--" + option.replace("_", "-")
+                    raise EvaluationError(f"{flag} applies to --controller planner, not {args.controller!r}")
+            agent = load_controller(args.controller, env, args.planner, args.replan_distance)
             name = args.controller + (f" ({args.planner})" if args.planner else "") + shielded
+            if args.replan_distance is not None:
+                name += f", replanning {args.replan_distance:g} m off its path"
             out = Path(args.out) if args.out else Path("evals") / f"{args.controller}-{env_id}-{targets}"
         if shielded and args.out is None:
             out = out.with_name(f"{out.name}-shield")

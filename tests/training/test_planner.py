@@ -161,3 +161,29 @@ def test_the_damping_slows_the_undamped_action_by_k_over_its_threshold_squared(t
         PlannerController(params, damping_threshold=0.0)
     with pytest.raises(ValueError, match="damping_kind must be 'scale' or 'cap', got 'clip'"):
         PlannerController(params, damping_kind="clip")
+
+
+def test_replan_distance_makes_the_planner_controller_plan_again_off_its_path(tmp_path, capsys):
+    """With ``--replan-distance`` the controller plans afresh during an episode; without, once per episode.
+
+    The hard episode of reset seed 5000 is followed to its end both ways; the oracle is the follower's own log of
+    plans. The option is refused for the other controllers, naming both.
+    """
+    import gymnasium as gym
+
+    from training.evaluate import main
+
+    plans = {}
+    for distance in (None, 1e-4):
+        env = gym.make("Planar3RPRReachHard-v0")
+        controller = load_controller("planner", env, replan_distance=distance)
+        assert controller.follower.replan_distance == distance
+        evaluate_agent(controller, env, 1, 5000, "hard")
+        plans[distance] = len(controller.log)
+    assert plans[None] == 1 and plans[1e-4] > 10
+    argv = ["--env", "Planar3RPRReachHard-v0", "--episodes", "1", "--seed", "5000", "--replan-distance", "0.01"]
+    assert main(["--controller", "planner", *argv, "--out", str(tmp_path)]) == 0
+    assert "replanning 0.01 m off its path" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main(["--controller", "resolved-rate", *argv, "--out", str(tmp_path)])
+    assert "--replan-distance applies to --controller planner, not 'resolved-rate'" in capsys.readouterr().err
