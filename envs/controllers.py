@@ -224,6 +224,11 @@ class PlannerController(ResolvedRateController):
     gain falls too, to f K at an ill-conditioned target), with "cap" a ← a · min(1, f / ‖a‖∞) (the largest
     actuator rate is capped at f of its range; small corrections near the target keep the full gain K),
     and with ``cross_track`` a one-segment plan is followed as any other (``envs.planner.PathFollower``).
+    With ``exact_step`` the rates are the secant ones, (IK(x ⊕ ẋ dt) − q) / dt with ẋ the platform twist of the
+    (scaled) resolved rates, instead of J_i ẋ: a step at full rate then lands on the pose it aims at, where the
+    first-order step is off by its second-order term (at full crank rate the 3-RRR's platform can turn several
+    times the commanded angle in one period, 3.7 times on the first step of the hard episode of reset seed 1032,
+    and drift off a certified path into the Type II band).
 
     Args:
         params: Environment constants.
@@ -240,6 +245,7 @@ class PlannerController(ResolvedRateController):
         damping_kind: "scale" or "cap" (see above).
         replan_distance: The follower's ``replan_distance`` [m]: plan afresh whenever the platform is farther than
             this from its path; None: once per episode (with a ``follower`` given, the follower's own applies).
+        exact_step: Command the secant rates to the pose one period on (see above); False: J_i ẋ.
 
     Raises:
         ValueError: If ``damping_threshold`` is not in (0, 1], ``damping_kind`` is unknown or ``replan_distance``
@@ -261,9 +267,11 @@ class PlannerController(ResolvedRateController):
         damping_threshold: float | None = None,
         damping_kind: str = "scale",
         replan_distance: float | None = None,
+        exact_step: bool = True,
     ) -> None:
         super().__init__(params, gain, max_speed)
         self.damping = bool(damping)
+        self.exact_step = bool(exact_step)
         if damping_threshold is None:
             damping_threshold = params.safe_threshold
         if not 0.0 < damping_threshold <= 1.0:
@@ -307,6 +315,22 @@ class PlannerController(ResolvedRateController):
     def steer(self, pose: np.ndarray, carrot: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """Resolved-rate actions from ``pose`` toward ``carrot`` (each (N, m)) with feed-forward ``velocity``."""
         return self.act(pose, pose_error(self.params, pose, carrot), velocity)
+
+    def act(self, pose: np.ndarray, error: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Resolved-rate actions (``ResolvedRateController.act``); with ``exact_step`` the secant rates."""
+        if not self.exact_step:
+            return super().act(pose, error, velocity)
+        robot, dt = self.params.robot, self.params.dt
+        q = robot.inverse_kinematics(pose, validate=False)
+        J_i = robot.inverse_jacobian(q, pose, validate=False)
+        q_dot = self._respect_stroke_limits(q, J_i, self.desired_velocity(pose, error, velocity))
+        q_dot /= np.maximum(np.max(np.abs(q_dot), axis=-1, keepdims=True) / self.params.max_rate, 1.0)
+        twist = np.einsum("nij,nj->ni", np.linalg.pinv(J_i), q_dot)  # the platform twist of these rates
+        secant = (robot.inverse_kinematics(robot.retract(pose, twist * dt, validate=False), validate=False) - q) / dt
+        q_dot = np.where(np.all(np.isfinite(secant), axis=-1, keepdims=True), secant, q_dot)
+        a = q_dot / self.params.max_rate
+        a /= np.maximum(np.max(np.abs(a), axis=-1, keepdims=True), 1.0)
+        return a.astype(np.float32)
 
     def episode_metrics(self, row: int | None = None) -> dict[str, float] | None:
         """The last plan's figures (path found, planned / straight length, min k, planning time), or None.

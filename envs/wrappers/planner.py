@@ -167,7 +167,8 @@ class PlannerResidualWrapper(_PlannerWrapper):
         n = env.action_space.shape[0] if isinstance(env.action_space, spaces.Box) else 0  # _setup refuses others
         self._setup(env, lookahead, planner, n)
         # one plan per episode, shared by the observation and the action
-        self.controller = PlannerController(self.params, follower=self.follower)
+        # the base action the shipped residual policies were trained over (first-order steps)
+        self.controller = PlannerController(self.params, follower=self.follower, exact_step=False)
         self._planner_action = np.zeros(n, dtype=np.float32)
 
     def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
@@ -272,7 +273,8 @@ class VectorPlannerResidualWrapper(_VectorPlannerWrapper):
         self.scale = _residual_scale(scale)
         n = env.single_action_space.shape[0]
         self._setup(env, lookahead, planner, n)
-        self.controller = PlannerController(self.params, follower=self.follower)
+        # the base action the shipped residual policies were trained over (first-order steps)
+        self.controller = PlannerController(self.params, follower=self.follower, exact_step=False)
         self._planner_action = np.zeros((env.num_envs, n), dtype=np.float32)
 
     def _augment(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:

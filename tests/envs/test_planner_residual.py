@@ -31,7 +31,7 @@ def test_residual_wrapper_passes_the_checker_and_extends_the_observation():
     assert env.observation_space.contains(obs)
     # a safe straight line: the waypoint is the target, and a_p is the resolved-rate action toward it
     np.testing.assert_allclose(obs[-6:-3], obs[ERROR], atol=1e-6)
-    controller = PlannerController(env.unwrapped.params)
+    controller = PlannerController(env.unwrapped.params, exact_step=False)  # the wrapper's base action
     error = info["target"] - info["pose"]
     error[2] = wrap_angle(error[2])
     expected = controller.act(info["pose"][None], error[None], np.zeros((1, 3)))[0]
@@ -43,7 +43,7 @@ def test_a_zero_policy_is_the_planner_controller(seed):
     """Zero actions through the wrapper replay the planner controller's hard episode step for step."""
     wrapped = envs.PlannerResidualWrapper(gym.make("Planar3RPRReachHard-v0"))
     plain = gym.make("Planar3RPRReachHard-v0")
-    controller = PlannerController(plain.unwrapped.params)
+    controller = PlannerController(plain.unwrapped.params, exact_step=False)  # the wrapper's base action
     _, info_w = wrapped.reset(seed=seed)
     obs_p, info_p = plain.reset(seed=seed)
     for _ in range(200):

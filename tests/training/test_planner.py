@@ -111,8 +111,9 @@ def test_damped_planner_crosses_the_3rrr_band_where_full_speed_meets_it(seed):
     On the 3-RRR, a step at full speed next to its thin band leaves the certified line by millimetres where k
     falls below k_hard; slowing down as k falls (``damping``) reaches those ill-conditioned targets.
 
-    The undamped law is run too, on the same episode, so that the test fails if these stop being episodes that
-    need the damping (then they test nothing).
+    The undamped first-order law (``exact_step=False``) is run too, on the same episode, so that the test fails if
+    these stop being episodes that need the damping (then they test nothing); the undamped exact (secant) step,
+    which does not drift off the line, reaches them too.
     """
     import gymnasium as gym
 
@@ -121,9 +122,38 @@ def test_damped_planner_crosses_the_3rrr_band_where_full_speed_meets_it(seed):
     env = gym.make("Planar3RRRReachHard-v0")
     params = env.unwrapped.params
     damped = evaluate_agent(PlannerController(params), env, 1, seed)[0]
-    full_speed = evaluate_agent(PlannerController(params, damping=False), env, 1, seed)[0]
+    first_order = evaluate_agent(PlannerController(params, damping=False, exact_step=False), env, 1, seed)[0]
+    exact = evaluate_agent(PlannerController(params, damping=False), env, 1, seed)[0]
     assert damped.success and not damped.singularity_termination
-    assert full_speed.singularity_termination
+    assert first_order.singularity_termination
+    assert exact.success and not exact.singularity_termination
+
+
+def test_the_exact_step_lands_where_the_controller_aims():
+    """At full crank rate the 3-RRR's platform moves along the commanded twist with ``exact_step`` only.
+
+    The first-order step J_i ẋ turns the platform several times the commanded angle in one period (the second-order
+    term of the forward kinematics; hard episode 1032's start), which drifts it off a certified path.
+    """
+    import gymnasium as gym
+
+    from envs.controllers import PlannerController, decode_observation, pose_error
+
+    env = gym.make("Planar3RRRReachHard-v0")
+    params = env.unwrapped.params
+    turns = {}
+    for exact in (True, False):
+        controller = PlannerController(params, damping=False, exact_step=exact)
+        obs, info = env.reset(seed=1032, options={"targets": "hard"})
+        pose, error, velocity = decode_observation(params, obs[None])
+        action = controller.act(pose, error, velocity)[0]
+        assert np.max(np.abs(action)) > 0.9  # a step at (nearly) full rate
+        aim = controller.desired_velocity(pose, error, velocity)[0]
+        _, _, _, _, info = env.step(action)
+        moved = pose_error(params, pose, info["pose"][None])[0]
+        turns[exact] = (moved[2] / np.linalg.norm(moved[:2])) / (aim[2] / np.linalg.norm(aim[:2]))
+    assert turns[True] == pytest.approx(1.0, abs=0.02)
+    assert turns[False] > 2.0
 
 
 @pytest.mark.parametrize(("threshold", "kind"), [(None, "scale"), (0.2, "scale"), (None, "cap"), (0.2, "cap")])
