@@ -100,6 +100,9 @@ class DistillConfig:
     #: Anneal each fit's learning rate to 0 on a cosine over its epochs (False: constant ``learning_rate``), so
     #: that the learner a round keeps is a converged iterate rather than the last of Adam's full-size steps.
     lr_decay: bool = False
+    #: Label with the first-order resolved-rate step J_i ẋ (``PlannerController``'s ``exact_step=False``) instead
+    #: of the exact step to the aimed pose.
+    first_order_expert: bool = False
     #: The learner also sees its own previous action (``envs.PreviousActionWrapper``; the run's ``env_wrapper``).
     previous_action: bool = False
 
@@ -136,6 +139,7 @@ def _expert(env: gym.Env, config: DistillConfig) -> PlannerController:
         damping=config.expert_damping,
         damping_threshold=config.damping_threshold,
         damping_kind=config.damping_kind,
+        exact_step=not config.first_order_expert,
     )
 
 
@@ -521,6 +525,11 @@ def main(argv: list[str] | None = None) -> int:
         "--lr-decay", action="store_true", help="anneal each fit's learning rate to 0 on a cosine over its epochs"
     )
     parser.add_argument(
+        "--first-order-expert",
+        action="store_true",
+        help="label with the first-order step J_i xdot instead of the exact step to the aimed pose",
+    )
+    parser.add_argument(
         "--previous-action",
         action="store_true",
         help="the learner also sees its own previous action (envs.PreviousActionWrapper)",
@@ -588,6 +597,7 @@ def main(argv: list[str] | None = None) -> int:
         damping_threshold=args.damping_threshold,
         damping_kind=args.damping_kind,
         previous_action=args.previous_action,
+        first_order_expert=args.first_order_expert,
     )
     distill(config, Path(args.run_dir))
     return 0

@@ -57,10 +57,16 @@ def test_the_labels_are_the_planner_controllers_actions():
     assert obs.shape == (400, 18) and act.shape == (400, 3) and k.shape == (400,)
     # k is the state's own: the observation's k column (noise-free here), not the next state's
     np.testing.assert_allclose(k, obs[:, -1], rtol=1e-6)
-    # the default expert law: undamped, straight at the target on a one-segment plan
+    # the default expert law: undamped, straight at the target on a one-segment plan, exact steps
     reference = PlannerController(env.unwrapped.params, cross_track=False, damping=config.expert_damping)
     np.testing.assert_allclose(np.stack([reference(o[None])[0] for o in obs]), act, atol=1e-6)
     assert figures["success_rate"] == 1.0 and figures["singular_terminations"] == 0.0
+    # with first_order_expert, the first-order law's (which differs from the exact one at these states)
+    config = DistillConfig(replan_distance=1e9, first_order_expert=True)
+    obs, first, _, _ = collect(env, distill._expert(env, config), None, 2, 1.0, 123, np.random.default_rng(0))
+    reference = PlannerController(env.unwrapped.params, cross_track=False, damping=False, exact_step=False)
+    np.testing.assert_allclose(np.stack([reference(o[None])[0] for o in obs]), first, atol=1e-6)
+    assert np.max(np.abs(first - act)) > 1e-3
 
 
 def test_with_the_previous_action_the_learner_sees_it_and_the_expert_does_not():
