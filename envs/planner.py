@@ -464,7 +464,9 @@ class PathFollower:
         planner: "auto" (the grid graph where the env has a certified grid, else OMPL), "ompl" or "grid".
         replan_distance: If given, a row whose pose is farther than this from its path (in z [m]) is planned
             afresh from the pose: the carrot is then a function of the pose and the target alone, as an expert
-            that relabels the states a learner visits must be (``training.distill``). None: plan once per episode.
+            that relabels the states a learner visits must be (``training.distill``). Where no certified path
+            exists from the pose (beside the band, or within the strokes' margins) but the row's current plan is
+            certified, that plan stays and the carrot steers back toward it. None: plan once per episode.
         cross_track: Steer along a straight (one-segment) plan too, toward the carrot on it, instead of straight at
             the target from wherever the robot is: a robot that drifts off a certified line is brought back to it.
     """
@@ -498,9 +500,12 @@ class PathFollower:
         """Plan row ``row`` afresh from ``pose`` to ``target`` (each (m,)) and return the plan."""
         plan = self.graph.plan(pose, target)
         self.log.append(plan)
+        self._install(row, plan, target, pose)
+        return plan
+
+    def _install(self, row: int, plan: Plan, target: np.ndarray, pose: np.ndarray) -> None:
         arc = np.concatenate([[0.0], np.cumsum(_segment_lengths(plan.waypoints, self.metric))])
         self._rows[row] = (np.array(target, dtype=float), plan, arc, 0.0, np.array(pose, dtype=float))
-        return plan
 
     def carrot(self, row: int, pose: np.ndarray, target: np.ndarray) -> np.ndarray:
         """The pose row ``row`` steers toward, shape (m,); plans first if the row shows a new episode.
@@ -514,13 +519,20 @@ class PathFollower:
             entry is None
             or not np.allclose(entry[0], target, rtol=0.0, atol=1e-4)
             or np.linalg.norm((pose - entry[4]) * self.metric) > self._jump
-            or (
-                self.replan_distance is not None
-                and _closest_on_segments(entry[1].waypoints, self.metric, pose)[0].min() > self.replan_distance
-            )
         ):
             self.reset_row(row, pose, target)
             entry = self._rows[row]
+        elif (
+            self.replan_distance is not None
+            and _closest_on_segments(entry[1].waypoints, self.metric, pose)[0].min() > self.replan_distance
+        ):
+            plan = self.graph.plan(pose, target)
+            self.log.append(plan)
+            if plan.found or not entry[1].found:
+                self._install(row, plan, target, pose)
+                entry = self._rows[row]
+            # else: no certified path from here (a start beside the band or the strokes' margins); the certified
+            # plan stays, and the carrot steers back toward it rather than straight at the target
         goal_pose, plan, arc, progress, _ = entry
         w = plan.waypoints
         follow = len(w) > 2 or self.cross_track  # a one-segment plan ends at the target: steer there directly

@@ -25,6 +25,11 @@ at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on
    singularity terminations per episode (every reason of ``training.evaluate.SINGULARITY_REASONS``, Newton
    failures and assembly-mode changes included), on that round's training episodes; the last learner is scored on
    ``episodes`` more) is kept, as DAgger's guarantee is for the best of its policies; with "last", the last one.
+   With "validated", every round's learner (the behaviour-cloned one included) acts alone on the same
+   ``select_episodes`` hard and ``select_episodes`` standard validation episodes (reset seeds from
+   ``3_000_000 · (seed + 1)`` on, away from the training and the evaluation seeds; no expert, no labels) and the
+   one with the highest success rate minus singularity terminations per episode, over both sets, is kept: the
+   rounds' own training episodes are few and on mixed targets, so their scores differ by less than their noise.
 4. Optionally ``ppo_steps`` of PPO fine-tuning of the folder, in place (``finetune``).
 
 With ``previous_action`` the learner sees its own previous action too (``envs.PreviousActionWrapper``, named as
@@ -86,8 +91,10 @@ class DistillConfig:
     replan_distance: float = 0.03
     lookahead: float = 0.1
     ppo_steps: int = 0
-    #: "last": keep the last round's learner; "best": the round's learner that did best when it acted.
+    #: "last": keep the last round's learner; "best": the round's learner that did best when it acted;
+    #: "validated": the one that does best on ``select_episodes`` validation episodes per target set.
     select_round: str = "last"
+    select_episodes: int = 200
     #: The expert's speed damping near the band (``PlannerController``'s ``damping``; the shipped plan-free
     #: policies were distilled with it).
     expert_damping: bool = False
@@ -202,6 +209,39 @@ def collect(
         np.asarray(conditioning, dtype=np.float64),
         figures,
     )
+
+
+def validate(env: gym.Env, learner: Any, episodes: int, first_seed: int) -> dict[str, float]:
+    """The learner alone on ``episodes`` hard and ``episodes`` standard episodes (reset seeds ``first_seed + i``).
+
+    Args:
+        env: A Reach env whose reset takes the ``targets`` option (possibly wrapped).
+        learner: A function of one observation (D,) to an action (n,).
+        episodes: Episodes per target set, ≥ 1.
+        first_seed: Reset seed of each set's first episode.
+
+    Returns:
+        success rate and singularity terminations per episode (``SINGULARITY_REASONS``) over both sets, and the
+        hard set's alone ("hard_success_rate", "hard_singular_terminations").
+    """
+    counts = {}
+    for targets in ("hard", "standard"):
+        successes = singular = 0
+        for i in range(episodes):
+            obs, _ = env.reset(seed=first_seed + i, options={"targets": targets})
+            while True:
+                obs, _, terminated, truncated, info = env.step(learner(obs))
+                if terminated or truncated:
+                    successes += bool(info.get("is_success", False))
+                    singular += info.get("termination_reason") in SINGULARITY_REASONS
+                    break
+        counts[targets] = (successes / episodes, singular / episodes)
+    return {
+        "success_rate": (counts["hard"][0] + counts["standard"][0]) / 2,
+        "singular_terminations": (counts["hard"][1] + counts["standard"][1]) / 2,
+        "hard_success_rate": counts["hard"][0],
+        "hard_singular_terminations": counts["hard"][1],
+    }
 
 
 def band_weights(k: np.ndarray, safe_threshold: float, hard_threshold: float, weight: float) -> np.ndarray:
@@ -368,6 +408,22 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         kept = max(scores, key=lambda i: (scores[i], i))
         policy.load_state_dict(snapshots[kept])
         log(f"kept the learner of round {kept} (score {scores[kept]:.2f}: success − singular per episode)")
+    elif config.select_round == "validated":
+        validation = []
+        for i, snapshot in enumerate(snapshots):
+            policy.load_state_dict(snapshot)
+            figures = validate(env, learner, config.select_episodes, 3_000_000 * (config.seed + 1))
+            validation.append(
+                {"round": i, **figures, "score": figures["success_rate"] - figures["singular_terminations"]}
+            )
+            log(
+                f"validated round {i}: {figures['success_rate']:.1%} success, "
+                f"{figures['singular_terminations']:.3f} singular/episode"
+            )
+        kept = max(range(len(snapshots)), key=lambda i: (validation[i]["score"], i))
+        policy.load_state_dict(snapshots[kept])
+        rounds_validation = validation
+        log(f"kept the learner of round {kept} (validation score {validation[kept]['score']:.3f})")
     model.save(run_dir / "model.zip")
     normalizer.save(str(run_dir / "vecnormalize.pkl"))
     # time per decision of the learner (one observation) against the expert's planning time per episode
@@ -381,6 +437,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         "config": asdict(config),
         "rounds": rounds,
         "kept_round": kept,
+        **({"validation": rounds_validation} if config.select_round == "validated" else {}),
         "decision_s": decision_s,
         "expert_planning_s": float(np.mean(planning)) if planning else 0.0,
     }
@@ -503,9 +560,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--select-round",
         default=defaults.select_round,
-        choices=("last", "best"),
-        help="keep the last round's learner or the one that did best when it acted (default %(default)s)",
+        choices=("last", "best", "validated"),
+        help="keep the last round's learner, the one that did best when it acted, or the one that does best on "
+        "--select-episodes validation episodes per target set (default %(default)s)",
     )
+    parser.add_argument("--select-episodes", type=int, default=defaults.select_episodes)
     parser.add_argument(
         "--expert-damping", action="store_true", help="label with the planner controller's damping near the band"
     )
@@ -560,7 +619,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.env not in envs.ENV_IDS or "Reach" not in args.env:
         parser.error(f"--env must be a Reach id of {envs.ENV_IDS}, got {args.env!r}")
-    for name in ("expert_episodes", "epochs", "batch_size"):
+    for name in ("expert_episodes", "epochs", "batch_size", "select_episodes"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
     if not 0.0 <= args.beta <= 1.0:
@@ -592,6 +651,7 @@ def main(argv: list[str] | None = None) -> int:
         ppo_steps=args.ppo_steps,
         expert_damping=args.expert_damping,
         select_round=args.select_round,
+        select_episodes=args.select_episodes,
         band_weight=args.band_weight,
         lr_decay=args.lr_decay,
         damping_threshold=args.damping_threshold,

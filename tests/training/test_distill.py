@@ -12,6 +12,7 @@ import pytest
 
 from envs.controllers import PlannerController
 from envs.planner import PathFollower
+from envs.planner import _closest_on_segments as distill_closest
 from training import distill
 from training.distill import DistillConfig, collect, fit
 from training.evaluate import evaluate_agent, load_run
@@ -46,6 +47,55 @@ def test_the_follower_replans_when_pushed_off_its_path():
             np.testing.assert_array_equal(follower.log[-1].waypoints[0], off)
     with pytest.raises(ValueError, match=r"replan_distance must be None or a positive distance \[m\], got -1"):
         PathFollower(params, replan_distance=-1)
+
+
+def test_a_failed_replan_keeps_the_certified_plan():
+    """Off its path where no certified path exists from the pose, the follower keeps its certified plan.
+
+    The graph's second plan is made to fail: the row keeps the first plan and its carrot lies on it (steering
+    back), not at the target; a second plan that is found replaces the first.
+    """
+    from envs.planner import Plan
+
+    env = gym.make("Planar3RPRReachHard-v0")
+    _, info = env.reset(seed=3)
+    params = env.unwrapped.params
+    pose, target = info["pose"], info["target"]
+    for found in (False, True):
+        follower = PathFollower(params, replan_distance=0.03)
+        follower.carrot(0, pose, target)
+        first = follower.log[-1]
+        assert first.found and len(first.waypoints) > 2  # a detour
+        plan = follower.graph.plan
+        follower.graph.plan = lambda a, b: Plan(np.stack([a, b]), found, 1.0, 1.0, 0.0, 0.0)
+        off = pose + np.array([0.0, 0.05, 0.0])
+        follower._jump = 1.0  # the push is not a new episode
+        carrot = follower.carrot(0, off, target)
+        follower.graph.plan = plan
+        assert len(follower.log) == 2 and follower.log[-1].found == found
+        kept = follower._rows[0][1]
+        if found:
+            assert kept is follower.log[-1]
+            np.testing.assert_allclose(carrot, target)  # the new one-segment plan steers at the target
+        else:
+            assert kept is first
+            gap, _ = distill_closest(first.waypoints, params.pose_metric, carrot)
+            assert gap.min() < 1e-9 and np.linalg.norm(carrot - target) > 0.05
+
+
+def test_the_replanning_expert_reaches_a_hard_target_it_drove_straight_at():
+    """Replanning 1 cm off its path, the planner controller reaches reset seed 5003's hard target.
+
+    The episode meets a replan that finds no certified path (from a pose within the strokes' margins); driving
+    straight at the target from there, as a follower without a certified plan does, ends it singular.
+    """
+    from training.evaluate import load_controller
+
+    env = gym.make("Planar3RPRReach-v0")
+    controller = load_controller("planner", env, replan_distance=0.01)
+    (record,) = evaluate_agent(controller, env, 1, 5003, "hard")
+    assert record.success and not record.singularity_termination
+    assert any(not plan.found for plan in controller.log)  # the episode does meet a failed replan
 
 
 def test_the_labels_are_the_planner_controllers_actions():
