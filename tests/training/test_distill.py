@@ -67,7 +67,7 @@ def test_a_failed_replan_keeps_the_certified_plan():
         first = follower.log[-1]
         assert first.found and len(first.waypoints) > 2  # a detour
         plan = follower.graph.plan
-        follower.graph.plan = lambda a, b: Plan(np.stack([a, b]), found, 1.0, 1.0, 0.0, 0.0)
+        follower.graph.plan = lambda a, b, found=found: Plan(np.stack([a, b]), found, 1.0, 1.0, 0.0, 0.0)
         off = pose + np.array([0.0, 0.05, 0.0])
         follower._jump = 1.0  # the push is not a new episode
         carrot = follower.carrot(0, off, target)
@@ -324,6 +324,33 @@ def test_best_round_selection_keeps_the_learner_that_did_best_when_it_acted(tmp_
         obs = np.random.default_rng(0).normal(size=(8, agent.observation_space.shape[0])).astype(np.float32)
         with torch.no_grad():
             assert not np.allclose(agent(obs), other(obs))
+
+
+def test_validation_counts_as_the_evaluation_does():
+    """``validate``'s rates equal training.evaluate's records of the same agent on the same seeds and targets."""
+    from envs.controllers import ResolvedRateController
+
+    env = gym.make("Planar3RPRReach-v0")
+    driver = ResolvedRateController(env.unwrapped.params)
+    figures = distill.validate(env, lambda o: driver(o[None])[0], 4, 5000)
+    hard = evaluate_agent(driver, env, 4, 5000, "hard")
+    standard = evaluate_agent(driver, env, 4, 5000, "standard")
+    assert figures["hard_success_rate"] == np.mean([r.success for r in hard])
+    assert figures["hard_singular_terminations"] == np.mean([r.singularity_termination for r in hard]) > 0
+    both = hard + standard
+    assert figures["success_rate"] == np.mean([r.success for r in both])
+    assert figures["singular_terminations"] == np.mean([r.singularity_termination for r in both])
+
+
+def test_validated_selection_keeps_the_round_with_the_best_validation_score(tmp_path):
+    """``select_round="validated"`` scores every round's learner, the behaviour-cloned one included."""
+    config = DistillConfig(
+        expert_episodes=2, iterations=2, episodes=2, epochs=1, select_round="validated", select_episodes=2
+    )
+    result = distill.distill(config, tmp_path, log=lambda _: None)
+    scores = [v["score"] for v in result["validation"]]
+    assert [v["round"] for v in result["validation"]] == [0, 1, 2]
+    assert result["kept_round"] == max(i for i, v in enumerate(scores) if v == max(scores))
 
 
 def test_finetuning_fits_the_critic_alone_first_then_both(tmp_path):
