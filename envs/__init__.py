@@ -14,6 +14,7 @@ from envs.wrappers import (
     SingularityShield,
     VectorPlannerResidualWrapper,
     VectorPlannerWaypointWrapper,
+    VectorPreviousActionWrapper,
     VectorSingularityShield,
 )
 
@@ -34,6 +35,7 @@ __all__ = [
     "SingularityShield",
     "VectorPlannerResidualWrapper",
     "VectorPlannerWaypointWrapper",
+    "VectorPreviousActionWrapper",
     "VectorSingularityShield",
 ]
 

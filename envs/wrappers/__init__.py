@@ -7,7 +7,7 @@ from envs.wrappers.planner import (
     VectorPlannerResidualWrapper,
     VectorPlannerWaypointWrapper,
 )
-from envs.wrappers.previous_action import PreviousActionWrapper
+from envs.wrappers.previous_action import PreviousActionWrapper, VectorPreviousActionWrapper
 from envs.wrappers.shield import SingularityShield, VectorSingularityShield
 
 __all__ = [
@@ -18,5 +18,6 @@ __all__ = [
     "SingularityShield",
     "VectorPlannerResidualWrapper",
     "VectorPlannerWaypointWrapper",
+    "VectorPreviousActionWrapper",
     "VectorSingularityShield",
 ]

@@ -5,8 +5,8 @@ singular band from such an observation must choose its way around from the pose 
 are about as good, its choice can flip from one control period to the next. A real controller knows the command
 it sent one period ago; ``PreviousActionWrapper`` gives it that command, which carries the direction the platform
 is moving in, and with it the way around already taken. It is the single-env wrapper a run names with
-``env_wrapper: envs.PreviousActionWrapper`` (``training.config.ENV_WRAPPERS``); it has no vector form, so such a
-run is evaluated on single envs.
+``env_wrapper: envs.PreviousActionWrapper`` (``training.config.ENV_WRAPPERS``); ``VectorPreviousActionWrapper`` is its
+vector form on the native vector env (row i is the single wrapper on sub-environment i).
 """
 
 from __future__ import annotations
@@ -16,7 +16,19 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-__all__ = ["PreviousActionWrapper"]
+__all__ = ["PreviousActionWrapper", "VectorPreviousActionWrapper"]
+
+
+def _appended(space: gym.Space, action_space: gym.Space, name: str) -> gym.spaces.Box:
+    """``space`` (a 1-D Box) with the action space's bounds (a 1-D Box) appended."""
+    for kind, box in (("observation", space), ("action", action_space)):
+        if not (isinstance(box, gym.spaces.Box) and len(box.shape) == 1):
+            raise TypeError(f"{name} needs a one-dimensional Box {kind} space, got {box}")
+    return gym.spaces.Box(
+        np.concatenate([space.low, action_space.low]).astype(np.float32),
+        np.concatenate([space.high, action_space.high]).astype(np.float32),
+        dtype=np.float32,
+    )
 
 
 class PreviousActionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -35,21 +47,15 @@ class PreviousActionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         TypeError: If the observation or action space is not a one-dimensional Box.
     """
 
+    vector_form = "VectorPreviousActionWrapper"
+
     def __init__(self, env: gym.Env) -> None:
         gym.utils.RecordConstructorArgs.__init__(self)
         gym.Wrapper.__init__(self, env)
-        obs_space, act_space = env.observation_space, env.action_space
-        for name, space in (("observation", obs_space), ("action", act_space)):
-            if not (isinstance(space, gym.spaces.Box) and len(space.shape) == 1):
-                raise TypeError(f"PreviousActionWrapper needs a one-dimensional Box {name} space, got {space}")
-        self._low = act_space.low.astype(np.float32)
-        self._high = act_space.high.astype(np.float32)
-        self.observation_space = gym.spaces.Box(
-            np.concatenate([obs_space.low, self._low]).astype(np.float32),
-            np.concatenate([obs_space.high, self._high]).astype(np.float32),
-            dtype=np.float32,
-        )
-        self._previous = np.zeros(act_space.shape, dtype=np.float32)
+        self.observation_space = _appended(env.observation_space, env.action_space, type(self).__name__)
+        self._low = env.action_space.low.astype(np.float32)
+        self._high = env.action_space.high.astype(np.float32)
+        self._previous = np.zeros_like(self._low)
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
         return np.concatenate([np.asarray(obs, dtype=np.float32), self._previous])
@@ -65,3 +71,51 @@ class PreviousActionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._previous = np.clip(np.asarray(action, dtype=np.float32).reshape(self._low.shape), self._low, self._high)
         return self._observe(obs), reward, terminated, truncated, info
+
+
+class VectorPreviousActionWrapper(gym.vector.VectorWrapper):
+    """``PreviousActionWrapper`` on a vector env: row i's observation ends with row i's previous action.
+
+    A row whose episode starts at this step (after ``reset``, or by autoreset: at the step after its end with
+    ``AutoresetMode.NEXT_STEP``, which ignores that step's action; at its end with ``SAME_STEP``, which returns the
+    next episode's first observation) shows zeros, as the single wrapper does after ``reset``.
+
+    Args:
+        env: A vector env with one-dimensional Box single observation and action spaces.
+
+    Raises:
+        TypeError: If a single space is not a one-dimensional Box.
+    """
+
+    def __init__(self, env: gym.vector.VectorEnv) -> None:
+        super().__init__(env)
+        self.single_observation_space = _appended(
+            env.single_observation_space, env.single_action_space, type(self).__name__
+        )
+        self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, env.num_envs)
+        self._low = env.single_action_space.low.astype(np.float32)
+        self._high = env.single_action_space.high.astype(np.float32)
+        self._previous = np.zeros((env.num_envs, *self._low.shape), dtype=np.float32)
+        self._ended = np.zeros(env.num_envs, dtype=bool)
+
+    def reset(self, *, seed: Any = None, options: dict[str, Any] | None = None):
+        """The vector env's reset; the reset rows' previous actions are zero."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        mask = (options or {}).get("reset_mask")
+        rows = np.flatnonzero(mask) if mask is not None else np.arange(self.num_envs)
+        self._previous[rows] = 0.0
+        self._ended[rows] = False
+        return np.concatenate([obs, self._previous], axis=1).astype(np.float32), info
+
+    def step(self, actions: np.ndarray):
+        """The vector env's step; each row's observation ends with its action, clipped (zeros where one starts)."""
+        obs, rewards, terminated, truncated, info = self.env.step(actions)
+        previous = np.clip(np.asarray(actions, dtype=np.float32).reshape(self._previous.shape), self._low, self._high)
+        mode = getattr(self.env.unwrapped, "autoreset_mode", gym.vector.AutoresetMode.NEXT_STEP)
+        if mode == gym.vector.AutoresetMode.NEXT_STEP:
+            previous[self._ended] = 0.0  # these rows started their next episode at this step
+        elif mode == gym.vector.AutoresetMode.SAME_STEP:
+            previous[terminated | truncated] = 0.0  # these rows show their next episode's first observation
+        self._previous = previous
+        self._ended = np.asarray(terminated | truncated)
+        return np.concatenate([obs, previous], axis=1).astype(np.float32), rewards, terminated, truncated, info

@@ -70,9 +70,9 @@ def test_vector_evaluation_refuses_what_the_single_one_refuses():
         make_vector_env("CartPole-v1", 2)
 
 
-@pytest.mark.parametrize("wrapper", ["PlannerResidualWrapper", "PlannerWaypointWrapper"])
+@pytest.mark.parametrize("wrapper", ["PlannerResidualWrapper", "PlannerWaypointWrapper", "PreviousActionWrapper"])
 def test_vector_planner_wrappers_equal_the_single_ones(wrapper):
-    """Row i of the planner's vector wrappers is the single wrapper on episode i (behind the shield too)."""
+    """Row i of the vector wrappers (the planner's, the previous action's) is the single wrapper on episode i."""
     from training.evaluate import wrap_vector_for_run
 
     config = {"hyperparams": {"env_wrapper": f"envs.{wrapper}"}}
@@ -90,6 +90,29 @@ def test_vector_planner_wrappers_equal_the_single_ones(wrapper):
     assert wrap_vector_for_run(make_vector_env("Planar3RPRReach-v0", 2), {"hyperparams": {}}) is not None
     goal = {"hyperparams": {"env_wrapper": "envs.GoalReachWrapper"}}
     assert wrap_vector_for_run(make_vector_env("Planar3RPRReach-v0", 2), goal) is None  # no vector form
+
+
+@pytest.mark.parametrize("mode", [gym.vector.AutoresetMode.NEXT_STEP, gym.vector.AutoresetMode.SAME_STEP])
+def test_vector_previous_action_is_zero_where_an_episode_starts(mode):
+    """Each row's observation ends with its last action; zeros in the first observation of its next episode.
+
+    Oracle: the single wrapper's first observation after ``reset`` (zeros) and the actions sent, clipped.
+    """
+    plain = gym.make_vec("Planar3RPRReach-v0", 3, vectorization_mode="vector_entry_point", autoreset_mode=mode)
+    venv = envs.VectorPreviousActionWrapper(plain)
+    obs, _ = venv.reset(seed=5, options={"targets": "hard"})
+    np.testing.assert_array_equal(obs[:, -3:], 0.0)
+    rng = np.random.default_rng(0)
+    ended, starts = np.zeros(3, dtype=bool), 0
+    for _ in range(600):
+        actions = rng.uniform(-1.5, 1.5, (3, 3)).astype(np.float32)
+        obs, _, terminated, truncated, _ = venv.step(actions)
+        start = ended if mode == gym.vector.AutoresetMode.NEXT_STEP else terminated | truncated
+        np.testing.assert_array_equal(obs[start, -3:], 0.0)
+        np.testing.assert_array_equal(obs[~start, -3:], np.clip(actions, -1.0, 1.0)[~start])
+        starts += int(start.sum())
+        ended = terminated | truncated
+    assert starts >= 3
 
 
 def test_vector_residual_wrapper_restarts_plans_with_the_next_episode():
