@@ -10,15 +10,15 @@ import pytest
 import torch
 
 import envs  # noqa: F401  (registers the ids)
-from training.evaluate import EvaluationError, load_run
+from training.evaluate import EvaluationError, load_run, wrap_for_run
 from training.export import deployed_module, export_run, main
 
 SHIPPED = "training/pretrained/distill-Planar3RPRReachMixed-v0"
 
 
-def _observations(env_id: str, agent, n: int = 64) -> np.ndarray:
-    """Observations of a rollout of the agent, and some far outside the statistics (to reach the clip)."""
-    env = gym.make(env_id)
+def _observations(env_id: str, agent, config: dict, n: int = 64) -> np.ndarray:
+    """Observations of a rollout of the agent on its run's env, and some far outside the statistics (the clip)."""
+    env = wrap_for_run(gym.make(env_id), config)
     obs, _ = env.reset(seed=3)
     seen = [obs]
     for _ in range(n - 1):
@@ -56,8 +56,8 @@ def test_exported_policy_acts_as_sb3_predicts(source, make_run_folder, tmp_path)
         run, env_id = make_run_folder("td3", normalize=False), "Planar3RPRReach-v0"
     else:  # an action box other than [-1, 1]: the squashed action is rescaled to [-2, 2]
         run, env_id = make_run_folder("sac", env_id="Pendulum-v1", normalize=False), "Pendulum-v1"
-    agent, _ = load_run(run)
-    obs = _observations(env_id, agent)
+    agent, config = load_run(run)
+    obs = _observations(env_id, agent, config)
     expected = agent(obs)
     path = export_run(run, tmp_path / "policy.pt")
     loaded = torch.jit.load(str(path))
