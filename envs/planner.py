@@ -29,10 +29,11 @@ one of the target's (the start's connecting segment is not costed), and the path
 each kept waypoint, the furthest later one whose straight segment is certified and keeps k at least as high as
 the waypoints it skips (capped at k_c) is the next. ``SafePlanner`` runs RRT-Connect (``time_limit`` at most),
 simplifies the path and checks every segment of the result once more. A task for which no path is found is
-reported as having none, and the controller then falls back to the straight line. A start or target that is
-not safe itself (a state a policy visited, relabelled by the planner; an ill-conditioned target) is allowed: a
-segment out of it needs only to keep ``start_floor`` times its safety, and the rest of the path is certified
-as usual.
+reported as having none, and the controller then falls back to the straight line; a replan from a pose off the
+path (``PathFollower``'s ``replan_distance``) that finds none keeps the certified plan instead. A start or
+target that is not safe itself (a state a policy visited, relabelled by the planner; an ill-conditioned target)
+is allowed: a segment out of it needs only to keep ``start_floor`` times its safety, and the rest of the path is
+certified as usual.
 
 **Following.** ``PathFollower`` keeps one plan per row of a batch and gives a *carrot*: the point
 ``lookahead`` ahead of the platform's closest point along the planned polyline (in z; progress never goes
