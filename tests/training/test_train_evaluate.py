@@ -279,7 +279,7 @@ def test_sac_with_her_trains_and_evaluates(tmp_path):
             "env_wrapper",
             "os.system",
             r"env_wrapper 'os.system' is not one of \['envs.GoalReachWrapper', 'envs.PlannerResidualWrapper', "
-            r"'envs.PlannerWaypointWrapper'\]",
+            r"'envs.PlannerWaypointWrapper', 'envs.PreviousActionWrapper'\]",
         ),
         ("replay_buffer_class", "Evil", r"replay_buffer_class 'Evil' is not one of \['HerReplayBuffer'\]"),
     ],
