@@ -380,3 +380,16 @@ def test_finetuning_fits_the_critic_alone_first_then_both(tmp_path):
         ppo_run = Path(__file__).resolve().parents[2] / "training" / "pretrained" / "ppo-Planar3RPRReach-v0"
         distill.finetune(ppo_run, tmp_path / "x", distill.FinetuneConfig(steps=1), log=lambda _: None)
     assert not (tmp_path / "x").exists()
+
+
+def test_finetuning_a_run_with_the_previous_action_keeps_its_wrapper(tmp_path):
+    """A distilled run that sees its previous action is fine-tuned on the env wrapped the same way."""
+    source = tmp_path / "distilled"
+    config = DistillConfig(expert_episodes=2, iterations=0, epochs=1, previous_action=True)
+    distill.distill(config, source, log=lambda _: None)
+    tuned = tmp_path / "tuned"
+    tuning = distill.FinetuneConfig(steps=512, warmup_steps=0, n_envs=4, n_steps=128, batch_size=128)
+    distill.finetune(source, tuned, tuning, log=lambda _: None)
+    agent, run_config = load_run(tuned)
+    assert run_config["hyperparams"]["env_wrapper"] == "envs.PreviousActionWrapper"
+    assert agent.observation_space.shape == (21,)
