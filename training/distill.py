@@ -66,7 +66,7 @@ import envs
 from envs.controllers import PlannerController
 from envs.planner import PathFollower
 from training.config import resolve_env_wrapper
-from training.evaluate import SINGULARITY_REASONS, EvaluationError, parse_env_kwargs
+from training.evaluate import SINGULARITY_REASONS, EvaluationError, evaluate_agent, parse_env_kwargs
 
 __all__ = ["DistillConfig", "FinetuneConfig", "band_weights", "collect", "distill", "finetune", "fit", "main"]
 
@@ -221,21 +221,16 @@ def validate(env: gym.Env, learner: Any, episodes: int, first_seed: int) -> dict
         first_seed: Reset seed of each set's first episode.
 
     Returns:
-        success rate and singularity terminations per episode (``SINGULARITY_REASONS``) over both sets, and the
-        hard set's alone ("hard_success_rate", "hard_singular_terminations").
+        success rate and singularity terminations per episode (``training.evaluate``'s records) over both sets,
+        and the hard set's alone ("hard_success_rate", "hard_singular_terminations").
     """
     counts = {}
     for targets in ("hard", "standard"):
-        successes = singular = 0
-        for i in range(episodes):
-            obs, _ = env.reset(seed=first_seed + i, options={"targets": targets})
-            while True:
-                obs, _, terminated, truncated, info = env.step(learner(obs))
-                if terminated or truncated:
-                    successes += bool(info.get("is_success", False))
-                    singular += info.get("termination_reason") in SINGULARITY_REASONS
-                    break
-        counts[targets] = (successes / episodes, singular / episodes)
+        records = evaluate_agent(lambda o: np.stack([learner(x) for x in o]), env, episodes, first_seed, targets)
+        counts[targets] = (
+            float(np.mean([r.success for r in records])),
+            float(np.mean([r.singularity_termination for r in records])),
+        )
     return {
         "success_rate": (counts["hard"][0] + counts["standard"][0]) / 2,
         "singular_terminations": (counts["hard"][1] + counts["standard"][1]) / 2,

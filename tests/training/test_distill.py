@@ -327,19 +327,30 @@ def test_best_round_selection_keeps_the_learner_that_did_best_when_it_acted(tmp_
 
 
 def test_validation_counts_as_the_evaluation_does():
-    """``validate``'s rates equal training.evaluate's records of the same agent on the same seeds and targets."""
+    """``validate``'s rates equal a manual rollout's counts of the same agent on the same seeds and targets.
+
+    Oracle: the episodes stepped here, counting ``is_success`` and every termination but leaving the bounds.
+    """
     from envs.controllers import ResolvedRateController
 
     env = gym.make("Planar3RPRReach-v0")
     driver = ResolvedRateController(env.unwrapped.params)
     figures = distill.validate(env, lambda o: driver(o[None])[0], 4, 5000)
-    hard = evaluate_agent(driver, env, 4, 5000, "hard")
-    standard = evaluate_agent(driver, env, 4, 5000, "standard")
-    assert figures["hard_success_rate"] == np.mean([r.success for r in hard])
-    assert figures["hard_singular_terminations"] == np.mean([r.singularity_termination for r in hard]) > 0
-    both = hard + standard
-    assert figures["success_rate"] == np.mean([r.success for r in both])
-    assert figures["singular_terminations"] == np.mean([r.singularity_termination for r in both])
+    ends = {}
+    for targets in ("hard", "standard"):
+        ends[targets] = []
+        for i in range(4):
+            obs, _ = env.reset(seed=5000 + i, options={"targets": targets})
+            while True:
+                obs, _, terminated, truncated, info = env.step(driver(obs[None])[0])
+                if terminated or truncated:
+                    ends[targets].append((info["is_success"], info["termination_reason"] not in ("", "out_of_bounds")))
+                    break
+    hard, both = ends["hard"], ends["hard"] + ends["standard"]
+    assert figures["hard_success_rate"] == np.mean([s for s, _ in hard])
+    assert figures["hard_singular_terminations"] == np.mean([t for _, t in hard]) > 0
+    assert figures["success_rate"] == np.mean([s for s, _ in both])
+    assert figures["singular_terminations"] == np.mean([t for _, t in both])
 
 
 def test_validated_selection_keeps_the_round_with_the_best_validation_score(tmp_path):
