@@ -126,10 +126,14 @@ class ResolvedRateController:
         q = robot.inverse_kinematics(pose, validate=False)
         x_dot = self.desired_velocity(pose, error, velocity)
         J_i = robot.inverse_jacobian(q, pose, validate=False)
-        q_dot = self._respect_stroke_limits(q, J_i, x_dot)
+        q_dot = self._commanded_rates(pose, q, J_i, self._respect_stroke_limits(q, J_i, x_dot))
         a = q_dot / self.params.max_rate
         a /= np.maximum(np.max(np.abs(a), axis=-1, keepdims=True), 1.0)
         return a.astype(np.float32)
+
+    def _commanded_rates(self, pose: np.ndarray, q: np.ndarray, J_i: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
+        """The actuator rates (N, n) sent for the resolved rates ``q_dot`` = J_i ẋ at (``pose``, ``q``): themselves."""
+        return q_dot
 
 
 class SingularityAwareController(ResolvedRateController):
@@ -316,21 +320,15 @@ class PlannerController(ResolvedRateController):
         """Resolved-rate actions from ``pose`` toward ``carrot`` (each (N, m)) with feed-forward ``velocity``."""
         return self.act(pose, pose_error(self.params, pose, carrot), velocity)
 
-    def act(self, pose: np.ndarray, error: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Resolved-rate actions (``ResolvedRateController.act``); with ``exact_step`` the secant rates."""
+    def _commanded_rates(self, pose: np.ndarray, q: np.ndarray, J_i: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
+        """With ``exact_step``, the secant rates to the pose the resolved rates (scaled to the rate limit) aim at."""
         if not self.exact_step:
-            return super().act(pose, error, velocity)
+            return q_dot
         robot, dt = self.params.robot, self.params.dt
-        q = robot.inverse_kinematics(pose, validate=False)
-        J_i = robot.inverse_jacobian(q, pose, validate=False)
-        q_dot = self._respect_stroke_limits(q, J_i, self.desired_velocity(pose, error, velocity))
-        q_dot /= np.maximum(np.max(np.abs(q_dot), axis=-1, keepdims=True) / self.params.max_rate, 1.0)
+        q_dot = q_dot / np.maximum(np.max(np.abs(q_dot), axis=-1, keepdims=True) / self.params.max_rate, 1.0)
         twist = np.einsum("nij,nj->ni", np.linalg.pinv(J_i), q_dot)  # the platform twist of these rates
         secant = (robot.inverse_kinematics(robot.retract(pose, twist * dt, validate=False), validate=False) - q) / dt
-        q_dot = np.where(np.all(np.isfinite(secant), axis=-1, keepdims=True), secant, q_dot)
-        a = q_dot / self.params.max_rate
-        a /= np.maximum(np.max(np.abs(a), axis=-1, keepdims=True), 1.0)
-        return a.astype(np.float32)
+        return np.where(np.all(np.isfinite(secant), axis=-1, keepdims=True), secant, q_dot)
 
     def episode_metrics(self, row: int | None = None) -> dict[str, float] | None:
         """The last plan's figures (path found, planned / straight length, min k, planning time), or None.
