@@ -17,7 +17,28 @@ from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv
 from envs.kernels.setup import random_streams
 from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate, step_info
 
-__all__ = ["FamilyReachVectorEnv", "FamilyTrackVectorEnv", "FamilyVectorEnv"]
+__all__ = ["FamilyReachVectorEnv", "FamilyTrackVectorEnv", "FamilyVectorEnv", "episode_starts"]
+
+
+def episode_starts(mode: AutoresetMode, ended: np.ndarray, terminated: np.ndarray, truncated: np.ndarray) -> np.ndarray:
+    """Rows whose observation from this ``step`` is the first of their next episode, shape (N,) bool.
+
+    Args:
+        mode: The vector env's ``autoreset_mode``.
+        ended: Rows that had ended at the previous step (terminated or truncated), shape (N,) bool.
+        terminated: This step's terminations, shape (N,) bool.
+        truncated: This step's truncations, shape (N,) bool.
+
+    Returns:
+        With ``NEXT_STEP`` the rows in ``ended`` (this step reset them and ignored their action); with
+        ``SAME_STEP`` the rows ending now (their observation is already the next episode's); with ``DISABLED``
+        none.
+    """
+    if mode == AutoresetMode.NEXT_STEP:
+        return np.asarray(ended, dtype=bool).copy()
+    if mode == AutoresetMode.SAME_STEP:
+        return np.asarray(terminated, dtype=bool) | np.asarray(truncated, dtype=bool)
+    return np.zeros(np.shape(ended), dtype=bool)
 
 
 def _positive_int(name: str, value: Any) -> int:

@@ -19,6 +19,7 @@ from envs.controllers import PlannerController, pose_error
 from envs.kernels.generic import observation_layout
 from envs.params import FamilyParams
 from envs.planner import PathFollower
+from envs.vector import episode_starts
 
 __all__ = [
     "PlannerResidualWrapper",
@@ -238,11 +239,8 @@ class _VectorPlannerWrapper(gym.vector.VectorWrapper):
 
     def _step(self, actions: np.ndarray):
         obs, rewards, terminated, truncated, info = self.env.step(actions)
-        mode = self.env.unwrapped.autoreset_mode
-        if mode == gym.vector.AutoresetMode.NEXT_STEP:
-            self._plan(np.flatnonzero(self._ended), info)  # the rows that started their next episode
-        elif mode == gym.vector.AutoresetMode.SAME_STEP:
-            self._plan(np.flatnonzero(terminated | truncated), info)
+        starts = episode_starts(self.env.unwrapped.autoreset_mode, self._ended, terminated, truncated)
+        self._plan(np.flatnonzero(starts), info)  # the rows that started their next episode
         self._ended = terminated | truncated
         return obs, rewards, terminated, truncated, info
 

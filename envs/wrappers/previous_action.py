@@ -16,6 +16,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from envs.vector import episode_starts
+
 __all__ = ["PreviousActionWrapper", "VectorPreviousActionWrapper"]
 
 
@@ -112,10 +114,7 @@ class VectorPreviousActionWrapper(gym.vector.VectorWrapper):
         obs, rewards, terminated, truncated, info = self.env.step(actions)
         previous = np.clip(np.asarray(actions, dtype=np.float32).reshape(self._previous.shape), self._low, self._high)
         mode = getattr(self.env.unwrapped, "autoreset_mode", gym.vector.AutoresetMode.NEXT_STEP)
-        if mode == gym.vector.AutoresetMode.NEXT_STEP:
-            previous[self._ended] = 0.0  # these rows started their next episode at this step
-        elif mode == gym.vector.AutoresetMode.SAME_STEP:
-            previous[terminated | truncated] = 0.0  # these rows show their next episode's first observation
+        previous[episode_starts(mode, self._ended, terminated, truncated)] = 0.0
         self._previous = previous
         self._ended = np.asarray(terminated | truncated)
         return np.concatenate([obs, previous], axis=1).astype(np.float32), rewards, terminated, truncated, info
