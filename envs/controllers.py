@@ -20,12 +20,30 @@ from envs.planner import PathFollower
 
 __all__ = [
     "CONTROLLERS",
+    "DAMPING_FLOOR",
     "PlannerController",
     "ResolvedRateController",
     "SingularityAwareController",
+    "damping_factor",
     "decode_observation",
     "pose_error",
 ]
+
+#: The least speed factor of the planner's damping near a Type II band (``damping_factor``).
+DAMPING_FLOOR = 0.05
+
+
+def damping_factor(k: np.ndarray, threshold: float) -> np.ndarray:
+    """The speed factor f = clip((k / k_d)², ``DAMPING_FLOOR``, 1) of ``PlannerController``'s damping.
+
+    Args:
+        k: Inverse condition numbers of J_x, any shape, in [0, 1].
+        threshold: k_d, the k below which the factor falls below 1, in (0, 1].
+
+    Returns:
+        f, the shape of ``k``, float64.
+    """
+    return np.clip((np.asarray(k, dtype=np.float64) / threshold) ** 2, DAMPING_FLOOR, 1.0)
 
 
 def decode_observation(params: FamilyParams, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -223,10 +241,10 @@ class PlannerController(ResolvedRateController):
     ``envs.planner.PathFollower``: ``lookahead`` ahead of the platform's closest point on the path, and the
     target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
     Near a thin Type II band a step at full speed leaves a certified line by millimetres where k falls by a
-    third (the 3-RRR): with ``damping`` the action a is slowed by f = clip((k / k_d)², 0.05, 1), k the observed one
-    and k_d the ``damping_threshold`` (default the env's k_safe): with ``damping_kind`` "scale" a ← f a (the
-    gain falls too, to f K at an ill-conditioned target), with "cap" a ← a · min(1, f / ‖a‖∞) (the largest
-    actuator rate is capped at f of its range; small corrections near the target keep the full gain K),
+    third (the 3-RRR): with ``damping`` the action a is slowed by f = clip((k / k_d)², 0.05, 1) (``damping_factor``),
+    k the observed one and k_d the ``damping_threshold`` (default the env's k_safe): with ``damping_kind``
+    "scale" a ← f a (the gain falls too, to f K at an ill-conditioned target), with "cap" a ← a · min(1, f / ‖a‖∞)
+    (the largest actuator rate is capped at f of its range; small corrections near the target keep the full gain K),
     and with ``cross_track`` a one-segment plan is followed as any other (``envs.planner.PathFollower``).
     With ``exact_step`` the rates are the secant ones, (IK(x ⊕ ẋ dt) − q) / dt with ẋ the platform twist of the
     (scaled) resolved rates, instead of J_i ẋ: a step at full rate then lands on the pose it aims at, where the
@@ -303,7 +321,7 @@ class PlannerController(ResolvedRateController):
         action = self.steer(pose, carrot, velocity)
         if self.damping:
             k = np.asarray(obs, dtype=np.float64)[:, self._k_column]
-            factor = np.clip((k / self.damping_threshold) ** 2, 0.05, 1.0)[:, None]
+            factor = damping_factor(k, self.damping_threshold)[:, None]
             if self.damping_kind == "cap":
                 largest = np.max(np.abs(action), axis=-1, keepdims=True)
                 factor = np.minimum(1.0, factor / np.maximum(largest, 1e-12))

@@ -32,6 +32,10 @@ at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on
    rounds' own training episodes are few and on mixed targets, so their scores differ by less than their noise.
 4. Optionally ``ppo_steps`` of PPO fine-tuning of the folder, in place (``finetune``).
 
+With ``damped_output`` the learner is ``training.policies.DampedMlpPolicy``: its mean is the network's output times
+the expert's own damping factor f(k) of the observed k, a fixed layer, so the network fits the undamped step and
+its errors near the band shrink with f as the expert's step does.
+
 With ``previous_action`` the learner sees its own previous action too (``envs.PreviousActionWrapper``, named as
 the run's ``env_wrapper``): the direction it is moving in, which tells the way around already taken where the
 pose alone leaves two about equally good; the expert still reads the env's own observation.
@@ -112,6 +116,16 @@ class DistillConfig:
     first_order_expert: bool = False
     #: The learner also sees its own previous action (``envs.PreviousActionWrapper``; the run's ``env_wrapper``).
     previous_action: bool = False
+    #: The learner's mean is its network's output times the expert's damping factor of the observed k
+    #: (``training.policies.DampedMlpPolicy``); needs ``expert_damping`` with ``damping_kind`` "scale".
+    damped_output: bool = False
+
+    def __post_init__(self) -> None:
+        if self.damped_output and not (self.expert_damping and self.damping_kind == "scale"):
+            raise ValueError(
+                "damped_output needs expert_damping with damping_kind 'scale' (the label is then f times the "
+                f"network's target), got expert_damping={self.expert_damping}, damping_kind={self.damping_kind!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -329,6 +343,24 @@ def _normalizer(config: DistillConfig, observations: np.ndarray):
     return vec
 
 
+def _policy(config: DistillConfig, params: Any, normalizer: Any) -> tuple[Any, dict[str, Any]]:
+    """The learner's SB3 policy (a name or a class) and its ``policy_kwargs``."""
+    kwargs: dict[str, Any] = {"net_arch": list(config.net_arch), "log_std_init": -1.0}
+    if not config.damped_output:
+        return "MlpPolicy", kwargs
+    from envs.kernels.generic import observation_layout
+    from training.policies import DampedMlpPolicy
+
+    column = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)["k"].start
+    kwargs.update(
+        k_index=column,
+        k_mean=float(normalizer.obs_rms.mean[column]),
+        k_scale=float(np.sqrt(normalizer.obs_rms.var[column] + normalizer.epsilon)),
+        damping_threshold=params.safe_threshold if config.damping_threshold is None else config.damping_threshold,
+    )
+    return DampedMlpPolicy, kwargs
+
+
 def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     """Train a plan-free policy (see the module docstring) and write its run folder; returns the figures."""
     import torch
@@ -353,14 +385,8 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     rounds = [{"round": 0, "beta": 1.0, "pairs": len(obs), **figures, "seconds": time.perf_counter() - clock}]
     log(f"expert: {figures['success_rate']:.0%} success, {len(obs)} pairs")
     normalizer = _normalizer(config, obs)
-    model = PPO(
-        "MlpPolicy",
-        normalizer,
-        seed=config.seed,
-        device="cpu",
-        policy_kwargs={"net_arch": list(config.net_arch), "log_std_init": -1.0},
-        verbose=0,
-    )
+    policy_name, policy_kwargs = _policy(config, params, normalizer)
+    model = PPO(policy_name, normalizer, seed=config.seed, device="cpu", policy_kwargs=policy_kwargs, verbose=0)
     policy = model.policy
 
     def learner(o: np.ndarray) -> np.ndarray:
@@ -438,9 +464,9 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     }
     (run_dir / "distill.json").write_text(json.dumps(result, indent=2))
     hyperparams = {
-        "policy": "MlpPolicy",
+        "policy": policy_name if isinstance(policy_name, str) else f"{policy_name.__module__}.{policy_name.__name__}",
         "normalize": {"norm_obs": True, "norm_reward": False},
-        "policy_kwargs": {"net_arch": list(config.net_arch), "log_std_init": -1.0},
+        "policy_kwargs": policy_kwargs,
         **({"env_kwargs": dict(config.env_kwargs)} if config.env_kwargs else {}),
         **({"env_wrapper": "envs.PreviousActionWrapper"} if config.previous_action else {}),
     }
@@ -589,6 +615,12 @@ def main(argv: list[str] | None = None) -> int:
         help="the learner also sees its own previous action (envs.PreviousActionWrapper)",
     )
     parser.add_argument(
+        "--damped-output",
+        action="store_true",
+        help="the learner's action is its network's output times the expert's damping of the observed k "
+        "(training.policies.DampedMlpPolicy; needs --expert-damping)",
+    )
+    parser.add_argument(
         "--from-run", default=None, help="fine-tune this distilled run with PPO (--ppo-steps, default 1M) instead"
     )
     parser.add_argument("--warmup-steps", type=int, default=FinetuneConfig.warmup_steps, help="critic-only steps")
@@ -623,6 +655,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--damping-threshold needs --expert-damping and a value in (0, 1], got {args.damping_threshold}")
     if args.damping_kind != DistillConfig.damping_kind and not args.expert_damping:
         parser.error(f"--damping-kind {args.damping_kind} needs --expert-damping")
+    if args.damped_output and not (args.expert_damping and args.damping_kind == "scale"):
+        parser.error(
+            "--damped-output needs --expert-damping and --damping-kind scale, got "
+            f"{'' if args.expert_damping else 'no '}--expert-damping and --damping-kind {args.damping_kind}"
+        )
     if not (np.isfinite(args.band_weight) and args.band_weight >= 0.0):
         parser.error(f"--band-weight must be finite and ≥ 0, got {args.band_weight}")
     try:
@@ -653,6 +690,7 @@ def main(argv: list[str] | None = None) -> int:
         damping_kind=args.damping_kind,
         previous_action=args.previous_action,
         first_order_expert=args.first_order_expert,
+        damped_output=args.damped_output,
     )
     distill(config, Path(args.run_dir))
     return 0

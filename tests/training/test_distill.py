@@ -273,10 +273,51 @@ def test_bad_options_are_refused(capsys):
         (["--damping-threshold", "0.2"], "--damping-threshold needs --expert-damping and a value in (0, 1], got 0.2"),
         (["--expert-damping", "--damping-threshold", "0"], "a value in (0, 1], got 0.0"),
         (["--damping-kind", "cap"], "--damping-kind cap needs --expert-damping"),
+        (["--damped-output"], "--damped-output needs --expert-damping and --damping-kind scale, got no --expert"),
+        (
+            ["--damped-output", "--expert-damping", "--damping-kind", "cap"],
+            "got --expert-damping and --damping-kind cap",
+        ),
     ):
         with pytest.raises(SystemExit):
             distill.main(["--run-dir", "x", *argv])
         assert message in capsys.readouterr().err
+
+
+def test_a_damped_output_run_recovers_the_raw_k_from_its_normaliser(tmp_path):
+    """With damped_output the run's policy is DampedMlpPolicy, reading k through the saved normaliser.
+
+    k is column 17 of a planar observation (pose 4, target 4, error 3, strokes 3, stroke errors 3); the raw k the
+    policy recovers from the normalised observation is the env's; training.evaluate scores the run.
+    """
+    from training.evaluate import load_model, wrap_for_run
+    from training.policies import DampedMlpPolicy
+
+    with pytest.raises(ValueError, match="damped_output needs expert_damping with damping_kind 'scale'"):
+        DistillConfig(damped_output=True)
+    config = DistillConfig(
+        env_id="Planar3RRRReach-v0",
+        env_kwargs={"targets": "mixed"},
+        expert_episodes=2,
+        iterations=0,
+        epochs=1,
+        expert_damping=True,
+        damped_output=True,
+        previous_action=True,
+    )
+    distill.distill(config, tmp_path / "run", log=lambda _: None)
+    model, normalizer, run_config = load_model(tmp_path / "run")
+    assert run_config["hyperparams"]["policy"] == "training.policies.DampedMlpPolicy"
+    assert type(model.policy) is DampedMlpPolicy and model.policy.k_index == 17
+    assert model.policy.damping_threshold == gym.make("Planar3RRRReach-v0").unwrapped.params.safe_threshold
+    env = gym.make("Planar3RRRReach-v0", targets="hard")
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        normalised = normalizer.normalize_obs(np.concatenate([obs, np.zeros(3, np.float32)])[None])
+        recovered = model.policy.k_mean + model.policy.k_scale * float(normalised[0, 17])
+        assert recovered == pytest.approx(float(obs[17]), rel=1e-5, abs=1e-7)
+    agent, _ = load_run(tmp_path / "run")
+    assert len(evaluate_agent(agent, wrap_for_run(gym.make("Planar3RRRReach-v0"), run_config), 2, 5000, "hard")) == 2
 
 
 @pytest.mark.parametrize("previous_action", [False, True])
