@@ -32,6 +32,11 @@ at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on
    rounds' own training episodes are few and on mixed targets, so their scores differ by less than their noise.
 4. Optionally ``ppo_steps`` of PPO fine-tuning of the folder, in place (``finetune``).
 
+With ``start_episodes`` N > 0, each round (behaviour cloning included) also runs N episodes cut after
+``start_steps`` steps, acted as the round's full episodes are and labelled the same way: most pairs of full
+episodes hold the platform at its target, while the approach, where a step at full speed beside a thin band must
+be precise (the 3-RRR), is a few per cent of them.
+
 With ``damped_output`` the learner is ``training.policies.DampedMlpPolicy``: its mean is the network's output times
 the expert's own damping factor f(k) of the observed k, a fixed layer, so the network fits the undamped step and
 its errors near the band shrink with f as the expert's step does.
@@ -116,11 +121,20 @@ class DistillConfig:
     first_order_expert: bool = False
     #: The learner also sees its own previous action (``envs.PreviousActionWrapper``; the run's ``env_wrapper``).
     previous_action: bool = False
+    #: Each round also runs this many episodes cut after ``start_steps`` steps (the expert acting in round 0, as
+    #: the round's full episodes otherwise): the approach, where a step at full speed beside the band must be
+    #: precise, is a few per cent of full episodes' pairs, most of which hold the platform at its target.
+    start_episodes: int = 0
+    start_steps: int = 40
     #: The learner's mean is its network's output times the expert's damping factor of the observed k
     #: (``training.policies.DampedMlpPolicy``); needs ``expert_damping`` with ``damping_kind`` "scale".
     damped_output: bool = False
 
     def __post_init__(self) -> None:
+        if self.start_episodes < 0 or self.start_steps < 1:
+            raise ValueError(
+                f"start_episodes must be ≥ 0 and start_steps ≥ 1, got {self.start_episodes} and {self.start_steps}"
+            )
         if self.damped_output and not (self.expert_damping and self.damping_kind == "scale"):
             raise ValueError(
                 "damped_output needs expert_damping with damping_kind 'scale' (the label is then f times the "
@@ -172,6 +186,7 @@ def collect(
     beta: float,
     first_seed: int,
     rng: np.random.Generator,
+    max_steps: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, float]]:
     """Run episodes, acting with the learner (or the expert with probability ``beta``), labelled by the expert.
 
@@ -184,6 +199,8 @@ def collect(
         beta: Probability that the expert's action is executed at a step.
         first_seed: Reset seed of the first episode.
         rng: The generator of the β draws.
+        max_steps: Cut every episode after this many steps (None: run each to its end); a cut episode counts as
+            a success if its last step ends within the tolerances.
 
     Returns:
         (observations (S, D) float32, expert actions (S, n) float32, the true inverse condition number of J_x at
@@ -197,7 +214,7 @@ def collect(
     width = env.unwrapped.observation_space.shape[0]  # the env's own observation, without a wrapper's columns
     for i in range(episodes):
         obs, info = env.reset(seed=first_seed + i)
-        while True:
+        for t in range(1, np.iinfo(np.int64).max):
             label = expert(obs[None, :width])[0]
             observations.append(obs)
             actions.append(label)
@@ -205,7 +222,7 @@ def collect(
             act = label if learner is None or rng.random() < beta else learner(obs)
             obs, _, terminated, truncated, info = env.step(act)
             steps += 1
-            if terminated or truncated:
+            if terminated or truncated or t == max_steps:
                 successes += bool(info.get("is_success", False))
                 singular += info.get("termination_reason") in SINGULARITY_REASONS
                 break
@@ -379,9 +396,19 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     def weigh(k: np.ndarray) -> np.ndarray:
         return band_weights(k, params.safe_threshold, params.hard_threshold, config.band_weight)
 
+    def with_starts(obs, act, k, learner, beta):
+        """The round's pairs and those of its ``start_episodes`` cut episodes (each array concatenated)."""
+        nonlocal seed
+        if config.start_episodes == 0:
+            return obs, act, k
+        more = collect(env, expert, learner, config.start_episodes, beta, seed, rng, config.start_steps)
+        seed += config.start_episodes
+        return tuple(np.concatenate([a, b]) for a, b in zip((obs, act, k), more[:3], strict=True))
+
     weigh(np.zeros(1))  # refuse a bad band weight before any episode
     obs, act, k, figures = collect(env, expert, None, config.expert_episodes, 1.0, seed, rng)
     seed += config.expert_episodes
+    obs, act, k = with_starts(obs, act, k, None, 1.0)
     rounds = [{"round": 0, "beta": 1.0, "pairs": len(obs), **figures, "seconds": time.perf_counter() - clock}]
     log(f"expert: {figures['success_rate']:.0%} success, {len(obs)} pairs")
     normalizer = _normalizer(config, obs)
@@ -401,6 +428,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         beta = config.beta if r == 1 else 0.0
         obs, act, k, figures = collect(env, expert, learner, config.episodes, beta, seed, rng)
         seed += config.episodes
+        obs, act, k = with_starts(obs, act, k, learner, beta)
         all_obs.append(obs)
         all_act.append(act)
         all_k.append(k)
@@ -573,7 +601,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--env-kwargs", nargs="*", default=[], metavar="KEY:VALUE", help="gym.make keyword arguments (targets:mixed)"
     )
-    for name in ("expert_episodes", "iterations", "episodes", "epochs", "batch_size", "ppo_steps"):
+    counts = ("expert_episodes", "iterations", "episodes", "epochs", "batch_size", "ppo_steps")
+    for name in (*counts, "start_episodes", "start_steps"):
         parser.add_argument("--" + name.replace("_", "-"), type=int, default=getattr(defaults, name))
     for name in ("beta", "learning_rate", "replan_distance", "lookahead", "band_weight"):
         parser.add_argument("--" + name.replace("_", "-"), type=float, default=getattr(defaults, name))
@@ -646,9 +675,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.env not in envs.ENV_IDS or "Reach" not in args.env:
         parser.error(f"--env must be a Reach id of {envs.ENV_IDS}, got {args.env!r}")
-    for name in ("expert_episodes", "epochs", "batch_size", "select_episodes"):
+    for name in ("expert_episodes", "epochs", "batch_size", "select_episodes", "start_steps"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
+    if args.start_episodes < 0:
+        parser.error(f"--start-episodes must be ≥ 0, got {args.start_episodes}")
     if not 0.0 <= args.beta <= 1.0:
         parser.error(f"--beta must be in [0, 1], got {args.beta}")
     if args.damping_threshold is not None and not (args.expert_damping and 0.0 < args.damping_threshold <= 1.0):
@@ -691,6 +722,8 @@ def main(argv: list[str] | None = None) -> int:
         previous_action=args.previous_action,
         first_order_expert=args.first_order_expert,
         damped_output=args.damped_output,
+        start_episodes=args.start_episodes,
+        start_steps=args.start_steps,
     )
     distill(config, Path(args.run_dir))
     return 0

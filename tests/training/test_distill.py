@@ -119,6 +119,30 @@ def test_the_labels_are_the_planner_controllers_actions():
     assert np.max(np.abs(first - act)) > 1e-3
 
 
+def test_cut_episodes_are_the_first_steps_of_the_full_ones():
+    """With max_steps each episode stops after that many steps: its pairs are the full episode's first ones."""
+    env = gym.make(ENV)
+    config = DistillConfig(replan_distance=1e9)
+    full = collect(env, distill._expert(env, config), None, 3, 1.0, 40, np.random.default_rng(0))
+    cut = collect(env, distill._expert(env, config), None, 3, 1.0, 40, np.random.default_rng(0), max_steps=7)
+    assert cut[0].shape == (21, 18) and full[0].shape == (600, 18)
+    rows = np.concatenate([np.arange(7) + 200 * i for i in range(3)])  # every full episode lasts 200 steps
+    for a, b in zip(cut[:3], full[:3], strict=True):
+        np.testing.assert_array_equal(a, b[rows])
+
+
+def test_start_episodes_add_their_cut_episodes_to_every_round(tmp_path):
+    """Round 0 holds the expert's full episodes and start_episodes cut ones; each round adds as many again."""
+    config = DistillConfig(expert_episodes=2, iterations=1, episodes=1, epochs=1, start_episodes=3, start_steps=5)
+    result = distill.distill(config, tmp_path, log=lambda _: None)
+    pairs = [r["pairs"] for r in result["rounds"][:2]]
+    assert pairs[0] == 2 * 200 + 3 * 5  # the expert's episodes on this env all run their 200 steps
+    added = pairs[1] - pairs[0] - round(result["rounds"][1]["mean_length"])  # less the round's one full episode
+    assert 3 <= added <= 15  # three cut episodes of 1 to 5 steps
+    with pytest.raises(ValueError, match="start_episodes must be ≥ 0 and start_steps ≥ 1, got -1 and 40"):
+        DistillConfig(start_episodes=-1)
+
+
 def test_with_the_previous_action_the_learner_sees_it_and_the_expert_does_not():
     """Wrapped in PreviousActionWrapper, the observations gain the previous action and the labels stay the same.
 
@@ -273,6 +297,8 @@ def test_bad_options_are_refused(capsys):
         (["--damping-threshold", "0.2"], "--damping-threshold needs --expert-damping and a value in (0, 1], got 0.2"),
         (["--expert-damping", "--damping-threshold", "0"], "a value in (0, 1], got 0.0"),
         (["--damping-kind", "cap"], "--damping-kind cap needs --expert-damping"),
+        (["--start-episodes", "-1"], "--start-episodes must be ≥ 0, got -1"),
+        (["--start-steps", "0"], "--start-steps must be ≥ 1, got 0"),
         (["--damped-output"], "--damped-output needs --expert-damping and --damping-kind scale, got no --expert"),
         (
             ["--damped-output", "--expert-damping", "--damping-kind", "cap"],
