@@ -606,6 +606,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.add_argument("--" + name.replace("_", "-"), type=int, default=getattr(defaults, name))
     for name in ("beta", "learning_rate", "replan_distance", "lookahead", "band_weight"):
         parser.add_argument("--" + name.replace("_", "-"), type=float, default=getattr(defaults, name))
+    parser.add_argument(
+        "--net-arch",
+        type=int,
+        nargs="+",
+        default=list(defaults.net_arch),
+        metavar="WIDTH",
+        help="the learner's hidden layer widths (default %(default)s)",
+    )
     parser.add_argument("--planner", default=defaults.planner, choices=("auto", "ompl", "grid"))
     parser.add_argument(
         "--select-round",
@@ -678,6 +686,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("expert_episodes", "epochs", "batch_size", "select_episodes", "start_steps"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
+    if min(args.net_arch) < 1:
+        parser.error(f"--net-arch widths must be ≥ 1, got {args.net_arch}")
     if args.start_episodes < 0:
         parser.error(f"--start-episodes must be ≥ 0, got {args.start_episodes}")
     if not 0.0 <= args.beta <= 1.0:
@@ -708,6 +718,7 @@ def main(argv: list[str] | None = None) -> int:
         epochs=args.epochs,
         batch_size=args.batch_size,
         learning_rate=args.learning_rate,
+        net_arch=tuple(args.net_arch),
         planner=args.planner,
         replan_distance=args.replan_distance,
         lookahead=args.lookahead,

@@ -299,6 +299,7 @@ def test_bad_options_are_refused(capsys):
         (["--damping-kind", "cap"], "--damping-kind cap needs --expert-damping"),
         (["--start-episodes", "-1"], "--start-episodes must be ≥ 0, got -1"),
         (["--start-steps", "0"], "--start-steps must be ≥ 1, got 0"),
+        (["--net-arch", "64", "0"], "--net-arch widths must be ≥ 1, got [64, 0]"),
         (["--damped-output"], "--damped-output needs --expert-damping and --damping-kind scale, got no --expert"),
         (
             ["--damped-output", "--expert-damping", "--damping-kind", "cap"],
@@ -471,3 +472,19 @@ def test_finetuning_a_run_with_the_previous_action_keeps_its_wrapper(tmp_path):
     agent, run_config = load_run(tuned)
     assert run_config["hyperparams"]["env_wrapper"] == "envs.PreviousActionWrapper"
     assert agent.observation_space.shape == (21,)
+
+
+def test_the_command_line_sets_the_learners_hidden_layers(tmp_path):
+    """--net-arch 16 8 gives a learner whose actor has hidden layers of 16 and 8 units, as config.yml says."""
+    import torch
+    import yaml
+
+    from training.evaluate import load_model
+
+    argv = ["--run-dir", str(tmp_path), "--expert-episodes", "1", "--iterations", "0", "--epochs", "1"]
+    assert distill.main([*argv, "--net-arch", "16", "8"]) == 0
+    config = yaml.safe_load((tmp_path / "config.yml").read_text())
+    assert config["hyperparams"]["policy_kwargs"]["net_arch"] == [16, 8]
+    model, _, _ = load_model(tmp_path)
+    widths = [m.out_features for m in model.policy.mlp_extractor.policy_net if isinstance(m, torch.nn.Linear)]
+    assert widths == [16, 8]
