@@ -37,9 +37,10 @@ With ``start_episodes`` N > 0, each round (behaviour cloning included) also runs
 episodes hold the platform at its target, while the approach, where a step at full speed beside a thin band must
 be precise (the 3-RRR), is a few per cent of them.
 
-With ``damped_output`` the learner is ``training.policies.DampedMlpPolicy``: its mean is the network's output times
-the expert's own damping factor f(k) of the observed k, a fixed layer, so the network fits the undamped step and
-its errors near the band shrink with f as the expert's step does.
+With ``damped_output`` or ``hold_fraction`` the learner is ``training.policies.PlanFreeMlpPolicy``, whose mean
+passes through fixed layers of the observation: the expert's own damping factor f(k) of the observed k (the
+network then fits the undamped step), and an in-position hold (the mean is 0 while the observed errors are within
+``hold_fraction`` times the env's success tolerances).
 
 With ``previous_action`` the learner sees its own previous action too (``envs.PreviousActionWrapper``, named as
 the run's ``env_wrapper``): the direction it is moving in, which tells the way around already taken where the
@@ -127,10 +128,15 @@ class DistillConfig:
     start_episodes: int = 0
     start_steps: int = 40
     #: The learner's mean is its network's output times the expert's damping factor of the observed k
-    #: (``training.policies.DampedMlpPolicy``); needs ``expert_damping`` with ``damping_kind`` "scale".
+    #: (``training.policies.PlanFreeMlpPolicy``); needs ``expert_damping`` with ``damping_kind`` "scale".
     damped_output: bool = False
+    #: h > 0: the learner's mean is 0 while the observed position and orientation errors are within h times the
+    #: env's success tolerances (``training.policies.PlanFreeMlpPolicy``'s in-position hold); 0: no hold.
+    hold_fraction: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.hold_fraction < 1.0:
+            raise ValueError(f"hold_fraction must be in [0, 1), got {self.hold_fraction}")
         if self.start_episodes < 0 or self.start_steps < 1:
             raise ValueError(
                 f"start_episodes must be ≥ 0 and start_steps ≥ 1, got {self.start_episodes} and {self.start_steps}"
@@ -349,10 +355,16 @@ def _make_env(config: DistillConfig) -> gym.Env:
 
 
 def _normalizer(config: DistillConfig, observations: np.ndarray):
-    """A frozen ``VecNormalize`` (observations only) with the mean and variance of ``observations``."""
+    """A frozen ``VecNormalize`` (observations only) with the mean and variance of ``observations``.
+
+    For a ``PlanFreeMlpPolicy`` learner (``damped_output``, ``hold_fraction``) it does not clip, so that the
+    policy recovers every raw column it reads, however far from the expert's data.
+    """
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    vec = VecNormalize(DummyVecEnv([lambda: _make_env(config)]), norm_obs=True, norm_reward=False)
+    clip = np.inf if config.damped_output or config.hold_fraction > 0.0 else 10.0
+    venv = DummyVecEnv([lambda: _make_env(config)])
+    vec = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=clip)
     vec.obs_rms.mean = observations.mean(axis=0).astype(np.float64)
     vec.obs_rms.var = observations.var(axis=0).astype(np.float64)
     vec.obs_rms.count = float(len(observations))
@@ -363,19 +375,28 @@ def _normalizer(config: DistillConfig, observations: np.ndarray):
 def _policy(config: DistillConfig, params: Any, normalizer: Any) -> tuple[Any, dict[str, Any]]:
     """The learner's SB3 policy (a name or a class) and its ``policy_kwargs``."""
     kwargs: dict[str, Any] = {"net_arch": list(config.net_arch), "log_std_init": -1.0}
-    if not config.damped_output:
+    if not config.damped_output and config.hold_fraction == 0.0:
         return "MlpPolicy", kwargs
     from envs.kernels.generic import observation_layout
-    from training.policies import DampedMlpPolicy
+    from training.policies import PlanFreeMlpPolicy
 
-    column = observation_layout(params.robot.pose_space.name, params.robot.n_actuators, False)["k"].start
+    space = params.robot.pose_space.name
+    layout = observation_layout(space, params.robot.n_actuators, False)
+    error = list(range(layout["error"].start, layout["error"].stop))
+    split = 2 if space == "planar" else 3  # (δx, δy, δφ); (δp, δθ) spatial; δp translational
+    threshold = params.safe_threshold if config.damping_threshold is None else config.damping_threshold
+    hold = config.hold_fraction > 0.0
     kwargs.update(
-        k_index=column,
-        k_mean=float(normalizer.obs_rms.mean[column]),
-        k_scale=float(np.sqrt(normalizer.obs_rms.var[column] + normalizer.epsilon)),
-        damping_threshold=params.safe_threshold if config.damping_threshold is None else config.damping_threshold,
+        raw_mean=[float(v) for v in normalizer.obs_rms.mean],
+        raw_scale=[float(v) for v in np.sqrt(normalizer.obs_rms.var + normalizer.epsilon)],
+        k_index=layout["k"].start,
+        damping_threshold=float(threshold) if config.damped_output else None,
+        position_columns=error[:split],
+        orientation_columns=error[split:],
+        hold_position=config.hold_fraction * params.success_position_tolerance if hold else None,
+        hold_orientation=config.hold_fraction * params.success_orientation_tolerance if hold else None,
     )
-    return DampedMlpPolicy, kwargs
+    return PlanFreeMlpPolicy, kwargs
 
 
 def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
@@ -655,7 +676,14 @@ def main(argv: list[str] | None = None) -> int:
         "--damped-output",
         action="store_true",
         help="the learner's action is its network's output times the expert's damping of the observed k "
-        "(training.policies.DampedMlpPolicy; needs --expert-damping)",
+        "(training.policies.PlanFreeMlpPolicy; needs --expert-damping)",
+    )
+    parser.add_argument(
+        "--hold-fraction",
+        type=float,
+        default=defaults.hold_fraction,
+        help="the learner's action is 0 while its observed errors are within this fraction of the success "
+        "tolerances (training.policies.PlanFreeMlpPolicy's in-position hold; default %(default)s: none)",
     )
     parser.add_argument(
         "--from-run", default=None, help="fine-tune this distilled run with PPO (--ppo-steps, default 1M) instead"
@@ -688,6 +716,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
     if min(args.net_arch) < 1:
         parser.error(f"--net-arch widths must be ≥ 1, got {args.net_arch}")
+    if not 0.0 <= args.hold_fraction < 1.0:
+        parser.error(f"--hold-fraction must be in [0, 1), got {args.hold_fraction}")
     if args.start_episodes < 0:
         parser.error(f"--start-episodes must be ≥ 0, got {args.start_episodes}")
     if not 0.0 <= args.beta <= 1.0:
@@ -733,6 +763,7 @@ def main(argv: list[str] | None = None) -> int:
         previous_action=args.previous_action,
         first_order_expert=args.first_order_expert,
         damped_output=args.damped_output,
+        hold_fraction=args.hold_fraction,
         start_episodes=args.start_episodes,
         start_steps=args.start_steps,
     )

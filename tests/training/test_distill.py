@@ -299,6 +299,7 @@ def test_bad_options_are_refused(capsys):
         (["--damping-kind", "cap"], "--damping-kind cap needs --expert-damping"),
         (["--start-episodes", "-1"], "--start-episodes must be ≥ 0, got -1"),
         (["--start-steps", "0"], "--start-steps must be ≥ 1, got 0"),
+        (["--hold-fraction", "1"], "--hold-fraction must be in [0, 1), got 1.0"),
         (["--net-arch", "64", "0"], "--net-arch widths must be ≥ 1, got [64, 0]"),
         (["--damped-output"], "--damped-output needs --expert-damping and --damping-kind scale, got no --expert"),
         (
@@ -311,17 +312,23 @@ def test_bad_options_are_refused(capsys):
         assert message in capsys.readouterr().err
 
 
-def test_a_damped_output_run_recovers_the_raw_k_from_its_normaliser(tmp_path):
-    """With damped_output the run's policy is DampedMlpPolicy, reading k through the saved normaliser.
+def test_a_damped_and_holding_run_reads_the_raw_observation_through_its_normaliser(tmp_path):
+    """With damped_output and hold_fraction the run's policy is PlanFreeMlpPolicy on the env's own columns.
 
-    k is column 17 of a planar observation (pose 4, target 4, error 3, strokes 3, stroke errors 3); the raw k the
-    policy recovers from the normalised observation is the env's; training.evaluate scores the run.
+    A planar observation is pose 4, target 4, error 3 (δx, δy, δφ: columns 8–10), strokes 3, stroke errors 3, k
+    (column 17); the previous action follows. The raw columns the policy recovers from the normalised observation
+    are the env's; the hold's tolerances are the fraction of the env's success tolerances; at the target the
+    run's agent (as training.evaluate loads it) commands exactly 0; training.evaluate scores the run.
     """
+    import torch
+
     from training.evaluate import load_model, wrap_for_run
-    from training.policies import DampedMlpPolicy
+    from training.policies import PlanFreeMlpPolicy
 
     with pytest.raises(ValueError, match="damped_output needs expert_damping with damping_kind 'scale'"):
         DistillConfig(damped_output=True)
+    with pytest.raises(ValueError, match=r"hold_fraction must be in \[0, 1\), got 1.0"):
+        DistillConfig(hold_fraction=1.0)
     config = DistillConfig(
         env_id="Planar3RRRReach-v0",
         env_kwargs={"targets": "mixed"},
@@ -330,20 +337,31 @@ def test_a_damped_output_run_recovers_the_raw_k_from_its_normaliser(tmp_path):
         epochs=1,
         expert_damping=True,
         damped_output=True,
+        hold_fraction=0.1,
         previous_action=True,
     )
     distill.distill(config, tmp_path / "run", log=lambda _: None)
     model, normalizer, run_config = load_model(tmp_path / "run")
-    assert run_config["hyperparams"]["policy"] == "training.policies.DampedMlpPolicy"
-    assert type(model.policy) is DampedMlpPolicy and model.policy.k_index == 17
-    assert model.policy.damping_threshold == gym.make("Planar3RRRReach-v0").unwrapped.params.safe_threshold
+    params = gym.make("Planar3RRRReach-v0").unwrapped.params
+    assert run_config["hyperparams"]["policy"] == "training.policies.PlanFreeMlpPolicy"
+    policy = model.policy
+    assert type(policy) is PlanFreeMlpPolicy and policy.k_index == 17
+    assert (policy.position_columns, policy.orientation_columns) == ([8, 9], [10])
+    assert policy.damping_threshold == params.safe_threshold
+    assert policy.hold_position == pytest.approx(0.1 * params.success_position_tolerance)
+    assert policy.hold_orientation == pytest.approx(0.1 * params.success_orientation_tolerance)
+    agent, _ = load_run(tmp_path / "run")
     env = gym.make("Planar3RRRReach-v0", targets="hard")
     for seed in range(5):
         obs, _ = env.reset(seed=seed)
-        normalised = normalizer.normalize_obs(np.concatenate([obs, np.zeros(3, np.float32)])[None])
-        recovered = model.policy.k_mean + model.policy.k_scale * float(normalised[0, 17])
-        assert recovered == pytest.approx(float(obs[17]), rel=1e-5, abs=1e-7)
-    agent, _ = load_run(tmp_path / "run")
+        wrapped = np.concatenate([obs, np.zeros(3, np.float32)])
+        normalised = torch.as_tensor(normalizer.normalize_obs(wrapped[None]))
+        recovered = policy._raw(normalised, [17, 8, 9, 10]).numpy()[0]
+        np.testing.assert_allclose(recovered, obs[[17, 8, 9, 10]], rtol=1e-5, atol=1e-7)
+        assert np.any(agent(wrapped) != 0.0)  # 2 cm or more from the target
+        at_target = wrapped.copy()
+        at_target[8:11] = 0.0
+        np.testing.assert_array_equal(agent(at_target), 0.0)
     assert len(evaluate_agent(agent, wrap_for_run(gym.make("Planar3RRRReach-v0"), run_config), 2, 5000, "hard")) == 2
 
 
