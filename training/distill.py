@@ -37,10 +37,11 @@ With ``start_episodes`` N > 0, each round (behaviour cloning included) also runs
 episodes hold the platform at its target, while the approach, where a step at full speed beside a thin band must
 be precise (the 3-RRR), is a few per cent of them.
 
-With ``damped_output`` or ``hold_fraction`` the learner is ``training.policies.PlanFreeMlpPolicy``, whose mean
-passes through fixed layers of the observation: the expert's own damping factor f(k) of the observed k (the
-network then fits the undamped step), and an in-position hold (the mean is 0 while the observed errors are within
-``hold_fraction`` times the env's success tolerances).
+With ``damped_output``, ``hold_fraction`` or ``error_gain`` the learner is ``training.policies.PlanFreeMlpPolicy``,
+whose mean passes through fixed layers of the observation: the expert's own damping factor f(k) of the observed k
+(the network then fits the undamped step), an in-position hold (the mean is 0 while the observed errors are within
+``hold_fraction`` times the env's success tolerances), and an error gain (the network gives a matrix that
+multiplies the observed pose error, so that the action is 0 at the target).
 
 With ``previous_action`` the learner sees its own previous action too (``envs.PreviousActionWrapper``, named as
 the run's ``env_wrapper``): the direction it is moving in, which tells the way around already taken where the
@@ -133,6 +134,9 @@ class DistillConfig:
     #: h > 0: the learner's mean is 0 while the observed position and orientation errors are within h times the
     #: env's success tolerances (``training.policies.PlanFreeMlpPolicy``'s in-position hold); 0: no hold.
     hold_fraction: float = 0.0
+    #: The learner's network gives a gain matrix that multiplies the observed pose error
+    #: (``training.policies.PlanFreeMlpPolicy``'s error gain): its action is 0 at the target.
+    error_gain: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.hold_fraction < 1.0:
@@ -357,12 +361,12 @@ def _make_env(config: DistillConfig) -> gym.Env:
 def _normalizer(config: DistillConfig, observations: np.ndarray):
     """A frozen ``VecNormalize`` (observations only) with the mean and variance of ``observations``.
 
-    For a ``PlanFreeMlpPolicy`` learner (``damped_output``, ``hold_fraction``) it does not clip, so that the
-    policy recovers every raw column it reads, however far from the expert's data.
+    For a ``PlanFreeMlpPolicy`` learner (``damped_output``, ``hold_fraction``, ``error_gain``) it does not clip,
+    so that the policy recovers every raw column it reads, however far from the expert's data.
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    clip = np.inf if config.damped_output or config.hold_fraction > 0.0 else 10.0
+    clip = np.inf if config.damped_output or config.hold_fraction > 0.0 or config.error_gain else 10.0
     venv = DummyVecEnv([lambda: _make_env(config)])
     vec = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=clip)
     vec.obs_rms.mean = observations.mean(axis=0).astype(np.float64)
@@ -375,7 +379,7 @@ def _normalizer(config: DistillConfig, observations: np.ndarray):
 def _policy(config: DistillConfig, params: Any, normalizer: Any) -> tuple[Any, dict[str, Any]]:
     """The learner's SB3 policy (a name or a class) and its ``policy_kwargs``."""
     kwargs: dict[str, Any] = {"net_arch": list(config.net_arch), "log_std_init": -1.0}
-    if not config.damped_output and config.hold_fraction == 0.0:
+    if not (config.damped_output or config.hold_fraction > 0.0 or config.error_gain):
         return "MlpPolicy", kwargs
     from envs.kernels.generic import observation_layout
     from training.policies import PlanFreeMlpPolicy
@@ -395,6 +399,7 @@ def _policy(config: DistillConfig, params: Any, normalizer: Any) -> tuple[Any, d
         orientation_columns=error[split:],
         hold_position=config.hold_fraction * params.success_position_tolerance if hold else None,
         hold_orientation=config.hold_fraction * params.success_orientation_tolerance if hold else None,
+        error_gain=config.error_gain,
     )
     return PlanFreeMlpPolicy, kwargs
 
@@ -679,6 +684,12 @@ def main(argv: list[str] | None = None) -> int:
         "(training.policies.PlanFreeMlpPolicy; needs --expert-damping)",
     )
     parser.add_argument(
+        "--error-gain",
+        action="store_true",
+        help="the learner's network gives a gain matrix times the observed pose error "
+        "(training.policies.PlanFreeMlpPolicy): its action is 0 at the target",
+    )
+    parser.add_argument(
         "--hold-fraction",
         type=float,
         default=defaults.hold_fraction,
@@ -764,6 +775,7 @@ def main(argv: list[str] | None = None) -> int:
         first_order_expert=args.first_order_expert,
         damped_output=args.damped_output,
         hold_fraction=args.hold_fraction,
+        error_gain=args.error_gain,
         start_episodes=args.start_episodes,
         start_steps=args.start_steps,
     )

@@ -12,6 +12,11 @@ the observation alone (no planner, certificate or model at run time):
   within them, as a servo drive's in-position band: actuators at rest keep the platform still, where the
   learner's own error of a few thousandths of the rate range, amplified by J_f next to an ill-conditioned
   target, would drift it into the band (``training.distill --hold-fraction``).
+- **error gain** (``error_gain``): the network's output is a gain matrix M_θ(o) (n × m) and the mean is
+  M_θ(o) ẽ, ẽ the observed pose error (the position columns, then the orientation ones) divided by the
+  normaliser's scale of each column: the action vanishes at the target as the resolved-rate law's K J_i e does,
+  so the learner has no bias there to drift on, and it is still any function of the observation that is 0 at
+  e = 0 (``training.distill --error-gain``).
 
 The policy sees the observation normalised by ``VecNormalize`` and recovers the columns it reads as
 ``raw_mean + raw_scale · o`` with the normaliser's fixed mean and scale √(var + ε), which holds where the
@@ -57,6 +62,7 @@ class PlanFreeMlpPolicy(ActorCriticPolicy):
         orientation_columns: Columns of the orientation error [rad] (1 planar, 3 spatial, none translational).
         hold_position: Position error [m] within which (with the orientation's) the mean is 0, > 0; None: no hold.
         hold_orientation: Orientation error [rad] of the hold, > 0 (with ``hold_position``).
+        error_gain: The mean is M_θ(o) ẽ (module docstring); needs ``position_columns``.
         **kwargs: ``ActorCriticPolicy``'s other arguments (``net_arch``, ``log_std_init``, ...).
 
     Raises:
@@ -80,6 +86,7 @@ class PlanFreeMlpPolicy(ActorCriticPolicy):
         orientation_columns: Sequence[int] = (),
         hold_position: float | None = None,
         hold_orientation: float | None = None,
+        error_gain: bool = False,
         **kwargs: Any,
     ) -> None:
         shape = getattr(observation_space, "shape", None)
@@ -105,6 +112,9 @@ class PlanFreeMlpPolicy(ActorCriticPolicy):
             )
         if hold_position is not None and not self.position_columns:
             raise ValueError("an in-position hold needs position_columns, got none")
+        if error_gain and not self.position_columns:
+            raise ValueError("an error gain needs position_columns, got none")
+        self.error_gain = bool(error_gain)
         if kwargs.get("use_sde", False):
             raise ValueError("PlanFreeMlpPolicy shapes a diagonal Gaussian's mean; use_sde must be False, got True")
         self.raw_mean, self.raw_scale = mean, scale
@@ -119,28 +129,48 @@ class PlanFreeMlpPolicy(ActorCriticPolicy):
             )
         self.register_buffer("_raw_mean", torch.tensor(mean, dtype=torch.float64), persistent=False)
         self.register_buffer("_raw_scale", torch.tensor(scale, dtype=torch.float64), persistent=False)
+        for name, columns in (
+            ("k", [self.k_index]),
+            ("position", self.position_columns),
+            ("orientation", self.orientation_columns),
+            ("error", self.position_columns + self.orientation_columns),
+        ):
+            self.register_buffer(f"_{name}_columns", torch.tensor(columns, dtype=torch.long), persistent=False)
 
-    def _raw(self, obs: torch.Tensor, columns: list[int]) -> torch.Tensor:
-        """The raw values (B, len(columns)) of ``columns`` of a normalised observation batch, float64."""
-        index = torch.as_tensor(columns, dtype=torch.long)
-        return self._raw_mean[index] + self._raw_scale[index] * obs[:, index].double()
+    def _build(self, lr_schedule: Any) -> None:
+        super()._build(lr_schedule)
+        if self.error_gain:  # the actor's head gives the n × m gain matrix, initialised as SB3 does its head
+            n, m = self.action_space.shape[0], len(self.position_columns) + len(self.orientation_columns)
+            self.action_net = torch.nn.Linear(self.mlp_extractor.latent_dim_pi, n * m)
+            if self.ortho_init:
+                self.action_net.apply(lambda module: self.init_weights(module, gain=0.01))
+            self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+
+    def _raw(self, obs: torch.Tensor, columns: torch.Tensor) -> torch.Tensor:
+        """The raw values (B, C) of ``columns`` (C,) of a normalised observation batch, float64."""
+        return self._raw_mean[columns] + self._raw_scale[columns] * obs[:, columns].double()
 
     def gate(self, obs: torch.Tensor) -> torch.Tensor:
         """The factor (B, 1) the network's output is multiplied by: f(k), 0 within the hold, 1 without either."""
         factor = torch.ones((obs.shape[0], 1), dtype=torch.float64)
         if self.damping_threshold is not None:
-            k = self._raw(obs, [self.k_index])
+            k = self._raw(obs, self._k_columns)
             factor = torch.clamp((k / self.damping_threshold) ** 2, DAMPING_FLOOR, 1.0)
         if self.hold_position is not None:
-            inside = torch.linalg.vector_norm(self._raw(obs, self.position_columns), dim=1) <= self.hold_position
+            inside = torch.linalg.vector_norm(self._raw(obs, self._position_columns), dim=1) <= self.hold_position
             if self.orientation_columns:
-                angle = torch.linalg.vector_norm(self._raw(obs, self.orientation_columns), dim=1)
+                angle = torch.linalg.vector_norm(self._raw(obs, self._orientation_columns), dim=1)
                 inside = inside & (angle <= self.hold_orientation)
             factor = torch.where(inside[:, None], torch.zeros_like(factor), factor)
         return factor.float()
 
     def _gated_distribution(self, obs: torch.Tensor, latent_pi: torch.Tensor) -> Distribution:
-        mean = self.action_net(latent_pi) * self.gate(obs)
+        out = self.action_net(latent_pi)
+        if self.error_gain:
+            columns = self._error_columns
+            scaled = (self._raw(obs, columns) / self._raw_scale[columns]).float()
+            out = torch.einsum("bij,bj->bi", out.view(out.shape[0], -1, columns.shape[0]), scaled)
+        mean = out * self.gate(obs)
         return self.action_dist.proba_distribution(mean, self.log_std)
 
     def _latents(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -180,5 +210,6 @@ class PlanFreeMlpPolicy(ActorCriticPolicy):
             orientation_columns=self.orientation_columns,
             hold_position=self.hold_position,
             hold_orientation=self.hold_orientation,
+            error_gain=self.error_gain,
         )
         return data

@@ -356,7 +356,7 @@ def test_a_damped_and_holding_run_reads_the_raw_observation_through_its_normalis
         obs, _ = env.reset(seed=seed)
         wrapped = np.concatenate([obs, np.zeros(3, np.float32)])
         normalised = torch.as_tensor(normalizer.normalize_obs(wrapped[None]))
-        recovered = policy._raw(normalised, [17, 8, 9, 10]).numpy()[0]
+        recovered = policy._raw(normalised, torch.tensor([17, 8, 9, 10])).numpy()[0]
         np.testing.assert_allclose(recovered, obs[[17, 8, 9, 10]], rtol=1e-5, atol=1e-7)
         assert np.any(agent(wrapped) != 0.0)  # 2 cm or more from the target
         at_target = wrapped.copy()
