@@ -14,7 +14,8 @@ the observation alone (no planner, certificate or model at run time):
   target, would drift it into the band (``training.distill --hold-fraction``).
 - **error gain** (``error_gain``): the network's output is a gain matrix M_θ(o) (n × m) and the mean is
   M_θ(o) ẽ, ẽ the observed pose error (the position columns, then the orientation ones) divided by the
-  normaliser's scale of each column: the action vanishes at the target as the resolved-rate law's K J_i e does,
+  normaliser's scale of each column: the action vanishes at the target (up to the float32 rounding of the
+  normalised observation) as the resolved-rate law's K J_i e does,
   so the learner has no bias there to drift on, and it is still any function of the observation that is 0 at
   e = 0 (``training.distill --error-gain``).
 

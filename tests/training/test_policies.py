@@ -100,15 +100,44 @@ def test_the_hold_zeroes_the_mean_exactly_where_both_raw_errors_are_within_its_t
     np.testing.assert_allclose(gated[~inside], (plain * factor[:, None])[~inside], rtol=1e-5, atol=1e-7)
 
 
+def test_the_error_gain_is_the_heads_matrix_times_the_scaled_raw_error():
+    """The mean is the head's 3 × 3 matrix times the raw error over the normaliser's scale; about 0 at the target.
+
+    Oracle: the actor's MLP and head evaluated in NumPy from the state dict. At the target the raw error the policy
+    recovers from the float32 normalised observation is 0 up to rounding, and so is the action.
+    """
+    error = np.array([[0.0, 0.0, 0.0], [0.01, -0.02, 0.3], [-0.05, 0.01, -0.1]])
+    _, obs = _observations(np.array([0.3, 0.3, 0.05]), error)
+    model = _model(seed=5, error_gain=True, damping_threshold=K_D)
+    state = {name: value.numpy().astype(np.float64) for name, value in model.policy.state_dict().items()}
+    hidden = obs.astype(np.float64)
+    for layer in (0, 2):
+        weight, bias = (
+            state[f"mlp_extractor.policy_net.{layer}.weight"],
+            state[f"mlp_extractor.policy_net.{layer}.bias"],
+        )
+        hidden = np.tanh(hidden @ weight.T + bias)
+    gain = (hidden @ state["action_net.weight"].T + state["action_net.bias"]).reshape(3, 3, 3)
+    scaled = error / RAW_SCALE[[8, 9, 10]]
+    factor = np.array([1.0, 1.0, (0.05 / K_D) ** 2])
+    expected = np.einsum("bij,bj->bi", gain, scaled) * factor[:, None]
+    with torch.no_grad():
+        mean = model.policy.get_distribution(torch.as_tensor(obs)).distribution.mean.numpy()
+    np.testing.assert_allclose(mean, expected, rtol=1e-4, atol=1e-7)
+    assert np.max(np.abs(mean[0])) < 1e-8
+    assert np.all(np.abs(mean[1:]) > 0.0)
+
+
 def test_a_saved_policy_loads_and_exports_with_its_layers(tmp_path):
     """PPO.save / PPO.load keep the class and its layers; training.export's module gives the same actions."""
     from training.export import deployed_module
 
-    model = _model(seed=3, damping_threshold=K_D, hold_position=0.001, hold_orientation=0.005)
+    model = _model(seed=3, damping_threshold=K_D, hold_position=0.001, hold_orientation=0.005, error_gain=True)
     model.save(tmp_path / "model.zip")
     loaded = PPO.load(tmp_path / "model.zip", device="cpu")
     assert type(loaded.policy) is PlanFreeMlpPolicy
-    assert (loaded.policy.damping_threshold, loaded.policy.hold_position) == (K_D, 0.001)
+    policy = loaded.policy
+    assert (policy.damping_threshold, policy.hold_position, policy.error_gain) == (K_D, 0.001, True)
     _, obs = _observations(
         np.array([0.02, 0.06, 0.3, 0.05]), np.array([[0.01, 0, 0], [0, 0, 0.1], [0.1, 0, 0], [0] * 3])
     )
@@ -135,6 +164,7 @@ def test_a_saved_policy_loads_and_exports_with_its_layers(tmp_path):
             {"hold_position": 0.001, "hold_orientation": 0.1, "position_columns": []},
             "an in-position hold needs position_columns, got none",
         ),
+        ({"error_gain": True, "position_columns": []}, "an error gain needs position_columns, got none"),
         ({"use_sde": True}, "use_sde must be False, got True"),
     ],
 )
