@@ -313,7 +313,7 @@ def test_bad_options_are_refused(capsys):
 
 
 def test_a_damped_and_holding_run_reads_the_raw_observation_through_its_normaliser(tmp_path):
-    """With damped_output and hold_fraction the run's policy is PlanFreeMlpPolicy on the env's own columns.
+    """With damped_output, hold_fraction and error_gain the run's policy is PlanFreeMlpPolicy on the env's columns.
 
     A planar observation is pose 4, target 4, error 3 (δx, δy, δφ: columns 8–10), strokes 3, stroke errors 3, k
     (column 17); the previous action follows. The raw columns the policy recovers from the normalised observation
@@ -338,6 +338,7 @@ def test_a_damped_and_holding_run_reads_the_raw_observation_through_its_normalis
         expert_damping=True,
         damped_output=True,
         hold_fraction=0.1,
+        error_gain=True,
         previous_action=True,
     )
     distill.distill(config, tmp_path / "run", log=lambda _: None)
@@ -347,7 +348,7 @@ def test_a_damped_and_holding_run_reads_the_raw_observation_through_its_normalis
     policy = model.policy
     assert type(policy) is PlanFreeMlpPolicy and policy.k_index == 17
     assert (policy.position_columns, policy.orientation_columns) == ([8, 9], [10])
-    assert policy.damping_threshold == params.safe_threshold
+    assert policy.damping_threshold == params.safe_threshold and policy.error_gain
     assert policy.hold_position == pytest.approx(0.1 * params.success_position_tolerance)
     assert policy.hold_orientation == pytest.approx(0.1 * params.success_orientation_tolerance)
     agent, _ = load_run(tmp_path / "run")
