@@ -62,6 +62,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import itertools
 import json
 import sys
 import time
@@ -224,7 +225,7 @@ def collect(
     width = env.unwrapped.observation_space.shape[0]  # the env's own observation, without a wrapper's columns
     for i in range(episodes):
         obs, info = env.reset(seed=first_seed + i)
-        for t in range(1, np.iinfo(np.int64).max):
+        for t in itertools.count(1):
             label = expert(obs[None, :width])[0]
             observations.append(obs)
             actions.append(label)
