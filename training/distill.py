@@ -385,10 +385,10 @@ def _policy(config: DistillConfig, params: Any, normalizer: Any) -> tuple[Any, d
     from envs.kernels.generic import observation_layout
     from training.policies import PlanFreeMlpPolicy
 
-    space = params.robot.pose_space.name
-    layout = observation_layout(space, params.robot.n_actuators, False)
-    error = list(range(layout["error"].start, layout["error"].stop))
-    split = 2 if space == "planar" else 3  # (δx, δy, δφ); (δp, δθ) spatial; δp translational
+    space = params.robot.pose_space
+    layout = observation_layout(space.name, params.robot.n_actuators, False)
+    error = range(layout["error"].start, layout["error"].stop)  # the twist's coordinates: δp, then δθ if any
+    rotations = [error[j] for j in space.rotation_columns]
     threshold = params.safe_threshold if config.damping_threshold is None else config.damping_threshold
     hold = config.hold_fraction > 0.0
     kwargs.update(
@@ -396,8 +396,8 @@ def _policy(config: DistillConfig, params: Any, normalizer: Any) -> tuple[Any, d
         raw_scale=[float(v) for v in np.sqrt(normalizer.obs_rms.var + normalizer.epsilon)],
         k_index=layout["k"].start,
         damping_threshold=float(threshold) if config.damped_output else None,
-        position_columns=error[:split],
-        orientation_columns=error[split:],
+        position_columns=[c for c in error if c not in rotations],
+        orientation_columns=rotations,
         hold_position=config.hold_fraction * params.success_position_tolerance if hold else None,
         hold_orientation=config.hold_fraction * params.success_orientation_tolerance if hold else None,
         error_gain=config.error_gain,

@@ -48,7 +48,7 @@ def _columns(name: str, columns: Sequence[int], width: int) -> list[int]:
 
 
 class PlanFreeMlpPolicy(ActorCriticPolicy):
-    """``MlpPolicy`` whose Gaussian mean passes through the damping and the in-position hold (module docstring).
+    """``MlpPolicy`` whose Gaussian mean passes through the error gain, the damping and the hold (module docstring).
 
     Args:
         observation_space: The (normalised) observation space, a flat Box of D columns.
