@@ -43,6 +43,12 @@ whose mean passes through fixed layers of the observation: the expert's own damp
 ``hold_fraction`` times the env's success tolerances), and an error gain (the network gives a matrix that
 multiplies the observed pose error, so that the action is 0 at the target).
 
+With ``platform_loss`` λ > 0 each pair's loss also counts the platform motion its action error causes:
+λ ‖G (μ(o) − a)‖², G = diag(1/tolerances) · J_f(q, x) · max_rate · dt (``platform_gains``), the one-step pose
+change of a unit action error in success tolerances at the pair's state. Beside a Type II band J_f is large, and an
+action error too small to matter elsewhere turns the platform into the band; the plain squared error weighs it
+as it weighs the same error far from the band.
+
 With ``previous_action`` the learner sees its own previous action too (``envs.PreviousActionWrapper``, named as
 the run's ``env_wrapper``): the direction it is moving in, which tells the way around already taken where the
 pose alone leaves two about equally good; the expert still reads the env's own observation.
@@ -80,7 +86,18 @@ from envs.planner import PathFollower
 from training.config import resolve_env_wrapper
 from training.evaluate import SINGULARITY_REASONS, EvaluationError, evaluate_agent, parse_env_kwargs
 
-__all__ = ["DistillConfig", "FinetuneConfig", "band_weights", "collect", "distill", "finetune", "fit", "main"]
+__all__ = [
+    "DistillConfig",
+    "FinetuneConfig",
+    "band_weights",
+    "collect",
+    "distill",
+    "finetune",
+    "fit",
+    "main",
+    "pair_loss",
+    "platform_gains",
+]
 
 
 @dataclass(frozen=True)
@@ -138,8 +155,12 @@ class DistillConfig:
     #: The learner's network gives a gain matrix that multiplies the observed pose error
     #: (``training.policies.PlanFreeMlpPolicy``'s error gain): its action is 0 at the target.
     error_gain: bool = False
+    #: λ ≥ 0 of the platform term λ ‖G (μ(o) − a)‖² of each pair's loss (``platform_gains``; 0: none).
+    platform_loss: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.platform_loss) and self.platform_loss >= 0.0):
+            raise ValueError(f"platform_loss must be finite and ≥ 0, got {self.platform_loss}")
         if not 0.0 <= self.hold_fraction < 1.0:
             raise ValueError(f"hold_fraction must be in [0, 1), got {self.hold_fraction}")
         if self.start_episodes < 0 or self.start_steps < 1:
@@ -198,7 +219,7 @@ def collect(
     first_seed: int,
     rng: np.random.Generator,
     max_steps: int | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, float]]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, float], np.ndarray]:
     """Run episodes, acting with the learner (or the expert with probability ``beta``), labelled by the expert.
 
     Args:
@@ -217,9 +238,10 @@ def collect(
         (observations (S, D) float32, expert actions (S, n) float32, the true inverse condition number of J_x at
         each observation's state (S,) float64 (from the env's info), figures: success rate, singularity
         terminations per episode (the reasons of ``training.evaluate.SINGULARITY_REASONS``), mean episode length,
-        mean planning time [s]).
+        mean planning time [s]), the true state of each pair: actuator coordinates q then pose x of {P} in {B}
+        (S, n + m) float64 (``envs.FamilyState``'s ``q`` and ``x``)).
     """
-    observations, actions, conditioning = [], [], []
+    observations, actions, conditioning, states = [], [], [], []
     successes = singular = steps = 0
     expert.log.clear()  # the plans of these episodes alone
     width = env.unwrapped.observation_space.shape[0]  # the env's own observation, without a wrapper's columns
@@ -230,6 +252,8 @@ def collect(
             observations.append(obs)
             actions.append(label)
             conditioning.append(float(info["inverse_condition_number"]))
+            state = env.unwrapped.state
+            states.append(np.concatenate([state.q[0], state.x[0]]))
             act = label if learner is None or rng.random() < beta else learner(obs)
             obs, _, terminated, truncated, info = env.step(act)
             steps += 1
@@ -250,6 +274,7 @@ def collect(
         np.asarray(actions, dtype=np.float32),
         np.asarray(conditioning, dtype=np.float64),
         figures,
+        np.asarray(states, dtype=np.float64).reshape(len(observations), -1),
     )
 
 
@@ -304,6 +329,56 @@ def band_weights(k: np.ndarray, safe_threshold: float, hard_threshold: float, we
     return 1.0 + weight * depth
 
 
+def platform_gains(params: Any, states: np.ndarray) -> np.ndarray:
+    """G = diag(1/tolerances) · J_f(q, x) · max_rate · dt at each state (the platform term of ``pair_loss``).
+
+    G a is the first-order pose change, in success tolerances, of one period at the normalised action a.
+
+    Args:
+        params: The env's ``FamilyParams`` (its robot, ``max_rate``, ``dt`` and success tolerances).
+        states: Actuator coordinates q then pose x of {P} in {B} per row, shape (S, n + m) (``collect``'s last
+            output).
+
+    Returns:
+        Shape (S, m, n), dimensionless: row j of G maps an action error (n,) to pose coordinate j's change over
+        one period divided by the position tolerance (position columns) or the orientation tolerance (rotation
+        columns, ``PoseSpace.rotation_columns``).
+
+    Raises:
+        ValueError: If ``states`` is not finite of shape (S, n + m).
+    """
+    robot = params.robot
+    n, m = robot.n_actuators, robot.pose_space.n_pose
+    states = np.asarray(states, dtype=np.float64)
+    if states.ndim != 2 or states.shape[1] != n + m or not np.isfinite(states).all():
+        raise ValueError(f"states must be finite of shape (S, {n + m}) (q then x), got shape {states.shape}")
+    tolerance = np.full(m, float(params.success_position_tolerance))
+    tolerance[list(robot.pose_space.rotation_columns)] = float(params.success_orientation_tolerance)
+    forward = robot.forward_jacobian(states[:, :n], states[:, n:], validate=False)
+    return forward * (float(params.max_rate) * float(params.dt) / tolerance)[:, None]
+
+
+def pair_loss(mean: Any, target: Any, weights: Any, gains: Any | None) -> Any:
+    """The fit's loss of a batch: Σ_i w_i (‖e_i‖² + ‖G_i e_i‖²) / (n Σ_i w_i), e_i = μ(o_i) − a_i.
+
+    Args:
+        mean: The learner's Gaussian means, torch tensor (B, n).
+        target: The labels, torch tensor (B, n).
+        weights: Positive pair weights, torch tensor (B,).
+        gains: Per-pair matrices G_i (B, m, n) (``platform_gains`` times √λ), or None: the squared error alone.
+
+    Returns:
+        A scalar torch tensor.
+    """
+    import torch
+
+    error = mean - target
+    per_pair = torch.sum(error**2, dim=1)
+    if gains is not None:
+        per_pair = per_pair + torch.sum(torch.einsum("bmn,bn->bm", gains, error) ** 2, dim=1)
+    return torch.sum(weights * per_pair) / (torch.sum(weights) * mean.shape[1])
+
+
 def fit(
     policy: Any,
     observations: np.ndarray,
@@ -311,12 +386,14 @@ def fit(
     config: DistillConfig,
     seed: int,
     weights: np.ndarray | None = None,
+    gains: np.ndarray | None = None,
 ) -> float:
     """Fit the policy's Gaussian mean to ``actions`` (S, n) at normalised ``observations`` (S, D).
 
-    ``weights`` (S,), positive, weigh each pair's squared error (None: all the same); the loss of a batch is
-    Σ w_i ‖μ(o_i) − a_i‖² / (n Σ w_i). Adam at ``config.learning_rate``, annealed to 0 on a cosine over the
-    ``config.epochs`` epochs with ``config.lr_decay``. Returns the last epoch's (weighted) mean squared error.
+    ``weights`` (S,), positive, weigh each pair's loss (None: all the same); ``gains`` (S, m, n), finite, add the
+    platform term ‖G_i e_i‖² to it (None: none); the loss of a batch is ``pair_loss``'s. Adam at
+    ``config.learning_rate``, annealed to 0 on a cosine over the ``config.epochs`` epochs with ``config.lr_decay``.
+    Returns the last epoch's (weighted) loss.
     """
     import torch
 
@@ -331,6 +408,15 @@ def fit(
     if not np.all(np.isfinite(weights) & (weights > 0.0)):
         raise ValueError(f"weights must be ({len(observations)},), finite and > 0, got a minimum of {weights.min()}")
     w_t = torch.as_tensor(weights)
+    g_t = None
+    if gains is not None:
+        gains = np.asarray(gains, dtype=np.float32)
+        expected = f"gains must be ({len(observations)}, m, {actions.shape[1]}) and finite"
+        if gains.ndim != 3 or gains.shape[0] != len(observations) or gains.shape[2] != actions.shape[1]:
+            raise ValueError(f"{expected}, got shape {gains.shape}")
+        if not np.isfinite(gains).all():
+            raise ValueError(f"{expected}, got a non-finite entry")
+        g_t = torch.as_tensor(gains)
     optimizer = torch.optim.Adam(policy.parameters(), lr=config.learning_rate)
     steps = config.epochs * -(-len(obs_t) // config.batch_size)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=steps) if config.lr_decay else None
@@ -342,7 +428,7 @@ def fit(
             index = order[start : start + config.batch_size]
             mean = policy.get_distribution(obs_t[index]).distribution.mean
             w = w_t[index]
-            loss = torch.sum(w[:, None] * (mean - act_t[index]) ** 2) / (torch.sum(w) * mean.shape[1])
+            loss = pair_loss(mean, act_t[index], w, None if g_t is None else g_t[index])
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -423,19 +509,25 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     def weigh(k: np.ndarray) -> np.ndarray:
         return band_weights(k, params.safe_threshold, params.hard_threshold, config.band_weight)
 
-    def with_starts(obs, act, k, learner, beta):
+    def gains(states: np.ndarray) -> np.ndarray | None:
+        """√λ G of each pair (``platform_gains``), or None without a platform loss."""
+        if config.platform_loss == 0.0:
+            return None
+        return np.sqrt(config.platform_loss) * platform_gains(params, states)
+
+    def with_starts(obs, act, k, states, learner, beta):
         """The round's pairs and those of its ``start_episodes`` cut episodes (each array concatenated)."""
         nonlocal seed
         if config.start_episodes == 0:
-            return obs, act, k
+            return obs, act, k, states
         more = collect(env, expert, learner, config.start_episodes, beta, seed, rng, config.start_steps)
         seed += config.start_episodes
-        return tuple(np.concatenate([a, b]) for a, b in zip((obs, act, k), more[:3], strict=True))
+        return tuple(np.concatenate([a, b]) for a, b in zip((obs, act, k, states), (*more[:3], more[4]), strict=True))
 
     weigh(np.zeros(1))  # refuse a bad band weight before any episode
-    obs, act, k, figures = collect(env, expert, None, config.expert_episodes, 1.0, seed, rng)
+    obs, act, k, figures, states = collect(env, expert, None, config.expert_episodes, 1.0, seed, rng)
     seed += config.expert_episodes
-    obs, act, k = with_starts(obs, act, k, None, 1.0)
+    obs, act, k, states = with_starts(obs, act, k, states, None, 1.0)
     rounds = [{"round": 0, "beta": 1.0, "pairs": len(obs), **figures, "seconds": time.perf_counter() - clock}]
     log(f"expert: {figures['success_rate']:.0%} success, {len(obs)} pairs")
     normalizer = _normalizer(config, obs)
@@ -447,21 +539,24 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         action, _ = model.predict(normalizer.normalize_obs(o[None]), deterministic=True)
         return np.clip(action[0], -1.0, 1.0)
 
-    all_obs, all_act, all_k = [obs], [act], [k]
-    rounds[0]["mse"] = fit(policy, normalizer.normalize_obs(obs), act, config, config.seed, weigh(k))
+    all_obs, all_act, all_k, all_states = [obs], [act], [k], [states]
+    rounds[0]["mse"] = fit(policy, normalizer.normalize_obs(obs), act, config, config.seed, weigh(k), gains(states))
     snapshots = [copy.deepcopy(policy.state_dict())]  # the learner after each round's fit
     for r in range(1, config.iterations + 1):
         clock = time.perf_counter()
         beta = config.beta if r == 1 else 0.0
-        obs, act, k, figures = collect(env, expert, learner, config.episodes, beta, seed, rng)
+        obs, act, k, figures, states = collect(env, expert, learner, config.episodes, beta, seed, rng)
         seed += config.episodes
-        obs, act, k = with_starts(obs, act, k, learner, beta)
+        obs, act, k, states = with_starts(obs, act, k, states, learner, beta)
         all_obs.append(obs)
         all_act.append(act)
         all_k.append(k)
+        all_states.append(states)
         data_obs, data_act = np.concatenate(all_obs), np.concatenate(all_act)
-        data_weights = weigh(np.concatenate(all_k))
-        mse = fit(policy, normalizer.normalize_obs(data_obs), data_act, config, config.seed + r, data_weights)
+        data_weights, data_gains = weigh(np.concatenate(all_k)), gains(np.concatenate(all_states))
+        mse = fit(
+            policy, normalizer.normalize_obs(data_obs), data_act, config, config.seed + r, data_weights, data_gains
+        )
         rounds.append(
             {"round": r, "beta": beta, "pairs": len(data_obs), **figures, "mse": mse,
              "seconds": time.perf_counter() - clock}
@@ -474,7 +569,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     kept = len(snapshots) - 1
     if config.select_round == "best" and config.iterations > 0:
         # the last learner has not acted yet: score it on as many fresh training episodes
-        _, _, _, figures = collect(env, expert, learner, config.episodes, 0.0, seed, rng)
+        _, _, _, figures, _ = collect(env, expert, learner, config.episodes, 0.0, seed, rng)
         seed += config.episodes
         rounds.append({"round": len(snapshots), "beta": 0.0, "scoring_only": True, **figures})
         # round r's figures score the learner fitted after round r − 1 (rounds with β > 0 are the expert's too)
@@ -698,6 +793,13 @@ def main(argv: list[str] | None = None) -> int:
         "tolerances (training.policies.PlanFreeMlpPolicy's in-position hold; default %(default)s: none)",
     )
     parser.add_argument(
+        "--platform-loss",
+        type=float,
+        default=defaults.platform_loss,
+        help="λ of the loss's platform term λ ‖G (μ − a)‖², G = J_f · max_rate · dt over the success tolerances: "
+        "the pose change an action error causes (default %(default)s: none)",
+    )
+    parser.add_argument(
         "--from-run", default=None, help="fine-tune this distilled run with PPO (--ppo-steps, default 1M) instead"
     )
     parser.add_argument("--warmup-steps", type=int, default=FinetuneConfig.warmup_steps, help="critic-only steps")
@@ -743,8 +845,9 @@ def main(argv: list[str] | None = None) -> int:
             "--damped-output needs --expert-damping and --damping-kind scale, got "
             f"{'' if args.expert_damping else 'no '}--expert-damping and --damping-kind {args.damping_kind}"
         )
-    if not (np.isfinite(args.band_weight) and args.band_weight >= 0.0):
-        parser.error(f"--band-weight must be finite and ≥ 0, got {args.band_weight}")
+    for name in ("band_weight", "platform_loss"):
+        if not (np.isfinite(getattr(args, name)) and getattr(args, name) >= 0.0):
+            parser.error(f"--{name.replace('_', '-')} must be finite and ≥ 0, got {getattr(args, name)}")
     try:
         env_kwargs = parse_env_kwargs(args.env_kwargs)
     except EvaluationError as exc:
@@ -779,6 +882,7 @@ def main(argv: list[str] | None = None) -> int:
         error_gain=args.error_gain,
         start_episodes=args.start_episodes,
         start_steps=args.start_steps,
+        platform_loss=args.platform_loss,
     )
     distill(config, Path(args.run_dir))
     return 0

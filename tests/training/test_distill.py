@@ -103,17 +103,20 @@ def test_the_labels_are_the_planner_controllers_actions():
     env = gym.make(ENV)
     config = DistillConfig(replan_distance=1e9)  # plan once per episode, as the plain controller does
     expert = distill._expert(env, config)
-    obs, act, k, figures = collect(env, expert, None, 2, 1.0, 123, np.random.default_rng(0))
-    assert obs.shape == (400, 18) and act.shape == (400, 3) and k.shape == (400,)
+    obs, act, k, figures, states = collect(env, expert, None, 2, 1.0, 123, np.random.default_rng(0))
+    assert obs.shape == (400, 18) and act.shape == (400, 3) and k.shape == (400,) and states.shape == (400, 6)
     # k is the state's own: the observation's k column (noise-free here), not the next state's
     np.testing.assert_allclose(k, obs[:, -1], rtol=1e-6)
+    # and so is the recorded state (q, x): the kinematics give its k
+    robot = env.unwrapped.params.robot
+    np.testing.assert_allclose(robot.inverse_condition_number(states[:, :3], states[:, 3:]), k, rtol=1e-9)
     # the default expert law: undamped, straight at the target on a one-segment plan, exact steps
     reference = PlannerController(env.unwrapped.params, cross_track=False, damping=config.expert_damping)
     np.testing.assert_allclose(np.stack([reference(o[None])[0] for o in obs]), act, atol=1e-6)
     assert figures["success_rate"] == 1.0 and figures["singular_terminations"] == 0.0
     # with first_order_expert, the first-order law's (which differs from the exact one at these states)
     config = DistillConfig(replan_distance=1e9, first_order_expert=True)
-    obs, first, _, _ = collect(env, distill._expert(env, config), None, 2, 1.0, 123, np.random.default_rng(0))
+    obs, first, _, _, _ = collect(env, distill._expert(env, config), None, 2, 1.0, 123, np.random.default_rng(0))
     reference = PlannerController(env.unwrapped.params, cross_track=False, damping=False, exact_step=False)
     np.testing.assert_allclose(np.stack([reference(o[None])[0] for o in obs]), first, atol=1e-6)
     assert np.max(np.abs(first - act)) > 1e-3
@@ -127,7 +130,7 @@ def test_cut_episodes_are_the_first_steps_of_the_full_ones():
     cut = collect(env, distill._expert(env, config), None, 3, 1.0, 40, np.random.default_rng(0), max_steps=7)
     assert cut[0].shape == (21, 18) and full[0].shape == (600, 18)
     rows = np.concatenate([np.arange(7) + 200 * i for i in range(3)])  # every full episode lasts 200 steps
-    for a, b in zip(cut[:3], full[:3], strict=True):
+    for a, b in zip((*cut[:3], cut[4]), (*full[:3], full[4]), strict=True):
         np.testing.assert_array_equal(a, b[rows])
 
 
@@ -153,9 +156,11 @@ def test_with_the_previous_action_the_learner_sees_it_and_the_expert_does_not():
 
     config = DistillConfig(replan_distance=1e9)
     plain = gym.make(ENV)
-    obs_p, act_p, _, _ = collect(plain, distill._expert(plain, config), None, 2, 1.0, 123, np.random.default_rng(0))
+    obs_p, act_p, _, _, _ = collect(plain, distill._expert(plain, config), None, 2, 1.0, 123, np.random.default_rng(0))
     wrapped = PreviousActionWrapper(gym.make(ENV))
-    obs_w, act_w, _, _ = collect(wrapped, distill._expert(wrapped, config), None, 2, 1.0, 123, np.random.default_rng(0))
+    obs_w, act_w, _, _, _ = collect(
+        wrapped, distill._expert(wrapped, config), None, 2, 1.0, 123, np.random.default_rng(0)
+    )
     np.testing.assert_array_equal(act_w, act_p)
     np.testing.assert_array_equal(obs_w[:, :18], obs_p)
     previous = np.concatenate([np.zeros((1, 3), np.float32), np.clip(act_p[:-1], -1.0, 1.0)])
@@ -174,7 +179,7 @@ def test_collect_counts_every_singularity_termination():
     env = gym.make("Planar3RRRReach-v0", targets="hard")
     expert = distill._expert(env, DistillConfig(expert_damping=True))
     driver = ResolvedRateController(env.unwrapped.params)
-    _, _, _, figures = collect(env, expert, lambda o: driver(o[None])[0], 4, 0.0, 13, np.random.default_rng(0))
+    _, _, _, figures, _ = collect(env, expert, lambda o: driver(o[None])[0], 4, 0.0, 13, np.random.default_rng(0))
     reasons = []
     for seed in range(13, 17):
         obs, _ = env.reset(seed=seed)
@@ -217,6 +222,71 @@ def test_a_weighted_fit_converges_to_the_weighted_mean_of_conflicting_labels():
     np.testing.assert_allclose(mean, (low + 4.0 * high) / 5.0, atol=0.03)
     with pytest.raises(ValueError, match=r"weights must be \(800,\), finite and > 0, got shape \(3,\)"):
         fit(model.policy, obs, act.astype(np.float32), DistillConfig(epochs=1), 0, np.ones(3))
+
+
+@pytest.mark.parametrize("env_id", ["Planar3RRRReach-v0", "StewartGoughReach-v0", "DeltaReach-v0"])
+def test_platform_gains_are_the_pose_change_of_one_step_in_tolerances(env_id):
+    """Oracle: the env's own step. A small action a from a recorded state moves the pose by ≈ tolerances · G a."""
+    env = gym.make(env_id)
+    params = env.unwrapped.params
+    robot = params.robot
+    rotations = list(robot.pose_space.rotation_columns)
+    tolerance = np.full(robot.pose_space.n_pose, params.success_position_tolerance)
+    tolerance[rotations] = params.success_orientation_tolerance
+    rng = np.random.default_rng(3)
+    for seed in (11, 12):
+        _, info = env.reset(seed=seed)
+        state = env.unwrapped.state
+        gains = distill.platform_gains(params, np.concatenate([state.q[0], state.x[0]])[None])
+        assert gains.shape == (1, robot.pose_space.n_pose, robot.n_actuators)
+        action = 1e-4 * rng.uniform(-1.0, 1.0, robot.n_actuators)
+        _, _, _, _, after = env.step(action)
+        moved = robot.pose_space.difference(after["pose"], info["pose"]) / tolerance
+        np.testing.assert_allclose(moved, gains[0] @ action, rtol=1e-3, atol=1e-9 * np.abs(gains).max())
+    with pytest.raises(ValueError, match=r"states must be finite of shape \(S, \d+\) \(q then x\), got shape \(2, 3\)"):
+        distill.platform_gains(params, np.zeros((2, 3)))
+
+
+def test_the_pair_loss_adds_the_platform_term_to_the_weighted_squared_error():
+    """Oracle: the formula in NumPy, pair by pair."""
+    import torch
+
+    rng = np.random.default_rng(4)
+    mean, target = rng.normal(size=(5, 3)), rng.normal(size=(5, 3))
+    weights, gains = rng.uniform(0.5, 2.0, 5), rng.normal(size=(5, 4, 3))
+    error = mean - target
+    plain = sum(w * e @ e for w, e in zip(weights, error, strict=True)) / (3 * weights.sum())
+    platform = sum(w * (g @ e) @ (g @ e) for w, e, g in zip(weights, error, gains, strict=True)) / (3 * weights.sum())
+    as_t = [torch.as_tensor(a) for a in (mean, target, weights, gains)]
+    assert float(distill.pair_loss(*as_t[:3], None)) == pytest.approx(plain, rel=1e-12)
+    assert float(distill.pair_loss(*as_t)) == pytest.approx(plain + platform, rel=1e-12)
+
+
+def test_a_fit_with_platform_gains_converges_to_their_least_squares_answer():
+    """Pairs that share an observation but disagree, each with its own G_i: the fit finds the least-squares answer.
+
+    The minimiser of Σ ‖μ − a_i‖² + ‖G_i (μ − a_i)‖² is (Σ (I + G_iᵀ G_i))⁻¹ Σ (I + G_iᵀ G_i) a_i, not the labels'
+    mean.
+    """
+    import torch
+
+    model = _small_model()
+    rng = np.random.default_rng(5)
+    point = rng.normal(size=(1, 18)).astype(np.float32)
+    labels = rng.uniform(-0.6, 0.6, size=(2, 3))
+    gains = np.stack([np.zeros((3, 3)), np.diag([3.0, 0.0, 1.0])])  # the second label's errors cost more
+    obs, act = np.repeat(point, 400, axis=0), np.tile(labels, (200, 1)).astype(np.float32)
+    fit(model.policy, obs, act, DistillConfig(epochs=40, batch_size=64), 0, None, np.tile(gains, (200, 1, 1)))
+    with torch.no_grad():
+        mean = model.policy.get_distribution(torch.as_tensor(point)).distribution.mean.numpy()[0]
+    metrics = [np.eye(3) + g.T @ g for g in gains]
+    expected = np.linalg.solve(sum(metrics), sum(m @ a for m, a in zip(metrics, labels, strict=True)))
+    np.testing.assert_allclose(mean, expected, atol=0.02)
+    assert np.abs(expected - labels.mean(axis=0)).max() > 0.1  # the platform term moved the answer
+    with pytest.raises(ValueError, match=r"gains must be \(400, m, 3\) and finite, got shape \(400, 3\)"):
+        fit(model.policy, obs, act, DistillConfig(epochs=1), 0, None, np.zeros((400, 3)))
+    with pytest.raises(ValueError, match=r"gains must be \(400, m, 3\) and finite, got a non-finite entry"):
+        fit(model.policy, obs, act, DistillConfig(epochs=1), 0, None, np.full((400, 2, 3), np.nan))
 
 
 @pytest.mark.parametrize("decay", [False, True])
@@ -294,6 +364,7 @@ def test_bad_options_are_refused(capsys):
     assert "--beta must be in [0, 1], got 2.0" in capsys.readouterr().err
     for argv, message in (
         (["--band-weight", "-1"], "--band-weight must be finite and ≥ 0, got -1.0"),
+        (["--platform-loss", "nan"], "--platform-loss must be finite and ≥ 0, got nan"),
         (["--damping-threshold", "0.2"], "--damping-threshold needs --expert-damping and a value in (0, 1], got 0.2"),
         (["--expert-damping", "--damping-threshold", "0"], "a value in (0, 1], got 0.0"),
         (["--damping-kind", "cap"], "--damping-kind cap needs --expert-damping"),
@@ -507,3 +578,22 @@ def test_the_command_line_sets_the_learners_hidden_layers(tmp_path):
     model, _, _ = load_model(tmp_path)
     widths = [m.out_features for m in model.policy.mlp_extractor.policy_net if isinstance(m, torch.nn.Linear)]
     assert widths == [16, 8]
+
+
+@pytest.mark.parametrize("weight", [0.0, 4.0])
+def test_the_command_lines_platform_loss_reaches_the_fit_as_root_lambda_times_g(tmp_path, monkeypatch, weight):
+    """--platform-loss λ: every fit gets √λ times platform_gains of its pairs' states; λ = 0: no gains."""
+    seen, made = [], []
+    real_fit, real_gains = distill.fit, distill.platform_gains
+    monkeypatch.setattr(distill, "fit", lambda *args: seen.append(args[6]) or real_fit(*args))
+    monkeypatch.setattr(distill, "platform_gains", lambda *args: made.append(real_gains(*args)) or made[-1])
+    argv = ["--run-dir", str(tmp_path), "--expert-episodes", "1", "--iterations", "1", "--episodes", "1"]
+    assert distill.main([*argv, "--epochs", "1", "--platform-loss", str(weight)]) == 0
+    assert len(seen) == 2
+    if weight == 0.0:
+        assert seen == [None, None] and made == []
+        return
+    assert [len(g) for g in seen] == [len(g) for g in made] and seen[1].shape[1:] == (3, 3)
+    for given, gains in zip(seen, made, strict=True):
+        np.testing.assert_allclose(given, 2.0 * gains)
+    assert json.loads((tmp_path / "distill.json").read_text())["config"]["platform_loss"] == 4.0
