@@ -564,7 +564,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         snapshots.append(copy.deepcopy(policy.state_dict()))
         log(
             f"round {r} (β {beta}): learner {figures['success_rate']:.0%} success, "
-            f"{figures['singular_terminations']:.2f} singular/episode; {len(data_obs)} pairs, MSE {mse:.4f}"
+            f"{figures['singular_terminations']:.2f} singular/episode; {len(data_obs)} pairs, fit loss {mse:.4f}"
         )
     kept = len(snapshots) - 1
     if config.select_round == "best" and config.iterations > 0:
