@@ -49,6 +49,12 @@ change of a unit action error in success tolerances at the pair's state. Beside 
 action error too small to matter elsewhere turns the platform into the band; the plain squared error weighs it
 as it weighs the same error far from the band.
 
+With ``action_noise`` σ > 0 every training episode (the expert's, the cut ones and the learner's) executes its action
+plus Gaussian noise of standard deviation σ per actuator (in units of the rate range, clipped to it), while the
+label stays the expert's clean action: the noise injection of DART (Laskey et al., 2017). The learner then sees
+labelled states around its own path, in the directions its errors take it, rather than only on it. The rounds'
+figures (and the ``select_round="best"`` scores) are those of the noisy episodes.
+
 With ``previous_action`` the learner sees its own previous action too (``envs.PreviousActionWrapper``, named as
 the run's ``env_wrapper``): the direction it is moving in, which tells the way around already taken where the
 pose alone leaves two about equally good; the expert still reads the env's own observation.
@@ -157,8 +163,12 @@ class DistillConfig:
     error_gain: bool = False
     #: λ ≥ 0 of the platform term λ ‖G (μ(o) − a)‖² of each pair's loss (``platform_gains``; 0: none).
     platform_loss: float = 0.0
+    #: σ ≥ 0 of the Gaussian noise on every training episode's executed action (DART; 0: none).
+    action_noise: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.action_noise) and 0.0 <= self.action_noise < 1.0):
+            raise ValueError(f"action_noise must be in [0, 1), got {self.action_noise}")
         if not (np.isfinite(self.platform_loss) and self.platform_loss >= 0.0):
             raise ValueError(f"platform_loss must be finite and ≥ 0, got {self.platform_loss}")
         if not 0.0 <= self.hold_fraction < 1.0:
@@ -219,6 +229,7 @@ def collect(
     first_seed: int,
     rng: np.random.Generator,
     max_steps: int | None = None,
+    noise: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, float], np.ndarray]:
     """Run episodes, acting with the learner (or the expert with probability ``beta``), labelled by the expert.
 
@@ -233,6 +244,8 @@ def collect(
         rng: The generator of the β draws.
         max_steps: Cut every episode after this many steps (None: run each to its end); a cut episode counts as
             a success if its last step ends within the tolerances.
+        noise: σ ≥ 0 of the Gaussian noise added to each executed action (clipped to [−1, 1]), drawn from ``rng``;
+            the labels stay the expert's clean actions.
 
     Returns:
         (observations (S, D) float32, expert actions (S, n) float32, the true inverse condition number of J_x at
@@ -240,7 +253,12 @@ def collect(
         terminations per episode (the reasons of ``training.evaluate.SINGULARITY_REASONS``), mean episode length,
         mean planning time [s]), the true state of each pair: actuator coordinates q then pose x of {P} in {B}
         (S, n + m) float64 (``envs.FamilyState``'s ``q`` and ``x``)).
+
+    Raises:
+        ValueError: If ``noise`` is negative or not finite.
     """
+    if not (np.isfinite(noise) and noise >= 0.0):
+        raise ValueError(f"noise must be finite and ≥ 0, got {noise}")
     observations, actions, conditioning, states = [], [], [], []
     successes = singular = steps = 0
     expert.log.clear()  # the plans of these episodes alone
@@ -255,6 +273,8 @@ def collect(
             state = env.unwrapped.state
             states.append(np.concatenate([state.q[0], state.x[0]]))
             act = label if learner is None or rng.random() < beta else learner(obs)
+            if noise > 0.0:
+                act = np.clip(act + rng.normal(0.0, noise, size=np.shape(act)), -1.0, 1.0)
             obs, _, terminated, truncated, info = env.step(act)
             steps += 1
             if terminated or truncated or t == max_steps:
@@ -520,12 +540,16 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         nonlocal seed
         if config.start_episodes == 0:
             return obs, act, k, states
-        more = collect(env, expert, learner, config.start_episodes, beta, seed, rng, config.start_steps)
+        more = collect(
+            env, expert, learner, config.start_episodes, beta, seed, rng, config.start_steps, config.action_noise
+        )
         seed += config.start_episodes
         return tuple(np.concatenate([a, b]) for a, b in zip((obs, act, k, states), (*more[:3], more[4]), strict=True))
 
     weigh(np.zeros(1))  # refuse a bad band weight before any episode
-    obs, act, k, figures, states = collect(env, expert, None, config.expert_episodes, 1.0, seed, rng)
+    obs, act, k, figures, states = collect(
+        env, expert, None, config.expert_episodes, 1.0, seed, rng, noise=config.action_noise
+    )
     seed += config.expert_episodes
     obs, act, k, states = with_starts(obs, act, k, states, None, 1.0)
     rounds = [{"round": 0, "beta": 1.0, "pairs": len(obs), **figures, "seconds": time.perf_counter() - clock}]
@@ -545,7 +569,9 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     for r in range(1, config.iterations + 1):
         clock = time.perf_counter()
         beta = config.beta if r == 1 else 0.0
-        obs, act, k, figures, states = collect(env, expert, learner, config.episodes, beta, seed, rng)
+        obs, act, k, figures, states = collect(
+            env, expert, learner, config.episodes, beta, seed, rng, noise=config.action_noise
+        )
         seed += config.episodes
         obs, act, k, states = with_starts(obs, act, k, states, learner, beta)
         all_obs.append(obs)
@@ -569,7 +595,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
     kept = len(snapshots) - 1
     if config.select_round == "best" and config.iterations > 0:
         # the last learner has not acted yet: score it on as many fresh training episodes
-        _, _, _, figures, _ = collect(env, expert, learner, config.episodes, 0.0, seed, rng)
+        _, _, _, figures, _ = collect(env, expert, learner, config.episodes, 0.0, seed, rng, noise=config.action_noise)
         seed += config.episodes
         rounds.append({"round": len(snapshots), "beta": 0.0, "scoring_only": True, **figures})
         # round r's figures score the learner fitted after round r − 1 (rounds with β > 0 are the expert's too)
@@ -800,6 +826,13 @@ def main(argv: list[str] | None = None) -> int:
         "the pose change an action error causes (default %(default)s: none)",
     )
     parser.add_argument(
+        "--action-noise",
+        type=float,
+        default=defaults.action_noise,
+        help="σ of the Gaussian noise on every training episode's executed action, in units of the rate range; "
+        "the labels stay the expert's (DART; default %(default)s: none)",
+    )
+    parser.add_argument(
         "--from-run", default=None, help="fine-tune this distilled run with PPO (--ppo-steps, default 1M) instead"
     )
     parser.add_argument("--warmup-steps", type=int, default=FinetuneConfig.warmup_steps, help="critic-only steps")
@@ -848,6 +881,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("band_weight", "platform_loss"):
         if not (np.isfinite(getattr(args, name)) and getattr(args, name) >= 0.0):
             parser.error(f"--{name.replace('_', '-')} must be finite and ≥ 0, got {getattr(args, name)}")
+    if not (np.isfinite(args.action_noise) and 0.0 <= args.action_noise < 1.0):
+        parser.error(f"--action-noise must be in [0, 1), got {args.action_noise}")
     try:
         env_kwargs = parse_env_kwargs(args.env_kwargs)
     except EvaluationError as exc:
@@ -883,6 +918,7 @@ def main(argv: list[str] | None = None) -> int:
         start_episodes=args.start_episodes,
         start_steps=args.start_steps,
         platform_loss=args.platform_loss,
+        action_noise=args.action_noise,
     )
     distill(config, Path(args.run_dir))
     return 0

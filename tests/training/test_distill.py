@@ -365,6 +365,8 @@ def test_bad_options_are_refused(capsys):
     for argv, message in (
         (["--band-weight", "-1"], "--band-weight must be finite and ≥ 0, got -1.0"),
         (["--platform-loss", "nan"], "--platform-loss must be finite and ≥ 0, got nan"),
+        (["--action-noise", "-0.1"], "--action-noise must be in [0, 1), got -0.1"),
+        (["--action-noise", "1"], "--action-noise must be in [0, 1), got 1.0"),
         (["--damping-threshold", "0.2"], "--damping-threshold needs --expert-damping and a value in (0, 1], got 0.2"),
         (["--expert-damping", "--damping-threshold", "0"], "a value in (0, 1], got 0.0"),
         (["--damping-kind", "cap"], "--damping-kind cap needs --expert-damping"),
@@ -597,3 +599,50 @@ def test_the_command_lines_platform_loss_reaches_the_fit_as_root_lambda_times_g(
     for given, gains in zip(seen, made, strict=True):
         np.testing.assert_allclose(given, 2.0 * gains)
     assert json.loads((tmp_path / "distill.json").read_text())["config"]["platform_loss"] == 4.0
+
+
+def test_action_noise_moves_the_executed_actions_and_not_the_labels():
+    """With noise σ the executed action is the clean label plus N(0, σ²) per actuator, clipped to the rate range.
+
+    The executed action is read from the next observation's previous-action columns; the labels stay the expert's.
+    """
+    from envs import PreviousActionWrapper
+
+    config = DistillConfig(replan_distance=1e9)
+    env = PreviousActionWrapper(gym.make(ENV))
+    obs, act, _, _, _ = collect(env, distill._expert(env, config), None, 2, 1.0, 123, np.random.default_rng(0))
+    noisy_obs, labels, _, _, _ = collect(
+        env, distill._expert(env, config), None, 2, 1.0, 123, np.random.default_rng(0), noise=0.05
+    )
+    assert len(noisy_obs) == 400  # both episodes still run their 200 steps
+    executed = np.delete(noisy_obs[1:, 18:], 199, axis=0)  # row t + 1 holds step t's action; 200 starts anew
+    clean = np.delete(labels[:-1], 199, axis=0)
+    free = np.all(np.abs(executed) < 1.0, axis=1)  # where the clipping does not bind
+    assert free.mean() > 0.9
+    residual = (executed - clean)[free]
+    assert abs(residual.mean()) < 0.01 and abs(residual.std() - 0.05) < 0.005
+    # the labels are the expert's clean action at the state visited: its first step's equals the noise-free run's
+    np.testing.assert_allclose(labels[[0, 200]], act[[0, 200]], atol=1e-6)
+    # the noise moves the platform: the visited states differ from the noise-free run's
+    assert np.max(np.abs(noisy_obs[1:200, :18] - obs[1:200, :18])) > 1e-3
+    with pytest.raises(ValueError, match=r"noise must be finite and ≥ 0, got -0\.1"):
+        collect(env, distill._expert(env, config), None, 1, 1.0, 0, np.random.default_rng(0), noise=-0.1)
+    with pytest.raises(ValueError, match=r"action_noise must be in \[0, 1\), got nan"):
+        DistillConfig(action_noise=float("nan"))
+
+
+def test_the_command_lines_action_noise_reaches_every_training_episode(tmp_path, monkeypatch):
+    """--action-noise σ: the expert's episodes, the cut start episodes, the rounds and the scoring round get σ."""
+    noises = []
+    real_collect = distill.collect
+
+    def spy(*args, **kwargs):
+        noises.append(kwargs["noise"] if "noise" in kwargs else (args[8] if len(args) > 8 else 0.0))
+        return real_collect(*args, **kwargs)
+
+    monkeypatch.setattr(distill, "collect", spy)
+    argv = ["--run-dir", str(tmp_path), "--expert-episodes", "1", "--iterations", "1", "--episodes", "1"]
+    argv += ["--epochs", "1", "--start-episodes", "1", "--start-steps", "3", "--select-round", "best"]
+    assert distill.main([*argv, "--action-noise", "0.2"]) == 0
+    assert noises == [0.2] * 5  # expert, its start episodes, round 1, its start episodes, the scoring round
+    assert json.loads((tmp_path / "distill.json").read_text())["config"]["action_noise"] == 0.2
