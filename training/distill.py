@@ -541,7 +541,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         if config.start_episodes == 0:
             return obs, act, k, states
         more = collect(
-            env, expert, learner, config.start_episodes, beta, seed, rng, config.start_steps, config.action_noise
+            env, expert, learner, config.start_episodes, beta, seed, rng, config.start_steps, noise=config.action_noise
         )
         seed += config.start_episodes
         return tuple(np.concatenate([a, b]) for a, b in zip((obs, act, k, states), (*more[:3], more[4]), strict=True))
