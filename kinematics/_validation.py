@@ -125,3 +125,16 @@ def positive_scalar(name: str, value: Any) -> float:
     if not np.isfinite(value) or value <= 0.0:
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     return value
+
+
+def check_distinct(name: str, points: FloatArray) -> None:
+    """Raise a ``ValueError`` naming the first pair of coincident points of a set, shape (n, d) [m]."""
+    extent = max(1.0, float(np.max(np.abs(points))))
+    for i in range(len(points)):
+        for j in range(i + 1, len(points)):
+            gap = float(np.linalg.norm(points[i] - points[j]))
+            if gap <= 1e-9 * extent:
+                raise ValueError(
+                    f"{name} must be pairwise distinct: points {i + 1} and {j + 1} are {gap:.3g} m "
+                    f"apart ({points[i].tolist()} and {points[j].tolist()})"
+                )

@@ -42,170 +42,12 @@ from typing import Any
 
 import numpy as np
 
-from kinematics._validation import FloatArray, as_float_array, batch_vector, check_finite, point_set, positive_scalar
-from kinematics.linalg import batched_solve, singular_value_ratio
-from kinematics.mechanism import ParallelMechanism, _check_broadcast, _scalarize
+from kinematics._validation import FloatArray, check_distinct, point_set, positive_scalar
+from kinematics.actuation import ACTUATOR_KINDS, leg_actuation
+from kinematics.family_singularities import FamilySingularities
+from kinematics.pose_space import POSE_SPACES, PoseSpace, _cross
 
 __all__ = ["ACTUATOR_KINDS", "POSE_SPACES", "DistanceConstraintMechanism", "PoseSpace"]
-
-#: Actuator kinds: extensible leg, rotary crank, linear slider (see the module docstring).
-ACTUATOR_KINDS = ("leg", "crank", "slider")
-
-
-class PoseSpace:
-    """How a pose x parametrises the platform's position p and rotation R, and how it moves.
-
-    Attributes:
-        name: "planar", "spatial" or "translational".
-        point_dim: Dimension d of the anchor and platform points (2 or 3).
-        n_pose: Number m of pose coordinates (3 or 6).
-        rotation_columns: Indices of the pose (and twist) coordinates that are rotations.
-        x_description: Human-readable description of x, for error messages.
-    """
-
-    def __init__(self, name: str, point_dim: int, n_pose: int, rotation_columns: tuple[int, ...], description: str):
-        self.name = name
-        self.point_dim = point_dim
-        self.n_pose = n_pose
-        self.rotation_columns = rotation_columns
-        self.x_description = description
-
-    def __repr__(self) -> str:
-        return f"PoseSpace({self.name!r})"
-
-    def __reduce__(self) -> tuple[Any, ...]:
-        return (_pose_space, (self.name,))
-
-    def pose_scale(self, characteristic_length: float) -> FloatArray:
-        """Column scaling (1 for translations, 1/ℓ_c for rotations) that homogenises J_i, shape (m,)."""
-        scale = np.ones(self.n_pose)
-        scale[list(self.rotation_columns)] = 1.0 / characteristic_length
-        return scale
-
-    # -- the pose ↔ (p, R) map and the motion on the group -------------------------------------------
-
-    def position(self, x: FloatArray) -> FloatArray:
-        """Position p of the origin of {P} in {B} [m], shape (..., d)."""
-        return x[..., : self.point_dim]
-
-    def rotation(self, x: FloatArray) -> FloatArray:
-        """Rotation R of {P} in {B}, shape (..., d, d)."""
-        if self.name == "planar":
-            c, s = np.cos(x[..., 2]), np.sin(x[..., 2])
-            return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
-        if self.name == "translational":
-            return np.broadcast_to(np.eye(3), x.shape[:-1] + (3, 3))
-        r = x[..., 3:6]
-        return _rotations(r).as_matrix().reshape(r.shape[:-1] + (3, 3))
-
-    def retract(self, x: FloatArray, step: FloatArray) -> FloatArray:
-        """The pose reached from x by a twist step (δp, δθ): p + δp and R ← exp([δθ]×) R.
-
-        Args:
-            x: Poses, shape (..., m).
-            step: Steps in twist coordinates (planar: (δx, δy, δφ); spatial: (δp [m], δθ [rad]) in {B}),
-                shape (..., m).
-
-        Returns:
-            Poses, shape (..., m); spatial rotation vectors in the ball |r| ≤ π.
-        """
-        if self.name != "spatial":
-            return x + step
-        shape = np.broadcast_shapes(x.shape, step.shape)
-        x, step = np.broadcast_to(x, shape), np.broadcast_to(step, shape)
-        out = np.empty(shape)
-        out[..., :3] = x[..., :3] + step[..., :3]
-        rotation = _rotations(step[..., 3:]) * _rotations(x[..., 3:])
-        out[..., 3:] = rotation.as_rotvec().reshape(shape[:-1] + (3,))
-        return out
-
-    def difference(self, x: FloatArray, y: FloatArray) -> FloatArray:
-        """The twist step from y to x: (p_x − p_y, δθ) with exp([δθ]×) R_y = R_x (planar: x − y).
-
-        Args:
-            x: Poses, shape (..., m).
-            y: Poses, shape (..., m).
-
-        Returns:
-            Steps in twist coordinates, shape (..., m); ``retract(y, difference(x, y)) == x``.
-        """
-        if self.name != "spatial":
-            return x - y
-        shape = np.broadcast_shapes(x.shape, y.shape)
-        x, y = np.broadcast_to(x, shape), np.broadcast_to(y, shape)
-        out = np.empty(shape)
-        out[..., :3] = x[..., :3] - y[..., :3]
-        relative = _rotations(x[..., 3:]) * _rotations(y[..., 3:]).inv()
-        out[..., 3:] = relative.as_rotvec().reshape(shape[:-1] + (3,))
-        return out
-
-
-#: The pose spaces, by name.
-POSE_SPACES = {
-    "planar": PoseSpace("planar", 2, 3, (2,), "a pose (x [m], y [m], φ [rad])"),
-    "spatial": PoseSpace("spatial", 3, 6, (3, 4, 5), "a pose (p_x, p_y, p_z [m], rotation vector r_x, r_y, r_z [rad])"),
-    "translational": PoseSpace("translational", 3, 3, (), "a position (p_x, p_y, p_z) [m]"),
-}
-
-
-def _pose_space(name: str) -> PoseSpace:
-    return POSE_SPACES[name]
-
-
-def _rotations(r: FloatArray) -> Any:
-    """SciPy rotations (``scipy.spatial.transform.Rotation``) from rotation vectors of shape (..., 3), as a stack.
-
-    SciPy is imported here, on first use by a spatial pose, so that planar robots load NumPy alone.
-    """
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_rotvec(np.array(r, dtype=np.float64).reshape(-1, 3))
-
-
-def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    """A × b over the last axis: the z component for 2-D vectors (shape (...)), the vector for 3-D."""
-    if a.shape[-1] == 2:
-        return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return np.cross(a, b)
-
-
-def check_distinct(name: str, points: FloatArray) -> None:
-    """Raise a ``ValueError`` naming the first pair of coincident points of a set, shape (n, d) [m]."""
-    extent = max(1.0, float(np.max(np.abs(points))))
-    for i in range(len(points)):
-        for j in range(i + 1, len(points)):
-            gap = float(np.linalg.norm(points[i] - points[j]))
-            if gap <= 1e-9 * extent:
-                raise ValueError(
-                    f"{name} must be pairwise distinct: points {i + 1} and {j + 1} are {gap:.3g} m "
-                    f"apart ({points[i].tolist()} and {points[j].tolist()})"
-                )
-
-
-def _per_leg(name: str, value: Any, n: int) -> FloatArray:
-    """A scalar or a length-n array of finite reals, as a float64 array of shape (n,)."""
-    arr = as_float_array(name, value)
-    if arr.ndim == 0:
-        arr = np.full(n, float(arr))
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must be a number or have shape ({n},), got shape {arr.shape}")
-    check_finite(name, arr)
-    return np.array(arr, dtype=np.float64)
-
-
-def _unit_vectors(name: str, value: Any, n: int, d: int) -> FloatArray:
-    """A (d,) vector for every leg or an (n, d) array of unit vectors (norm 1 within 1e-9)."""
-    arr = as_float_array(name, value)
-    if arr.shape == (d,):
-        arr = np.broadcast_to(arr, (n, d))
-    if arr.shape != (n, d):
-        raise ValueError(f"{name} must have shape ({d},) or ({n}, {d}), got shape {arr.shape}")
-    check_finite(name, arr)
-    norms = np.linalg.norm(arr, axis=-1)
-    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-9)
-    if bad.size:
-        raise ValueError(f"{name} must be unit vectors: row {bad[0] + 1} has norm {norms[bad[0]]!r}")
-    return np.array(arr, dtype=np.float64)
 
 
 def load_mechanism(path: Any) -> DistanceConstraintMechanism:
@@ -229,12 +71,7 @@ def load_mechanism(path: Any) -> DistanceConstraintMechanism:
         raise ValueError(f"{file}: {exc}") from None
 
 
-def _readonly(*arrays: FloatArray) -> None:
-    for arr in arrays:
-        arr.setflags(write=False)
-
-
-class DistanceConstraintMechanism(ParallelMechanism):
+class DistanceConstraintMechanism(FamilySingularities):
     """A fully parallel robot of the distance-constraint family, given by its data alone.
 
     Φ_i(q, x) = ‖p + R(x) P_i − A_i(q_i)‖² − ℓ_i(q_i)², i = 1..n, with n = m actuators (see the module
@@ -314,76 +151,15 @@ class DistanceConstraintMechanism(ParallelMechanism):
         self.n_pose = n
         self.n_constraints = n
         self.x_description = space.x_description
-        self._set_actuation(kinds, d, link_lengths, crank_radii, crank_axes, rails, branches)
+        actuation = leg_actuation(kinds, d, link_lengths, crank_radii, crank_axes, rails, branches)
+        self._a, self._U, self._V, self._E = actuation.crank_radii, actuation.u, actuation.v, actuation.rails
+        self._lam, self._ell, self._branch = actuation.length_rate, actuation.link_lengths, actuation.branches
+        self.q_description = actuation.q_description
         self._home = None if home is None else self._x(np.array(home, dtype=np.float64), "home")
         if self._home is not None:
             self._home.setflags(write=False)
         if check_architecture:
             self._check_architecture()
-
-    def _set_actuation(
-        self, kinds: tuple[str, ...], d: int, link_lengths: Any, radii: Any, axes: Any, rails: Any, branches: Any
-    ) -> None:
-        """Store the per-leg actuation as A_i(q) = B_i + a_i (cos q u_i + sin q v_i) + q e_i, ℓ_i = λ_i q + l_i."""
-        n = len(kinds)
-        crank = np.array([kind == "crank" for kind in kinds])
-        slider = np.array([kind == "slider" for kind in kinds])
-        leg = ~(crank | slider)
-        self._a = np.zeros(n)
-        self._U = np.zeros((n, d))
-        self._V = np.zeros((n, d))
-        self._E = np.zeros((n, d))
-        self._lam = leg.astype(np.float64)  # ℓ_i = λ_i q_i + l_i: λ = 1, l = 0 for a leg
-        self._ell = np.zeros(n)
-        self._branch = np.ones(n)
-        if not leg.all():
-            if link_lengths is None:
-                raise ValueError("link_lengths are required for crank and slider legs")
-            lengths = _per_leg("link_lengths", link_lengths, n)
-            if not (lengths[~leg] > 0).all():
-                raise ValueError(f"link_lengths must be > 0 [m], got {lengths.tolist()}")
-            self._ell[~leg] = lengths[~leg]
-            if branches is not None:
-                signs = _per_leg("branches", branches, n)
-                if not np.isin(signs, (-1.0, 1.0)).all():
-                    raise ValueError(f"branches must be +1 or −1, got {signs.tolist()}")
-                self._branch = signs
-        if crank.any():
-            if radii is None:
-                raise ValueError("crank_radii are required for crank legs")
-            a = _per_leg("crank_radii", radii, n)
-            if not (a[crank] > 0).all():
-                raise ValueError(f"crank_radii must be > 0 [m], got {a.tolist()}")
-            self._a[crank] = a[crank]
-            if axes is None:
-                if d != 2:
-                    raise ValueError("crank_axes (u_i, v_i) are required for the cranks of a 3-D robot")
-                axes = np.eye(2)
-            axes_arr = as_float_array("crank_axes", axes)
-            if axes_arr.shape == (2, d):
-                axes_arr = np.broadcast_to(axes_arr, (n, 2, d))
-            if axes_arr.shape != (n, 2, d):
-                raise ValueError(f"crank_axes must have shape (2, {d}) or ({n}, 2, {d}), got {axes_arr.shape}")
-            U = _unit_vectors("crank_axes u", axes_arr[:, 0], n, d)
-            V = _unit_vectors("crank_axes v", axes_arr[:, 1], n, d)
-            dots = np.abs(np.einsum("ij,ij->i", U, V))
-            if (dots[crank] > 1e-9).any():
-                i = int(np.flatnonzero(crank & (dots > 1e-9))[0])
-                raise ValueError(f"crank_axes u and v must be orthogonal: leg {i + 1} has u·v = {dots[i]!r}")
-            self._U[crank], self._V[crank] = U[crank], V[crank]
-        if slider.any():
-            if rails is None:
-                raise ValueError("rails (unit directions e_i) are required for slider legs")
-            self._E[slider] = _unit_vectors("rails", rails, n, d)[slider]
-        _readonly(self._a, self._U, self._V, self._E, self._lam, self._ell, self._branch)
-        names = {"leg": "leg lengths", "crank": "crank angles", "slider": "slider positions"}
-        units = {"leg": "[m]", "crank": "[rad]", "slider": "[m]"}
-        if len(set(kinds)) == 1:
-            self.q_description = f"{names[kinds[0]]} (q_1, …, q_{n}) {units[kinds[0]]}"
-        else:
-            self.q_description = (
-                "actuator coordinates (" + ", ".join(f"q_{i + 1} {units[kind]}" for i, kind in enumerate(kinds)) + ")"
-            )
 
     # -- geometry ---------------------------------------------------------------------------------
 
@@ -458,26 +234,6 @@ class DistanceConstraintMechanism(ParallelMechanism):
         if self._space.name == "translational":
             return np.array([centre[0], centre[1], centre[2] - radius])
         return np.array([centre[0], centre[1], centre[2] + radius, 0.0, 0.0, 0.0])
-
-    def _check_architecture(self) -> None:
-        """Refuse a design whose J_x is singular at every pose (an *architecture singularity*)."""
-        rng = np.random.default_rng(0)
-        home = self.home_pose()
-        spread = np.full(self.n_pose, 0.1 * self._l_c)  # [m] for translations
-        spread[list(self._space.rotation_columns)] = 0.3  # [rad] for rotations
-        x = home + rng.uniform(-1.0, 1.0, size=(32, self.n_pose)) * spread
-        q = self._inverse_kinematics(x)
-        reachable = np.isfinite(q).all(axis=-1) & (q[..., self._lam == 1.0] > 0).all(axis=-1)
-        if not reachable.any():  # pragma: no cover - no pose near home is reachable
-            return
-        k = self.inverse_condition_number(q[reachable], x[reachable], validate=False)
-        if float(np.max(k)) < 1e-9:
-            raise ValueError(
-                f"architecture-singular design: J_x is singular at every one of {int(reachable.sum())} random "
-                f"poses around the home pose {home.tolist()} (largest inverse condition number "
-                f"{float(np.max(k)):.3g}); for example, similar base and platform hexagons with legs joining "
-                "corresponding vertices"
-            )
 
     def __repr__(self) -> str:
         """Geometry in a form that can be pasted back."""
@@ -777,155 +533,3 @@ class DistanceConstraintMechanism(ParallelMechanism):
                 f"reach its platform point at pose {np.asarray(x)[index[:-1]].tolist()}"
             )
         return q
-
-    # -- the two kinds of singularity -------------------------------------------------------------
-
-    def link_jacobian(self, q: Any, x: Any, *, validate: bool = True) -> FloatArray:
-        """The homogeneous Type II Jacobian diag(1/(2ℓ_i)) J_x diag(pose_scale).
-
-        Row i is link i's unit Plücker line (u_i, ((R P_i) × u_i)/ℓ_c), u_i = d_i/ℓ_i; for a leg-actuated
-        robot it equals ``homogeneous_jacobian`` (J_i diag(pose_scale)), and unlike J_i it stays finite at a
-        Type I singularity.
-
-        Args:
-            q: Actuator coordinates, shape (..., n).
-            x: Platform pose of {P} in {B}, shape (..., m).
-            validate: Check inputs.
-
-        Returns:
-            Shape (..., n, m), dimensionless.
-        """
-        q, x = self._qx(q, x, validate)
-        d, _, ell = self._link_terms(q, x)
-        return self._rows_x(x, d) / (2.0 * ell[..., None]) * self._pose_scale
-
-    def inverse_condition_number(self, q: Any, x: Any, *, validate: bool = True) -> Any:
-        """Closeness to a Type II singularity: σ_min/σ_max of ``link_jacobian``, in [0, 1].
-
-        For leg-actuated robots this is ``ParallelMechanism.inverse_condition_number`` (σ_min/σ_max of
-        J_i diag(pose_scale), the same matrix); with cranks or sliders the link Jacobian keeps the measure
-        free of the Type I one (``actuator_condition_number``).
-
-        Args:
-            q: Actuator coordinates, shape (..., n).
-            x: Platform pose of {P} in {B}, shape (..., m).
-            validate: Check inputs.
-
-        Returns:
-            σ_min/σ_max, shape (...) (a float for a single configuration).
-        """
-        if self._all_legs:
-            return super().inverse_condition_number(q, x, validate=validate)
-        return _scalarize(singular_value_ratio(self.link_jacobian(q, x, validate=validate)))
-
-    def singularity_measures(self, q: Any, x: Any, *, validate: bool = True) -> tuple[Any, Any]:
-        """(``inverse_condition_number``, det J_x), see ``ParallelMechanism.singularity_measures``."""
-        if self._all_legs:
-            return super().singularity_measures(q, x, validate=validate)
-        q, x = self._qx(q, x, validate)
-        _, J_x = self._jacobians(q, x)
-        return self.inverse_condition_number(q, x, validate=False), _scalarize(np.linalg.det(J_x))
-
-    def _actuator_measures(self, q: FloatArray, x: FloatArray) -> FloatArray:
-        """|d_iᵀ A_i′ + ℓ_i ℓ_i′| / (ℓ_i ‖(A_i′, ℓ_i′)‖) of each leg, shape (..., n)."""
-        d, dA, ell = self._link_terms(q, x)
-        along = np.einsum("...ij,...ij->...i", d, dA) + ell * self._lam
-        speed = np.sqrt(np.einsum("...ij,...ij->...i", dA, dA) + self._lam)
-        return np.abs(along) / (ell * speed)
-
-    def actuator_condition_number(self, q: Any, x: Any, *, validate: bool = True) -> Any:
-        """Closeness to a Type I singularity, in [0, 1]: min_i |d_iᵀ A_i′ + ℓ_i ℓ_i′| / (ℓ_i ‖(A_i′, ℓ_i′)‖).
-
-        The cosine of the angle between link i and the direction in which its actuator moves the anchor
-        (for a crank, the arm's tangent: 0 when the link is in line with the arm, stretched or folded; for
-        a slider, the rail: 0 when the link is square to it); 1 for an extensible leg. J_q is singular
-        exactly where it is 0.
-
-        Args:
-            q: Actuator coordinates, shape (..., n).
-            x: Platform pose of {P} in {B}, shape (..., m).
-            validate: Check inputs.
-
-        Returns:
-            The smallest over the legs, shape (...) (a float for a single configuration).
-        """
-        q, x = self._qx(q, x, validate)
-        return _scalarize(np.min(self._actuator_measures(q, x), axis=-1))
-
-    def actuator_mobility(self, q: Any, x: Any, *, rtol: float = 1e-9, validate: bool = True) -> Any:
-        """Actuator motions that do not move the platform to first order: n − rank(J_q) (> 0 at Type I).
-
-        J_q is diagonal, so this counts the legs whose normalised entry (``actuator_condition_number``'s
-        per-leg cosine) is at most ``rtol``.
-
-        Args:
-            q: Actuator coordinates, shape (..., n).
-            x: Platform pose of {P} in {B}, shape (..., m).
-            rtol: Cosines at most rtol count as zero.
-            validate: Check inputs.
-
-        Returns:
-            Mobility, shape (...) (int); 0 at a regular configuration.
-        """
-        q, x = self._qx(q, x, validate)
-        return _scalarize(np.sum(self._actuator_measures(q, x) <= rtol, axis=-1))
-
-    def _raise_if_type1(self, q: FloatArray, x: FloatArray, what: str) -> None:
-        self._raise_below(
-            np.min(self._actuator_measures(q, x), axis=-1),
-            f"J_q is singular (Type I singularity) where {what} is asked for: actuator condition number",
-        )
-
-    def inverse_jacobian(self, q: Any, x: Any, *, validate: bool = True) -> FloatArray:
-        """Map platform velocity to actuator rates: q̇ = J_i ẋ, J_i = −J_q⁻¹ J_x (a solve).
-
-        Args:
-            q: Actuator coordinates, shape (..., n).
-            x: Platform pose of {P} in {B}, shape (..., m).
-            validate: Check inputs and raise at a Type I singularity.
-
-        Returns:
-            J_i, shape (..., n, m). Row i is ∂q̇_i/∂ẋ.
-
-        Raises:
-            SingularConfigurationError: If J_q is singular (a Type I singularity: a crank's link in line with
-                its arm, a slider's link square to its rail) and ``validate``.
-        """
-        q, x = self._qx(q, x, validate)
-        if validate and not self._all_legs:
-            self._raise_if_type1(q, x, "J_i = −J_q⁻¹ J_x")
-        J_q, J_x = self._jacobians(q, x)
-        return -batched_solve(J_q, J_x)
-
-    def platform_wrench(self, q: Any, x: Any, tau: Any, *, validate: bool = True) -> FloatArray:
-        """Wrench the actuator efforts exert on the platform: w = J_iᵀ τ (see ``ParallelMechanism``).
-
-        Raises:
-            SingularConfigurationError: At a Type I singularity (``validate``), where J_i is not defined.
-        """
-        if validate and not self._all_legs:
-            self._raise_if_type1(*self._qx(q, x, True), "the platform wrench")
-        return super().platform_wrench(q, x, tau, validate=validate)
-
-    def actuator_forces(self, q: Any, x: Any, wrench: Any, *, validate: bool = True) -> FloatArray:
-        """Actuator efforts that balance a platform wrench (see ``ParallelMechanism.actuator_forces``).
-
-        With cranks or sliders, τ = J_fᵀ w = −J_qᵀ J_x⁻ᵀ w, which needs only J_x regular and so stays
-        defined at a Type I singularity (where the locked actuator there carries no effort along its link).
-        """
-        if self._all_legs:
-            return super().actuator_forces(q, x, wrench, validate=validate)
-        q, x = self._qx(q, x, validate)
-        if validate:
-            wrench = batch_vector("wrench", wrench, self.n_pose, "a platform wrench")
-            _check_broadcast(q=q, x=x, wrench=wrench)
-        J_q, J_x = self._jacobians(q, x)
-        if validate:
-            self._raise_if_singular(J_x, "actuator forces")
-        J_xT = np.swapaxes(J_x, -1, -2)
-        batch = np.broadcast_shapes(J_xT.shape[:-2], wrench.shape[:-1])
-        y = batched_solve(
-            np.broadcast_to(J_xT, batch + J_xT.shape[-2:]),
-            np.broadcast_to(wrench, batch + wrench.shape[-1:])[..., None],
-        )
-        return -np.einsum("...ii,...i->...i", np.broadcast_to(J_q, batch + J_q.shape[-2:]), y[..., 0])

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from kinematics._validation import FloatArray, point_set, positive_scalar
-from kinematics.family import DistanceConstraintMechanism, check_distinct
+from kinematics._validation import FloatArray, check_distinct, point_set, positive_scalar
+from kinematics.family import DistanceConstraintMechanism
 
 #: Configurations per block of the fused batched J_f (temporaries of 32 kB stay in cache).
 _FUSED_BLOCK = 4096
