@@ -7,6 +7,9 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 # The CPU build of torch must be installed before the project, or pip resolves a CUDA build of several GB.
 TORCH_SPEC ?= torch==2.13.0
+# Every extra (planner, train, sweep) and the test tools: `pip install parallel-robot-gym` alone installs only
+# what the environments need (pyproject.toml).
+EXTRAS ?= all,dev
 
 .PHONY: setup demo test lint format bench clean
 
@@ -16,7 +19,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet "$(TORCH_SPEC)"
-	$(PY) -m pip install --quiet -e ".[dev]"
+	$(PY) -m pip install --quiet -e ".[$(EXTRAS)]"
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -58,6 +58,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
 
+from envs._extras import require
 from envs.kernels import generic as fk
 from envs.params import FamilyParams
 from envs.physics import wrap_angle
@@ -286,8 +287,8 @@ class SafePlanner:
         bound_margin: float = 0.02,
         seed: int = 0,
     ) -> None:
-        from ompl import base as ob
-        from ompl import geometric as og
+        ob = require("ompl.base", "planner", "the planner")
+        og = require("ompl.geometric", "planner", "the planner")
 
         _seed_ompl(seed)
         if not (np.isfinite(time_limit) and time_limit > 0.0):
@@ -405,7 +406,7 @@ class _MotionValidator:
     """OMPL's motion validator calling a Python predicate of two states (built lazily: OMPL imports on first use)."""
 
     def __new__(cls, info, predicate):
-        from ompl import base as ob
+        ob = require("ompl.base", "planner", "the planner")
 
         class Validator(ob.MotionValidator):
             def __init__(self, info, predicate) -> None:
@@ -431,7 +432,7 @@ def _close_planners() -> None:
 
 def _seed_ompl(seed: int) -> None:
     """Seed OMPL's generator once per process (its later seeds are drawn from it) and quieten its log."""
-    from ompl import util as ou
+    ou = require("ompl.util", "planner", "the planner")
 
     if not _OMPL_SEEDED:
         ou.setLogLevel(ou.LOG_ERROR)

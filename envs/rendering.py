@@ -13,6 +13,8 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from envs._extras import require
+
 __all__ = ["HumanWindow", "leg_color", "render_family_frame"]
 
 _BACKGROUND = (250, 250, 247)
@@ -64,8 +66,7 @@ class HumanWindow:
         Args:
             frame: RGB image, uint8 of shape (H, W, 3).
         """
-        import matplotlib.pyplot as plt
-
+        plt = require("matplotlib.pyplot", "train", 'render_mode="human"')
         if self._figure is None:
             plt.ion()
             self._figure, ax = plt.subplots(figsize=(5, 5))

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 import envs
+from envs._extras import require
 from training.config import ALGORITHMS, ConfigError, parse_overrides
 
 __all__ = ["aggregate_results", "main", "plan_trials", "run_trial"]
@@ -385,8 +386,8 @@ def run_on_ray(
     plan: dict[str, Any], out: Path, max_concurrent: int | None, cpus: float, address: str | None
 ) -> tuple[list[dict], list[tuple[str, str]]]:
     """Run the plan's unfinished trials as Ray Tune trials; return (finished results, [(trial, error)])."""
-    import ray
-    from ray import tune
+    ray = require("ray", "sweep", "the sweep")
+    tune = require("ray.tune", "sweep", "the sweep")
 
     pending = [t for t in plan["trials"] if not (out / "trials" / t["name"] / "result.json").is_file()]
     if pending:
