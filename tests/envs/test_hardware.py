@@ -378,3 +378,38 @@ def test_a_robot_as_built_that_cannot_assemble_at_its_start_draws_again_in_both_
         streams = random_streams([generator])
         first.append(physics.initial_state(params, start, reference, streams, strict=False).residual[0])
     assert not np.all(np.isfinite(first))
+
+
+@pytest.mark.parametrize(("env_id", "dims"), [("Planar3RPRReach-v0", 2), ("StewartGoughReach-v0", 3)])
+def test_the_encoder_estimate_is_solved_on_the_nominal_model_not_on_the_robot_as_built(env_id, dims):
+    """With a geometry tolerance, x̂ is the *nominal* forward kinematics of the encoder reading, not the plant's.
+
+    Oracle: the encoder model written out (q̃ whole counts within res/2 + 8σ of the true q) and Newton's method of
+    ``kinematics`` on the nominal mechanism from the previous estimate. The same reading solved on the robot as
+    built (rebuilt from its plant row) lands millimetres away, so an estimator that used the plant fails here.
+    """
+    resolution, noise = 1e-5, 2e-6
+    kwargs = {"encoder_resolution": resolution, "encoder_noise": noise}
+    env = gym.make(env_id, observation_source="encoders", geometry_tolerance=0.002, **kwargs).unwrapped
+    obs, info = env.reset(seed=3)
+    nominal = env.params.robot
+    built = hardware.perturbed_robot(env.params, env.state.plant[0])
+    guess = env.state.x[0]  # the reset's estimate starts from the pose the controller believes: the task's start
+    rng = np.random.default_rng(0)
+    gaps = []
+    for t in range(12):
+        q_true, q_read = env.state.q[0], info["measured_strokes"]
+        counts = q_read / resolution
+        np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-6)
+        assert np.all(np.abs(q_read - q_true) <= resolution / 2 + 8 * noise)
+        solved = nominal.forward_kinematics(q_read, guess, tolerance=1e-13, max_iterations=50)
+        assert solved.converged
+        np.testing.assert_allclose(info["estimated_pose"], solved.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(obs[:dims], solved.x[:dims], rtol=0, atol=2e-6)  # the observed pose is x̂
+        on_plant = built.forward_kinematics(q_read, solved.x, tolerance=1e-13, max_iterations=50)
+        assert on_plant.converged
+        gaps.append(np.linalg.norm(on_plant.x[:dims] - solved.x[:dims]))
+        guess = info["estimated_pose"]
+        obs, _, terminated, truncated, info = env.step(0.3 * rng.uniform(-1, 1, env.action_space.shape))
+        assert not (terminated or truncated)
+    assert min(gaps) > 1e-4  # the plant's answer is far outside the tolerances above (0.5 mm and more)
