@@ -397,7 +397,7 @@ def test_the_encoder_estimate_is_solved_on_the_nominal_model_not_on_the_robot_as
     guess = env.state.x[0]  # the reset's estimate starts from the pose the controller believes: the task's start
     rng = np.random.default_rng(0)
     gaps = []
-    for t in range(12):
+    for _ in range(12):
         q_true, q_read = env.state.q[0], info["measured_strokes"]
         counts = q_read / resolution
         np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-6)
