@@ -646,3 +646,31 @@ def test_the_command_lines_action_noise_reaches_every_training_episode(tmp_path,
     assert distill.main([*argv, "--action-noise", "0.2"]) == 0
     assert noises == [0.2] * 5  # expert, its start episodes, round 1, its start episodes, the scoring round
     assert json.loads((tmp_path / "distill.json").read_text())["config"]["action_noise"] == 0.2
+
+
+def test_dagger_labels_the_states_the_learner_visits_with_the_experts_action():
+    """With the learner acting (β = 0), each pair's label is the expert's action at that state, not the learner's.
+
+    Oracle: a fresh ``PlannerController`` (the expert's law, its own plans) fed the visited observations in order.
+    The learner is a fixed linear map of the observation, far from the expert: it moves the platform elsewhere
+    (the visited states are not the expert's own) and its actions differ from the labels.
+    """
+    env = gym.make(ENV)
+    config = DistillConfig(replan_distance=1e9)  # plan once per episode, as the plain controller does
+    weights = np.random.default_rng(4).normal(0.0, 0.4, size=(3, 18))
+
+    def learner(o: np.ndarray) -> np.ndarray:
+        return np.clip(weights @ o, -1.0, 1.0)
+
+    obs, labels, _, _, states = collect(
+        env, distill._expert(env, config), learner, 2, 0.0, 123, np.random.default_rng(0)
+    )
+    _, _, _, _, expert_states = collect(env, distill._expert(env, config), None, 2, 1.0, 123, np.random.default_rng(0))
+    assert len(obs) >= 10
+    steps = min(len(states), len(expert_states))
+    assert np.max(np.abs(states[:steps] - expert_states[:steps])) > 1e-2  # the learner drove
+    reference = PlannerController(env.unwrapped.params, cross_track=False, damping=config.expert_damping)
+    expected = np.stack([reference(o[None])[0] for o in obs])
+    np.testing.assert_allclose(labels, expected, rtol=0, atol=1e-6)
+    own = np.stack([learner(o) for o in obs])
+    assert np.mean(np.linalg.norm(own - labels, axis=1)) > 0.1  # a label that were the learner's would show
