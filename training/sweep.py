@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 import envs
-from envs._extras import require
+from envs._extras import require, require_all
 from training.config import ALGORITHMS, ConfigError, parse_overrides
 
 __all__ = ["aggregate_results", "main", "plan_trials", "run_trial"]
@@ -338,6 +338,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``python -m training.sweep``; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    if not args.report_only:  # before the plan is written: the trials run on Ray
+        require_all(["ray"], "sweep", "the sweep")
     out = Path(args.root) / args.name
     plan_file = out / "plan.json"
     try:

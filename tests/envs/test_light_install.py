@@ -91,6 +91,8 @@ def test_every_id_makes_steps_renders_and_vectorises_without_the_extras():
             "planner",
         ),
         ("torch", "import training.train", "train"),
+        # Before the sweep writes its plan: nothing to --resume after installing the extra.
+        ("ray", "from training.sweep import main\nmain(['--name', 'light', '--root', '/nonexistent'])", "sweep"),
         (
             "matplotlib",
             "import gymnasium as gym, envs\nenv = gym.make('Planar3RPRReach-v0', render_mode='human')\n"
@@ -98,7 +100,7 @@ def test_every_id_makes_steps_renders_and_vectorises_without_the_extras():
             "train",
         ),
     ],
-    ids=["planner", "training", "human-render"],
+    ids=["planner", "training", "sweep", "human-render"],
 )
 def test_a_feature_of_a_missing_extra_names_the_extra(missing, code, extra):
     """The error of a feature whose extra is not installed says ``pip install 'parallel-robot-gym[<extra>]'``."""
