@@ -19,6 +19,7 @@ import argparse
 import csv
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +69,7 @@ __all__ = [
     "EvaluationError",
     "aggregate",
     "build_parser",
+    "cached_metrics",
     "check_compatible",
     "evaluate_agent",
     "evaluate_rows",
@@ -180,6 +182,30 @@ def write_outputs(
     if frames:
         plots.save_gif(frames, out / "episodes.gif", fps=env.unwrapped.metadata["render_fps"])
     return metrics
+
+
+def cached_metrics(folder: Path, evaluate_into: Callable[[Path], object] | None) -> dict[str, Any]:
+    """The aggregated metrics of the evaluation in ``folder`` (its ``metrics.json``), evaluated there first if absent.
+
+    Every report keeps its evaluations this way: run again, it evaluates only what is missing.
+
+    Args:
+        folder: An evaluation's output folder (``write_outputs``'s files).
+        evaluate_into: Writes the evaluation's files into the folder it is given (for example ``main`` with
+            ``--out``); None evaluates nothing (a report's ``--from-metrics``).
+
+    Returns:
+        The contents of ``metrics.json``.
+
+    Raises:
+        EvaluationError: If ``evaluate_into`` is None and ``folder`` has no ``metrics.json`` ("... is missing").
+    """
+    path = folder / "metrics.json"
+    if not path.is_file():
+        if evaluate_into is None:
+            raise EvaluationError(f"{path} is missing")
+        evaluate_into(folder)
+    return json.loads(path.read_text())
 
 
 def parse_env_kwargs(items: list[str]) -> dict[str, Any]:

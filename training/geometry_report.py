@@ -22,7 +22,6 @@ Writes each evaluation's folder (``training.evaluate``'s files) and ``table.md``
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -43,22 +42,6 @@ def without_codes(env: gym.Env) -> gym.Env:
     return gym.wrappers.TransformObservation(env, lambda obs: obs[: -2 * d * d], cut)
 
 
-def _score(
-    source: Callable[[], tuple[evaluate.Agent, gym.Env]],
-    folder: Path,
-    label: str,
-    episodes: int,
-    seed: int,
-    targets: str,
-) -> dict:
-    """The metrics of ``folder``, evaluating ``source()`` (agent, env) there first when it has none."""
-    if not (folder / "metrics.json").is_file():
-        agent, env = source()
-        records = evaluate.evaluate_agent(agent, env, episodes, seed, targets)
-        evaluate.write_outputs(folder, label, env, records, None)
-    return json.loads((folder / "metrics.json").read_text())
-
-
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point (see the module docstring)."""
     parser = argparse.ArgumentParser(prog="python -m training.geometry_report", description=__doc__.splitlines()[0])
@@ -76,13 +59,16 @@ def main(argv: list[str] | None = None) -> int:
     groups: dict[str, list[dict]] = {}
 
     def score(label: str, folder: Path, run: str, make_env: Callable[[], gym.Env], targets: str) -> None:
-        if args.from_metrics and not (folder / "metrics.json").is_file():
-            parser.error(f"--from-metrics: {folder / 'metrics.json'} is missing")
+        def evaluate_into(folder: Path) -> None:
+            agent, env = evaluate.load_run(run)[0], make_env()
+            records = evaluate.evaluate_agent(agent, env, args.episodes, args.seed, targets)
+            evaluate.write_outputs(folder, label, env, records, None)
 
-        def source() -> tuple[evaluate.Agent, gym.Env]:
-            return evaluate.load_run(run)[0], make_env()
-
-        groups.setdefault(label, []).append(_score(source, folder, label, args.episodes, args.seed, targets))
+        try:
+            metrics = evaluate.cached_metrics(folder, None if args.from_metrics else evaluate_into)
+        except evaluate.EvaluationError as exc:
+            parser.error(f"--from-metrics: {exc}")
+        groups.setdefault(label, []).append(metrics)
 
     for targets in ("standard", "hard"):
         for run in args.family:

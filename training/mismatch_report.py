@@ -17,7 +17,6 @@ each evaluation's folder, ``table.md`` (every figure from their ``metrics.json``
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -94,12 +93,12 @@ def main(argv: list[str] | None = None) -> int:
     cells: dict[str, dict[float, dict]] = {}
     for agent, source in _agents(args.run).items():
         for mm in args.tolerances:
-            folder = out / f"{agent}-{mm:g}mm"
-            if not (folder / "metrics.json").is_file():
-                kwargs = [f"geometry_tolerance:{mm / 1000.0!r}", f"observation_source:{args.observation_source}"]
-                common = ["--env", args.env, "--episodes", str(args.episodes), "--seed", str(args.seed)]
-                evaluate.main([*source, *common, "--env-kwargs", *kwargs, "--out", str(folder)])
-            cells.setdefault(agent, {})[mm] = json.loads((folder / "metrics.json").read_text())
+            kwargs = [f"geometry_tolerance:{mm / 1000.0!r}", f"observation_source:{args.observation_source}"]
+            common = ["--env", args.env, "--episodes", str(args.episodes), "--seed", str(args.seed)]
+            argv = [*source, *common, "--env-kwargs", *kwargs]
+            cells.setdefault(agent, {})[mm] = evaluate.cached_metrics(
+                out / f"{agent}-{mm:g}mm", lambda folder, argv=argv: evaluate.main([*argv, "--out", str(folder)])
+            )
     text = (
         f"{args.env}, {args.episodes} episodes from reset seed {args.seed}, observations from "
         f"{'the encoders' if args.observation_source == 'encoders' else 'the true pose'}.\n\n" + table(cells)

@@ -38,12 +38,6 @@ from training import evaluate, export, family_report, plots
 __all__ = ["main"]
 
 
-def _evaluate(out: Path, args: list[str]) -> Path:
-    if not (out / "metrics.json").is_file():
-        evaluate.main([*args, "--out", str(out)])
-    return out
-
-
 def _decision_seconds(run: str, env_id: str, folder: Path, repeats: int = 2000) -> tuple[float, float]:
     """Wall time of one decision of a run's policy, one observation at a time: (through SB3, exported).
 
@@ -139,10 +133,14 @@ def main(argv: list[str] | None = None) -> int:
     groups: dict[str, list[dict]] = {}
 
     def add(label: str, folder: Path, source: list[str]) -> None:
-        if args.from_metrics and not (folder / "metrics.json").is_file():
-            parser.error(f"--from-metrics: {folder / 'metrics.json'} is missing")
-        _evaluate(folder, source)
-        groups.setdefault(label, []).append(json.loads((folder / "metrics.json").read_text()))
+        def evaluate_into(folder: Path) -> None:
+            evaluate.main([*source, "--out", str(folder)])
+
+        try:
+            metrics = evaluate.cached_metrics(folder, None if args.from_metrics else evaluate_into)
+        except evaluate.EvaluationError as exc:
+            parser.error(f"--from-metrics: {exc}")
+        groups.setdefault(label, []).append(metrics)
 
     for targets in ("standard", "hard"):
         tail = [*common, "--targets", targets]
