@@ -25,6 +25,9 @@ ROBOTS = {
 CORE = [
     "kinematics/mechanism.py",
     "kinematics/family.py",
+    "kinematics/pose_space.py",
+    "kinematics/actuation.py",
+    "kinematics/family_singularities.py",
     "kinematics/linalg.py",
     "envs/kernels/layout.py",
     "envs/kernels/generic.py",
