@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from envs.kernels import generic as fk
-from envs.tasks.grid import WorkspaceMap, WorkspaceSpec, certify_workspace
+from envs.tasks.grid import WorkspaceMap, WorkspaceSpec, certify_workspace, restore_read_only
 from kinematics import DistanceConstraintMechanism, StewartGough
 
 __all__ = [
@@ -158,6 +158,9 @@ class FamilyParams:
     geometry_variation: float = 0.0
     max_acceleration: tuple[float, ...] = ()
     action_delay: int = 0
+
+    def __setstate__(self, state: dict) -> None:
+        restore_read_only(self, state)  # the kernels' constants stay read-only: one compiled signature
 
     @functools.cached_property
     def workspace(self) -> WorkspaceMap | None:

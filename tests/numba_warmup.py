@@ -39,7 +39,7 @@ def warm_up() -> None:
         env.reset(seed=0)
         env.action_space.seed(0)
         env.step(env.action_space.sample())
-        clone = pickle.loads(pickle.dumps(env))  # its constants come back writable: another specialisation
+        clone = pickle.loads(pickle.dumps(env))  # its constants come back read-only: the same specialisations
         for made in (env, clone):
             for _ in range(2):
                 made.step(made.action_space.sample())

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
@@ -22,7 +23,29 @@ from envs.kernels import generic as fk
 from envs.tasks.grid_kernels import pack_workspace
 from kinematics import DistanceConstraintMechanism
 
-__all__ = ["WorkspaceMap", "WorkspaceSpec", "certify_workspace"]
+__all__ = ["WorkspaceMap", "WorkspaceSpec", "certify_workspace", "restore_read_only"]
+
+
+def restore_read_only(obj: object, state: dict[str, Any]) -> None:
+    """Restore the pickled ``__dict__`` of a frozen dataclass of constants, its arrays read-only again.
+
+    Unpickled arrays are writable, and the compiled kernels take read-only constants: a writable copy would be
+    compiled anew (a second specialisation of every kernel it reaches, a minute of CPU on a cold cache).
+
+    Args:
+        obj: The instance being unpickled.
+        state: Its pickled ``__dict__`` (fields and cached properties); arrays in tuples, lists and dicts too.
+    """
+    obj.__dict__.update(state)
+    stack = list(state.values())
+    while stack:
+        value = stack.pop()
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+        elif isinstance(value, (tuple, list)):
+            stack.extend(value)
+        elif isinstance(value, dict):
+            stack.extend(value.values())
 
 
 @dataclass(frozen=True)
@@ -51,6 +74,9 @@ class WorkspaceSpec:
     stroke_margin: float = 0.02
     cell: tuple[float, float, float] = (0.025, 0.025, 0.05)
     min_component_fraction: float = 0.02
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        restore_read_only(self, state)
 
     @functools.cached_property
     def constants(self) -> np.ndarray:
@@ -84,6 +110,9 @@ class WorkspaceMap:
     component_ids: np.ndarray
     component_weights: np.ndarray
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        restore_read_only(self, state)
+
     @property
     def nodes(self) -> np.ndarray:
         """Pose of every node, shape (n_x, n_y, n_φ, 3)."""
@@ -98,7 +127,10 @@ class WorkspaceMap:
     def component_nodes(self) -> dict[int, np.ndarray]:
         """Flat indices (into ``labels``) of the nodes of each sampled component."""
         flat = self.labels.ravel()
-        return {int(c): np.flatnonzero(flat == c) for c in self.component_ids}
+        nodes = {int(c): np.flatnonzero(flat == c) for c in self.component_ids}
+        for arr in nodes.values():
+            arr.setflags(write=False)
+        return nodes
 
     def node_index(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Index of the grid node nearest to each pose (clipped to the grid).
