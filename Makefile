@@ -23,7 +23,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	MPLBACKEND=Agg $(PY) -m training.demo
+	MPLBACKEND=Agg $(PY) -m experiments.demo
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest -n 2 --durations=15

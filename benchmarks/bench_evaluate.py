@@ -6,7 +6,7 @@ Anchor, timed in the same run: ``training.evaluate.evaluate_agent`` on the singl
 Agents: resolved-rate on the 3-RPR's hard targets (behind the shield, the main job's slowest kind of row before
 batching), the shipped PPO policy on the same, and the shipped residual policy over the planner (its wrapper's
 vector form). The two take turns; the median wall time of each is reported with the ratio.
-Target: the main job (``python -m training.demo``) in ≤ 4 minutes on two cores, which this ratio makes possible.
+Target: the main job (``python -m experiments.demo``) in ≤ 4 minutes on two cores, which this ratio makes possible.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import time
 import gymnasium as gym
 
 import envs
-from training.demo import PRETRAINED_MIXED_RUN, PRETRAINED_RUN
+from experiments.demo import PRETRAINED_MIXED_RUN, PRETRAINED_RUN
 from training.evaluate import (
     evaluate_agent,
     evaluate_vector,

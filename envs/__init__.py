@@ -8,12 +8,8 @@ from envs.presets import ROBOT_PRESETS
 from envs.vector import FamilyReachVectorEnv, FamilyTrackVectorEnv, FamilyVectorEnv
 from envs.wrappers import (
     GoalReachWrapper,
-    PlannerResidualWrapper,
-    PlannerWaypointWrapper,
     PreviousActionWrapper,
     SingularityShield,
-    VectorPlannerResidualWrapper,
-    VectorPlannerWaypointWrapper,
     VectorPreviousActionWrapper,
     VectorSingularityShield,
 )
@@ -29,12 +25,8 @@ __all__ = [
     "FamilyTrackVectorEnv",
     "FamilyVectorEnv",
     "GoalReachWrapper",
-    "PlannerResidualWrapper",
-    "PlannerWaypointWrapper",
     "PreviousActionWrapper",
     "SingularityShield",
-    "VectorPlannerResidualWrapper",
-    "VectorPlannerWaypointWrapper",
     "VectorPreviousActionWrapper",
     "VectorSingularityShield",
 ]

@@ -58,10 +58,16 @@ NOISE_TYPES = {"normal": "NormalActionNoise", "ornstein-uhlenbeck": "OrnsteinUhl
 #: Wrappers that ``env_wrapper`` may name (the RL Zoo's key; an allow-list, nothing is imported by name).
 ENV_WRAPPERS = (
     "envs.GoalReachWrapper",
-    "envs.PlannerResidualWrapper",
-    "envs.PlannerWaypointWrapper",
+    "robot_control.PlannerResidualWrapper",
+    "robot_control.PlannerWaypointWrapper",
     "envs.PreviousActionWrapper",
 )
+
+#: Wrapper names of run folders written before the planner's wrappers moved from ``envs`` to ``robot_control``.
+RENAMED_ENV_WRAPPERS = {
+    "envs.PlannerResidualWrapper": "robot_control.PlannerResidualWrapper",
+    "envs.PlannerWaypointWrapper": "robot_control.PlannerWaypointWrapper",
+}
 
 #: Replay buffers that ``replay_buffer_class`` may name.
 REPLAY_BUFFERS = ("HerReplayBuffer",)
@@ -329,8 +335,9 @@ def resolve_env_wrapper(name: Any) -> Any:
     """The wrapper an ``env_wrapper`` entry names (None for none), as the RL Zoo reads it.
 
     Args:
-        name: A string of ``ENV_WRAPPERS``, a one-entry mapping {name: keyword arguments} (the RL Zoo's form for
-            a wrapper with arguments, e.g. ``{envs.PlannerWaypointWrapper: {lookahead: 0.05}}``), or None.
+        name: A string of ``ENV_WRAPPERS`` (or a former name in ``RENAMED_ENV_WRAPPERS``), a one-entry mapping
+            {name: keyword arguments} (the RL Zoo's form for a wrapper with arguments, e.g.
+            ``{robot_control.PlannerWaypointWrapper: {lookahead: 0.05}}``), or None.
 
     Returns:
         The class (or the class with its keyword arguments bound, ``functools.partial``), or None.
@@ -346,13 +353,14 @@ def resolve_env_wrapper(name: Any) -> Any:
             raise ConfigError(f"env_wrapper must be a name or {{name: {{keyword: value}}}}, got {name!r}")
         name, kwargs = next(iter(name.items()))
         kwargs = kwargs or {}
+    name = RENAMED_ENV_WRAPPERS.get(name, name) if isinstance(name, str) else name
     if not isinstance(name, str) or name not in ENV_WRAPPERS:
         raise ConfigError(f"env_wrapper {name!r} is not one of {list(ENV_WRAPPERS)}")
     import functools
+    import importlib
 
-    import envs
-
-    cls = getattr(envs, name.removeprefix("envs."))
+    module, _, attribute = name.rpartition(".")
+    cls = getattr(importlib.import_module(module), attribute)
     return functools.partial(cls, **kwargs) if kwargs else cls
 
 

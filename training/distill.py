@@ -5,9 +5,9 @@ Usage::
     python -m training.distill --env Planar3RPRReachMixed-v0 --seed 1 --run-dir runs/distill-3rpr-s1
     python -m training.evaluate --run runs/distill-3rpr-s1 --env Planar3RPRReach-v0 --targets hard --episodes 100
 
-The *expert* is ``envs.controllers.PlannerController`` whose ``envs.planner.PathFollower`` plans afresh whenever
-the platform is more than ``replan_distance`` from its path, so that its action is a function of the pose and
-the target alone (what a policy that sees only the observation can learn). The *learner* is Stable-Baselines3
+The *expert* is ``robot_control.controllers.PlannerController`` whose ``robot_control.planner.PathFollower`` plans
+afresh whenever the platform is more than ``replan_distance`` from its path, so that its action is a function of the
+pose and the target alone (what a policy that sees only the observation can learn). The *learner* is Stable-Baselines3
 PPO's ``MlpPolicy`` on the env's own observation, normalised by fixed statistics of the expert's data (no planner
 at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on SB3's policy class because the
 ``imitation`` library pins Gymnasium 0.29):

@@ -8,8 +8,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.controllers import PlannerController
-from envs.planner import PathFollower
+from robot_control.controllers import PlannerController
+from robot_control.planner import PathFollower
 from training.distill_config import DistillConfig
 from training.episodes import SINGULARITY_REASONS, evaluate_agent
 

@@ -28,8 +28,8 @@ import numpy as np
 import yaml
 
 import envs
+from robot_control.controllers import CONTROLLERS
 from training.config import ConfigError
-from training.controllers import CONTROLLERS
 from training.episodes import (
     SINGULARITY_REASONS,
     TARGET_SETS,

@@ -4,7 +4,7 @@
 the observation alone (no planner, certificate or model at run time):
 
 - **damping** (``damping_threshold`` k_d): the mean is f(k) · μ_θ(o), f = clip((k / k_d)², 0.05, 1) the planner
-  controller's damping factor of the observed inverse condition number (``envs.controllers.damping_factor``).
+  controller's damping factor of the observed inverse condition number (``robot_control.controllers.damping_factor``).
   Distilled from the damped planner (``training.distill --damped-output``), the network fits the expert's action
   divided by f, the undamped step, and its error near a Type II band shrinks with f as the expert's step does.
 - **in-position hold** (``hold_position`` [m], ``hold_orientation`` [rad]): the mean is 0 while the observed
@@ -35,7 +35,7 @@ import torch
 from stable_baselines3.common.distributions import DiagGaussianDistribution, Distribution
 from stable_baselines3.common.policies import ActorCriticPolicy
 
-from envs.controllers import DAMPING_FLOOR
+from robot_control.controllers import DAMPING_FLOOR
 
 __all__ = ["PlanFreeMlpPolicy"]
 

@@ -13,8 +13,8 @@ import yaml
 
 import envs
 from envs.params import REWARD_FIELDS
+from robot_control.controllers import CONTROLLERS
 from training.config import ConfigError, algorithm_class, resolve_env_wrapper
-from training.controllers import CONTROLLERS
 
 __all__ = [
     "Agent",

@@ -10,9 +10,9 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 from envs import physics, presets
-from envs.controllers import ResolvedRateController
 from envs.kernels import generic as fk
 from envs.wrappers.shield import SingularityShield
+from robot_control.controllers import ResolvedRateController
 
 CRANK_IDS = (
     "DeltaReach-v0",

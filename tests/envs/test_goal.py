@@ -8,8 +8,8 @@ import pytest
 from stable_baselines3.common.env_checker import check_env
 
 from envs import GoalReachWrapper
-from envs.controllers import ResolvedRateController, pose_error
 from envs.wrappers.goal import OBSERVATION_INDEX
+from robot_control.controllers import ResolvedRateController, pose_error
 from tests.envs import oracle
 
 #: The success reward of the tests that pay one.

@@ -43,3 +43,17 @@ def test_kinematics_does_not_import_gymnasium():
     modules = _modules_after("import kinematics")
     assert "kinematics" in modules
     assert not modules & {"gymnasium", "envs", "stable_baselines3", "torch", "training"}
+
+
+def test_robot_control_does_not_import_training_libraries():
+    """The baselines load envs and Gymnasium but neither SB3, torch, training nor the experiments."""
+    modules = _modules_after("import robot_control")
+    assert {"robot_control", "envs", "gymnasium"} <= modules
+    assert not modules & {"stable_baselines3", "torch", "training", "experiments"}
+
+
+def test_training_does_not_import_the_experiments():
+    """The training library (train, evaluate, distill, export) loads no module of the experiments."""
+    modules = _modules_after("import training.train, training.evaluate, training.distill, training.export")
+    assert "training" in modules
+    assert "experiments" not in modules

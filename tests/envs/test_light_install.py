@@ -86,7 +86,7 @@ def test_every_id_makes_steps_renders_and_vectorises_without_the_extras():
     [
         (
             "ompl",
-            "import gymnasium as gym, envs\nfrom envs.planner import SafePlanner\n"
+            "import gymnasium as gym, envs\nfrom robot_control.planner import SafePlanner\n"
             "SafePlanner(gym.make('Planar3RPRReach-v0').unwrapped.params)",
             "planner",
         ),

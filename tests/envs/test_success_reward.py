@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from envs import physics
-from envs.controllers import ResolvedRateController
+from robot_control.controllers import ResolvedRateController
 from tests.envs import oracle
 
 #: The success reward of the tests (not a power of two, so that an added term shows in the last bits).

@@ -374,11 +374,11 @@ def test_env_wrapper_with_arguments_in_the_rl_zoo_form():
 
     from training.config import resolve_env_wrapper
 
-    wrapper = resolve_env_wrapper({"envs.PlannerWaypointWrapper": {"lookahead": 0.05}})
+    wrapper = resolve_env_wrapper({"robot_control.PlannerWaypointWrapper": {"lookahead": 0.05}})
     env = wrapper(gym.make("Planar3RPRReach-v0"))
     assert env.follower.lookahead == 0.05
     assert resolve_env_wrapper({"envs.GoalReachWrapper": None}) is resolve_env_wrapper("envs.GoalReachWrapper")
     with pytest.raises(ConfigError, match=r"env_wrapper must be a name or \{name: \{keyword: value\}\}"):
-        resolve_env_wrapper({"envs.GoalReachWrapper": {}, "envs.PlannerWaypointWrapper": {}})
+        resolve_env_wrapper({"envs.GoalReachWrapper": {}, "robot_control.PlannerWaypointWrapper": {}})
     with pytest.raises(ConfigError, match=r"env_wrapper 'os.system' is not one of"):
         resolve_env_wrapper({"os.system": {"command": "true"}})

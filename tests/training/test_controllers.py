@@ -10,9 +10,9 @@ import pytest
 from PIL import Image
 
 from envs import PLANAR_3RPR_IDS
+from robot_control.controllers import CONTROLLERS, PlannerController, ResolvedRateController, SingularityAwareController
 from tests.training.conftest import REACH
 from training import evaluate
-from training.controllers import CONTROLLERS, PlannerController, ResolvedRateController, SingularityAwareController
 from training.evaluate import EvaluationError, aggregate, evaluate_agent, load_controller
 
 NAMES = sorted(CONTROLLERS)

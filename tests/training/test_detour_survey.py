@@ -1,4 +1,4 @@
-"""training.detour_survey: a tiny run's files, and its straight-path certificate against a NumPy oracle."""
+"""experiments.detour_survey: a tiny run's files, and its straight-path certificate against a NumPy oracle."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from envs.kernels import generic as fk
-from training import detour_survey
-from training.detour_survey import SURVEY_BOXES, SurveyBox, draw_pairs, render_markdown
+from experiments import detour_survey
+from experiments.detour_survey import SURVEY_BOXES, SurveyBox, draw_pairs, render_markdown
 
 
 def _oracle_safety(params, x: np.ndarray) -> np.ndarray:

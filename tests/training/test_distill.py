@@ -10,9 +10,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envs.controllers import PlannerController
-from envs.planner import PathFollower
-from envs.planner import _closest_on_segments as distill_closest
+from robot_control.controllers import PlannerController
+from robot_control.planner import PathFollower
+from robot_control.planner import _closest_on_segments as distill_closest
 from training import distill
 from training.distill import DistillConfig, collect, fit
 from training.evaluate import evaluate_agent, load_run
@@ -55,7 +55,7 @@ def test_a_failed_replan_keeps_the_certified_plan():
     The graph's second plan is made to fail: the row keeps the first plan and its carrot lies on it (steering
     back), not at the target; a second plan that is found replaces the first.
     """
-    from envs.planner import Plan
+    from robot_control.planner import Plan
 
     env = gym.make("Planar3RPRReachHard-v0")
     _, info = env.reset(seed=3)
@@ -174,7 +174,7 @@ def test_collect_counts_every_singularity_termination():
     Resolved-rate on the 3-RRR's hard targets ends reset seed 13 with a Newton failure and seed 16 below the bound
     (found by hand); the oracle counts every termination but leaving the bounds, on the same episodes stepped here.
     """
-    from envs.controllers import ResolvedRateController
+    from robot_control.controllers import ResolvedRateController
 
     env = gym.make("Planar3RRRReach-v0", targets="hard")
     expert = distill._expert(env, DistillConfig(expert_damping=True))
@@ -441,8 +441,8 @@ def test_a_damped_and_holding_run_reads_the_raw_observation_through_its_normalis
 
 @pytest.mark.parametrize("previous_action", [False, True])
 def test_the_plan_free_report_tabulates_every_agent(tmp_path, previous_action):
-    """A tiny run through training.plan_free_report: each agent's row, the timing and the paths picture."""
-    from training import plan_free_report
+    """A tiny run through experiments.plan_free_report: each agent's row, the timing and the paths picture."""
+    from experiments import plan_free_report
 
     run = tmp_path / "run"
     config = DistillConfig(expert_episodes=2, iterations=0, epochs=1, previous_action=previous_action)
@@ -491,7 +491,7 @@ def test_validation_counts_as_the_evaluation_does():
 
     Oracle: the episodes stepped here, counting ``is_success`` and every termination but leaving the bounds.
     """
-    from envs.controllers import ResolvedRateController
+    from robot_control.controllers import ResolvedRateController
 
     env = gym.make("Planar3RPRReach-v0")
     driver = ResolvedRateController(env.unwrapped.params)

@@ -1,4 +1,4 @@
-"""training.docs_tables: the documentation's tables are their files, never typed."""
+"""experiments.docs_tables: the documentation's tables are their files, never typed."""
 
 from __future__ import annotations
 
@@ -6,13 +6,13 @@ from pathlib import Path
 
 import pytest
 
-from training import docs_tables
+from experiments import docs_tables
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_every_generated_block_of_the_docs_is_its_file():
-    """README.md and docs/*.md hold exactly the files their generated blocks name (python -m training.docs_tables)."""
+    """README.md and docs/*.md hold exactly the files their generated blocks name (``experiments.docs_tables``)."""
     assert docs_tables.refresh(ROOT, check=True) == []
 
 

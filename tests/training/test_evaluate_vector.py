@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import envs
+import robot_control
 from training.evaluate import EvaluationError, evaluate_agent, evaluate_vector, load_controller, make_vector_env
 
 
@@ -117,7 +118,7 @@ def test_vector_previous_action_is_zero_where_an_episode_starts(mode):
 
 def test_vector_residual_wrapper_restarts_plans_with_the_next_episode():
     """After an autoreset a row's plan runs from its new episode's start to its new target."""
-    venv = envs.VectorPlannerResidualWrapper(make_vector_env("Planar3RPRReach-v0", 2))
+    venv = robot_control.VectorPlannerResidualWrapper(make_vector_env("Planar3RPRReach-v0", 2))
     venv.reset(seed=11, options={"targets": "hard"})
     rng = np.random.default_rng(0)
     ended = np.zeros(2, dtype=bool)

@@ -1,10 +1,10 @@
-"""training.family_report: tables made from evaluation metrics, grouped over seeds."""
+"""experiments.family_report: tables made from evaluation metrics, grouped over seeds."""
 
 from __future__ import annotations
 
 import json
 
-from training import family_report
+from experiments import family_report
 
 
 def _metrics(label: str, success: float, rms: float | None = None) -> dict:

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from training import evaluate, family_report, intervals
+from experiments import family_report
+from training import evaluate, intervals
 from training.intervals import SUCCESS_CI_NOTE, episode_outcomes, format_success_interval, success_interval
 
 

@@ -35,8 +35,8 @@ def test_envs_does_not_import_training_libraries(statement):
 
 
 def test_training_controllers_builds_on_envs():
-    """training.controllers may import envs (and does); the dependency points downwards only."""
-    modules = _modules_after("import training.controllers")
+    """robot_control.controllers may import envs (and does); the dependency points downwards only."""
+    modules = _modules_after("import robot_control.controllers")
     assert {"training", "envs", "kinematics"} <= modules
 
 

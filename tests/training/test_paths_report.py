@@ -1,4 +1,4 @@
-"""training.paths_report and its slice of the safety map."""
+"""experiments.paths_report and its slice of the safety map."""
 
 from __future__ import annotations
 
@@ -6,7 +6,8 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
-from training import paths_report, plots
+from experiments import paths_report
+from training import plots
 
 
 def test_safety_slice_is_the_kinematics_inverse_condition_number_where_the_legs_reach():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.planner import safe_graph
+from robot_control.planner import safe_graph
 from tests.training.conftest import REACH
 from training.evaluate import aggregate, evaluate_agent, load_controller
 
@@ -97,7 +97,7 @@ def test_planner_reaches_hard_targets_without_singularities(env):
     assert all(r.row()["path_found"] == 1.0 for r in records)  # per-episode planner fields reach episodes.csv
     assert len(agent.log) == 5  # one plan per episode, not one per step
     # the report's table of plans is made from these metrics
-    from training.family_report import planner_table
+    from experiments.family_report import planner_table
 
     table = planner_table({"planner @ hard": [metrics]})
     assert "| planner @ hard | 5 | 100 % |" in table
@@ -117,7 +117,7 @@ def test_damped_planner_crosses_the_3rrr_band_where_full_speed_meets_it(seed):
     """
     import gymnasium as gym
 
-    from envs.controllers import PlannerController
+    from robot_control.controllers import PlannerController
 
     env = gym.make("Planar3RRRReachHard-v0")
     params = env.unwrapped.params
@@ -137,7 +137,7 @@ def test_the_exact_step_lands_where_the_controller_aims():
     """
     import gymnasium as gym
 
-    from envs.controllers import PlannerController, decode_observation, pose_error
+    from robot_control.controllers import PlannerController, decode_observation, pose_error
 
     env = gym.make("Planar3RRRReachHard-v0")
     params = env.unwrapped.params
@@ -167,7 +167,7 @@ def test_the_damping_slows_the_undamped_action_by_k_over_its_threshold_squared(t
     """
     import gymnasium as gym
 
-    from envs.controllers import PlannerController
+    from robot_control.controllers import PlannerController
 
     env = gym.make("Planar3RRRReachHard-v0")
     params = env.unwrapped.params

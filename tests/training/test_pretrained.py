@@ -12,8 +12,8 @@ import yaml
 from PIL import Image
 
 from envs import PLANAR_3RPR_IDS
-from training import demo
-from training.demo import PRETRAINED_RUN
+from experiments import demo
+from experiments.demo import PRETRAINED_RUN
 from training.evaluate import aggregate, evaluate_agent, load_run, run_env_kwargs, wrap_for_run
 
 #: Keys of regression.json and their types.
@@ -96,7 +96,7 @@ def test_pretrained_policy_keeps_its_recorded_performance(pretrained_run, regres
 
 @pytest.mark.slow
 def test_demo_writes_report(pretrained_run, tmp_path, capsys):
-    """training.demo.main writes the report, the metrics, the pictures and the policy's GIF."""
+    """experiments.demo.main writes the report, the metrics, the pictures and the policy's GIF."""
     out = tmp_path / "demo"
     assert demo.main(["--episodes", "2", "--out", str(out)]) == 0
     names = (

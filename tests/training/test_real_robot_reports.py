@@ -1,4 +1,4 @@
-"""The real-robot reports (``training.mismatch_report``, ``geometry_report``) and runs trained with env kwargs."""
+"""The real-robot reports (``experiments.mismatch_report``, ``geometry_report``) and runs trained with env kwargs."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from experiments import geometry_report, mismatch_report
 from tests.training.conftest import REACH, write_run_folder
-from training import evaluate, geometry_report, mismatch_report
+from training import evaluate
 
 FAMILY = "Planar3RPRReachFamily-v0"
 

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import pytest
 
-from training import demo, family_report, geometry_report, plan_free_report
+from experiments import demo, family_report, geometry_report, plan_free_report
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
 
-#: ``training.family_report`` tables: file → (its evaluation folders as the docs' commands glob them, flags).
+#: ``experiments.family_report`` tables: file → (its evaluation folders as the docs' commands glob them, flags).
 FAMILY_REPORT_TABLES = {
     "baselines_cranks/table.md": (["baselines_cranks/*/"], ["--by-env"]),
     "baselines_hexapod/table.md": (["baselines_hexapod/*/"], []),
@@ -41,7 +41,7 @@ def _copy_metrics(source: Path, target: Path) -> None:
 
 @pytest.mark.parametrize("table", FAMILY_REPORT_TABLES)
 def test_family_report_tables_are_their_metrics(table, tmp_path):
-    """``python -m training.family_report`` on the stored evaluations writes the stored table, byte for byte."""
+    """``python -m experiments.family_report`` on the stored evaluations writes the stored table, byte for byte."""
     patterns, flags = FAMILY_REPORT_TABLES[table]
     out = tmp_path / "table.md"
     assert family_report.main([str(out), *[f for p in patterns for f in _glob(p)], *flags]) == 0
@@ -92,7 +92,7 @@ def test_a_missing_evaluation_is_an_error_with_from_metrics(tmp_path, capsys):
 
 
 def test_main_job_reports_are_their_metrics(tmp_path, monkeypatch):
-    """``training.demo --from-metrics`` writes each stored report of the main job from its stored metrics file."""
+    """``experiments.demo --from-metrics`` writes each stored report of the main job from its stored metrics file."""
     monkeypatch.chdir(ROOT)  # the reports name the shipped runs relative to the checkout
     stored = RESULTS / "demo"
     for path in stored.glob("*metrics.json"):

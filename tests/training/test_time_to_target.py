@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
+from experiments.plan_free_report import time_to_target_table
 from training.evaluate import aggregate, evaluate_agent, load_controller
-from training.plan_free_report import time_to_target_table
 
 
 def _first_success_by_hand(env_id: str, controller: str, seed: int) -> tuple[float | None, int]:

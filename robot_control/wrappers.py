@@ -1,10 +1,11 @@
 """The planner's wrappers: the carrot of a certified path in a policy's observation, or a residual on the planner.
 
-``PlannerWaypointWrapper`` shows a policy the carrot of ``envs.planner.PathFollower``; ``PlannerResidualWrapper``
-adds a policy's correction to ``envs.controllers.PlannerController``'s action. Both wrap the Reach environment of
-any robot of the family (the planner: ``envs.planner``, the certified grid's graph where the env has one, else
-OMPL). ``VectorPlannerWaypointWrapper`` and ``VectorPlannerResidualWrapper`` are the same wrappers on the native
-vector env (the ``vector_form`` of the single ones).
+``PlannerWaypointWrapper`` shows a policy the carrot of ``robot_control.planner.PathFollower``;
+``PlannerResidualWrapper`` adds a policy's correction to ``robot_control.controllers.PlannerController``'s action.
+Both wrap the Reach environment of any robot of the family (the planner: ``robot_control.planner``, the certified
+grid's graph where the env has one, else OMPL). ``VectorPlannerWaypointWrapper`` and
+``VectorPlannerResidualWrapper`` are the same wrappers on the native vector env (the ``vector_form`` of the single
+ones).
 """
 
 from __future__ import annotations
@@ -15,11 +16,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.controllers import PlannerController, pose_error
 from envs.kernels.generic import observation_layout
 from envs.params import FamilyParams
-from envs.planner import PathFollower
 from envs.vector import episode_starts
+from robot_control.controllers import PlannerController, pose_error
+from robot_control.planner import PathFollower
 
 __all__ = [
     "PlannerResidualWrapper",
@@ -119,7 +120,7 @@ class PlannerWaypointWrapper(_PlannerWrapper):
     Args:
         env: A Reach environment of ``envs`` (``gym.make("Planar3RPRReach-v0")``, ``"DeltaReach-v0"``, ...).
         lookahead: Distance of the carrot ahead of the path's closest point, in z = (p, ℓ_c θ) [m].
-        planner: ``envs.planner.PathFollower``'s planner: "auto", "ompl" or "grid".
+        planner: ``robot_control.planner.PathFollower``'s planner: "auto", "ompl" or "grid".
     """
 
     #: The name of the same wrapper on the native vector env.
@@ -143,7 +144,7 @@ class PlannerResidualWrapper(_PlannerWrapper):
     """Residual learning over the planner: the policy's action corrects the planner controller's.
 
     The environment receives a = clip(a_p + ``scale`` · a_π, −1, 1), where a_p is the action of
-    ``envs.controllers.PlannerController`` (resolved-rate toward the carrot of a certified safe path, from the
+    ``robot_control.controllers.PlannerController`` (resolved-rate toward the carrot of a certified safe path, from the
     true pose ``info["pose"]``) and a_π ∈ [−1, 1]ⁿ the policy's. A policy that outputs zero is the planner
     controller; training learns what to change. The observation of a Reach environment gains m + n entries,
     float32: the carrot's offset from the pose (as in ``PlannerWaypointWrapper``) and a_p (normalised actuator
@@ -155,7 +156,7 @@ class PlannerResidualWrapper(_PlannerWrapper):
         env: A Reach environment of ``envs`` (``gym.make("Planar3RPRReach-v0")``, ``"DeltaReach-v0"``, ...).
         scale: Weight of the policy's action, in (0, 2]: 0.5 lets it move any actuator by half its rate range.
         lookahead: Distance of the carrot ahead of the path's closest point, in z = (p, ℓ_c θ) [m].
-        planner: ``envs.planner.PathFollower``'s planner: "auto", "ompl" or "grid".
+        planner: ``robot_control.planner.PathFollower``'s planner: "auto", "ompl" or "grid".
     """
 
     #: The name of the same wrapper on the native vector env.

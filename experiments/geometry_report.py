@@ -2,7 +2,7 @@ r"""One policy for a family of geometries against one trained on the nominal geo
 
 Usage::
 
-    python -m training.geometry_report --family runs/family-s0 --nominal runs/nominal-s0 \\
+    python -m experiments.geometry_report --family runs/family-s0 --nominal runs/nominal-s0 \\
         --env Planar3RPRReachFamily-v0 --out docs/results/geometry_family
 
 Scores, on ``--episodes`` episodes from reset seed ``--seed`` (each episode draws its own robot of the family: held-out
@@ -29,7 +29,8 @@ from pathlib import Path
 import gymnasium as gym
 
 import envs  # noqa: F401  (registers the ids)
-from training import evaluate, family_report
+from experiments import family_report
+from training import evaluate
 
 __all__ = ["main", "without_codes"]
 
@@ -44,7 +45,7 @@ def without_codes(env: gym.Env) -> gym.Env:
 
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point (see the module docstring)."""
-    parser = argparse.ArgumentParser(prog="python -m training.geometry_report", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m experiments.geometry_report", description=__doc__.splitlines()[0])
     parser.add_argument("--family", nargs="+", required=True, help="run folders trained on the family")
     parser.add_argument("--nominal", nargs="+", required=True, help="run folders trained on the nominal geometry")
     parser.add_argument("--env", default="Planar3RPRReachFamily-v0")

@@ -2,8 +2,8 @@
 
 Usage::
 
-    python -m training.demo [--episodes 50] [--out reports/demo] [--run training/pretrained/<run>]
-    python -m training.demo --from-metrics --out docs/results/demo     # re-write the reports, evaluate nothing
+    python -m experiments.demo [--episodes 50] [--out reports/demo] [--run training/pretrained/<run>]
+    python -m experiments.demo --from-metrics --out docs/results/demo     # re-write the reports, evaluate nothing
 
 On standard and hard targets of Planar3RPRReach-v0 (the same fixed seeds for every agent: the shipped
 policies, resolved-rate, singularity-aware and the planner, each also behind the shield), it writes
@@ -30,7 +30,8 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from training import family_report, plots
+from experiments import family_report
+from training import plots
 from training.evaluate import (
     EvaluationError,
     aggregate,
@@ -489,8 +490,8 @@ def record_regression(run: Path, episodes: int = 20, seed: int = 5000, targets: 
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``python -m training.demo``; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="python -m training.demo", description=__doc__.split("\n")[0])
+    """Entry point of ``python -m experiments.demo``; returns the exit status."""
+    parser = argparse.ArgumentParser(prog="python -m experiments.demo", description=__doc__.split("\n")[0])
     parser.add_argument("--episodes", type=int, default=50, help="episodes per agent and target set")
     parser.add_argument("--out", default="reports/demo", help="report folder")
     parser.add_argument("--run", default=str(PRETRAINED_RUN), help="run folder of the policy")

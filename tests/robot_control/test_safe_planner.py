@@ -15,7 +15,7 @@ import pytest
 
 import envs  # noqa: F401  (registers the ids)
 from envs.kernels import generic as fk
-from envs.planner import SafePlanner, make_planner
+from robot_control.planner import SafePlanner, make_planner
 
 #: One robot per pose space and actuator kind, with the task kind that exercises the planner most.
 CASES = {
@@ -153,7 +153,7 @@ def test_plans_repeat_across_processes_and_bad_options_are_named(tmp_path):
 
     script = (
         "import gymnasium as gym, numpy as np, envs\n"
-        "from envs.planner import SafePlanner\n"
+        "from robot_control.planner import SafePlanner\n"
         "env = gym.make('ParallelRobotReachHard-v0', robot='planar_3rpr', task_region='box', hard_kind='detour',"
         " track_shape='sinusoid')\n"
         "_, info = env.reset(seed=2)\n"

@@ -2,9 +2,8 @@
 
 They read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, n), for
 any robot of the family.
-They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here. They
-live in ``envs`` (NumPy only, no SB3) because ``envs.PlannerResidualWrapper`` builds on the planner
-controller; the evaluation finds them by name through ``training.controllers``.
+They use the kinematics library for J_i and the inverse condition number; nothing is re-derived here.
+``CONTROLLERS`` names them for the evaluation (``training.evaluate --controller``).
 """
 
 from __future__ import annotations
@@ -16,7 +15,7 @@ import numpy as np
 from envs.kernels.generic import observation_layout
 from envs.params import FamilyParams
 from envs.physics import wrap_angle
-from envs.planner import PathFollower
+from robot_control.planner import PathFollower
 
 __all__ = [
     "CONTROLLERS",
@@ -233,19 +232,19 @@ class SingularityAwareController(ResolvedRateController):
 
 
 class PlannerController(ResolvedRateController):
-    """Follow a planned safe path (``envs.planner``) with resolved-rate control: the ceiling on hard targets.
+    """Follow a planned safe path (``robot_control.planner``) with resolved-rate control: the ceiling on hard targets.
 
     At the first observation of an episode (a new target, or a pose jump no control period can make) it
-    plans a certified path from the pose to the target (``envs.planner.SafeGraph``). Then it steers, with
+    plans a certified path from the pose to the target (``robot_control.planner.SafeGraph``). Then it steers, with
     ``ResolvedRateController``'s law, speed cap and stroke-limit handling, toward the carrot of
-    ``envs.planner.PathFollower``: ``lookahead`` ahead of the platform's closest point on the path, and the
+    ``robot_control.planner.PathFollower``: ``lookahead`` ahead of the platform's closest point on the path, and the
     target once the carrot reaches it. Where no certified path exists it drives straight, as resolved-rate.
     Near a thin Type II band a step at full speed leaves a certified line by millimetres where k falls by a
     third (the 3-RRR): with ``damping`` the action a is slowed by f = clip((k / k_d)², 0.05, 1) (``damping_factor``),
     k the observed one and k_d the ``damping_threshold`` (default the env's k_safe): with ``damping_kind``
     "scale" a ← f a (the gain falls too, to f K at an ill-conditioned target), with "cap" a ← a · min(1, f / ‖a‖∞)
     (the largest actuator rate is capped at f of its range; small corrections near the target keep the full gain K),
-    and with ``cross_track`` a one-segment plan is followed as any other (``envs.planner.PathFollower``).
+    and with ``cross_track`` a one-segment plan is followed as any other (``robot_control.planner.PathFollower``).
     With ``exact_step`` the rates are the secant ones, (IK(x ⊕ ẋ dt) − q) / dt with ẋ the platform twist of the
     (scaled) resolved rates, instead of J_i ẋ: a step at full rate then lands on the pose it aims at, where the
     first-order step is off by its second-order term (at full crank rate the 3-RRR's platform can turn several
@@ -257,11 +256,11 @@ class PlannerController(ResolvedRateController):
         gain: K [1/s].
         max_speed: Cap on the scaled platform speed [m/s].
         lookahead: Distance of the carrot ahead of the closest point of the path, in z [m].
-        follower: An ``envs.planner.PathFollower`` to share (its own lookahead and planner then apply); default a
-            new one.
+        follower: A ``robot_control.planner.PathFollower`` to share (its own lookahead and planner then apply);
+            default a new one.
         planner: The follower's planner: "auto" (the certified grid's graph where there is one, else OMPL),
             "ompl" or "grid".
-        cross_track: The follower's ``cross_track``: steer along one-segment plans too (``envs.planner``).
+        cross_track: The follower's ``cross_track``: steer along one-segment plans too (``robot_control.planner``).
         damping: Slow down as the observed k falls below k_d (see above).
         damping_threshold: k_d, the k below which the damping slows down, in (0, 1]; None: ``params.safe_threshold``.
         damping_kind: "scale" or "cap" (see above).
@@ -310,7 +309,7 @@ class PlannerController(ResolvedRateController):
 
     @property
     def log(self) -> Sequence:
-        """The plans made, in order (the last ``envs.planner.LOG_LENGTH``)."""
+        """The plans made, in order (the last ``robot_control.planner.LOG_LENGTH``)."""
         return self.follower.log
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:

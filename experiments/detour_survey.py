@@ -2,7 +2,7 @@
 
 Usage::
 
-    python -m training.detour_survey --pairs 5000 --out docs/results/detour_survey
+    python -m experiments.detour_survey --pairs 5000 --out docs/results/detour_survey
 
 A *detour* hard Reach task (``hard_kind="detour"``, see ``envs.env.FamilyReachEnv``, Starting State) has a safe
 start and a safe target (strokes inside the limits less the stroke margin, safety = min(k, k_I k_safe / k_I,safe)
@@ -423,7 +423,7 @@ def run_survey(
         result["reset"] = reset_check(box, resets, seed) if resets and share >= min_share else None
         out.append(result)
     return {
-        "command": "python -m training.detour_survey " + " ".join(sys.argv[1:]),
+        "command": "python -m experiments.detour_survey " + " ".join(sys.argv[1:]),
         "pairs": pairs,
         "waypoints": waypoints,
         "seed": seed,

@@ -2,14 +2,14 @@ r"""Results of the plan-free policies: every agent on standard and hard targets,
 
 Usage::
 
-    python -m training.plan_free_report --runs runs/distill-3rpr-s0 runs/distill-3rpr-s1 runs/distill-3rpr-s2 \\
+    python -m experiments.plan_free_report --runs runs/distill-3rpr-s0 runs/distill-3rpr-s1 runs/distill-3rpr-s2 \\
         --env Planar3RPRReach-v0 --residual training/pretrained/ppo-Planar3RPRReachMixed-v0 \\
         --out docs/results/plan_free_planar3rpr
 
 Evaluates (``training.evaluate``, ``--episodes`` from reset seed ``--seed``, held out from training) on the env's
 standard and hard targets: the planner, the distilled plan-free runs (each seed), the residual policy over the
 planner, resolved-rate and singularity-aware control, and the plan-free runs behind ``envs.SingularityShield``.
-Writes each evaluation's folder, ``table.md`` (``training.family_report``: mean ± std over seeds),
+Writes each evaluation's folder, ``table.md`` (``experiments.family_report``: mean ± std over seeds),
 ``timing.md`` (the plan-free policy's time per decision, as ``training.evaluate`` runs it and exported by
 ``training.export``, against the
 planner's planning time per hard episode; and its time to the target against the planner's on the hard episodes
@@ -33,7 +33,8 @@ from pathlib import Path
 import gymnasium as gym
 
 import envs  # noqa: F401  (registers the ids)
-from training import evaluate, export, family_report, plots
+from experiments import family_report
+from training import evaluate, export, plots
 
 __all__ = ["main"]
 
@@ -115,7 +116,7 @@ def time_to_target_table(out: Path, runs: list[str]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point (see the module docstring)."""
-    parser = argparse.ArgumentParser(prog="python -m training.plan_free_report", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m experiments.plan_free_report", description=__doc__.splitlines()[0])
     parser.add_argument("--runs", nargs="+", required=True, help="run folders of training.distill")
     parser.add_argument("--env", required=True, help="the Reach id to evaluate on")
     parser.add_argument("--residual", default=None, help="run folder of a residual policy over the planner")

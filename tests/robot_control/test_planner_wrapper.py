@@ -1,4 +1,4 @@
-"""Mixed targets and the planner's waypoint in the observation (``envs.PlannerWaypointWrapper``)."""
+"""Mixed targets and the planner's waypoint in the observation (``robot_control.PlannerWaypointWrapper``)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
+import robot_control
 from envs.kernels.generic import observation_layout
 
 ERROR = observation_layout("planar", 3, False)["error"]
@@ -54,7 +55,7 @@ def test_standard_and_hard_tasks_are_unchanged_by_the_mixed_mode():
 
 def test_waypoint_wrapper_passes_the_checker_and_extends_the_observation():
     """Gymnasium's checker is silent; three entries more, inside the space; the carrot offset is what it says."""
-    env = envs.PlannerWaypointWrapper(gym.make("Planar3RPRReachMixed-v0").unwrapped)
+    env = robot_control.PlannerWaypointWrapper(gym.make("Planar3RPRReachMixed-v0").unwrapped)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warnings.filterwarnings("ignore", message=".*is different from the unwrapped")  # it is a wrapper
@@ -82,7 +83,7 @@ def test_waypoint_wrapper_passes_the_checker_and_extends_the_observation():
 
 def test_waypoint_on_a_detour_points_along_the_path_not_at_the_target():
     """At the start of a hard task the offset is the lookahead along the certified path, not the target error."""
-    env = envs.PlannerWaypointWrapper(gym.make("Planar3RPRReachHard-v0"))
+    env = robot_control.PlannerWaypointWrapper(gym.make("Planar3RPRReachHard-v0"))
     found = 0
     for seed in range(10):
         obs, _ = env.reset(seed=seed)
@@ -98,19 +99,19 @@ def test_waypoint_on_a_detour_points_along_the_path_not_at_the_target():
 
 def test_waypoint_wrapper_is_deterministic_and_refuses_other_envs():
     """The same seed gives the same observations; a foreign env, the grid off-grid or a bad lookahead is refused."""
-    a, b = (envs.PlannerWaypointWrapper(gym.make("Planar3RPRReachHard-v0")) for _ in range(2))
+    a, b = (robot_control.PlannerWaypointWrapper(gym.make("Planar3RPRReachHard-v0")) for _ in range(2))
     np.testing.assert_array_equal(a.reset(seed=3)[0], b.reset(seed=3)[0])
     for _ in range(5):
         action = np.full(3, 0.3, dtype=np.float32)
         np.testing.assert_array_equal(a.step(action)[0], b.step(action)[0])
     with pytest.raises(TypeError, match="wraps the Reach environments of envs, got CartPoleEnv"):
-        envs.PlannerWaypointWrapper(gym.make("CartPole-v1"))
+        robot_control.PlannerWaypointWrapper(gym.make("CartPole-v1"))
     with pytest.raises(
         ValueError, match="the planner needs a planar robot with task_region='grid', got spatial with task_region='box'"
     ):
-        envs.PlannerWaypointWrapper(gym.make("StewartGoughReach-v0"), planner="grid")
+        robot_control.PlannerWaypointWrapper(gym.make("StewartGoughReach-v0"), planner="grid")
     with pytest.raises(ValueError, match="lookahead must be a positive distance"):
-        envs.PlannerWaypointWrapper(gym.make("Planar3RPRReach-v0"), lookahead=0.0)
+        robot_control.PlannerWaypointWrapper(gym.make("Planar3RPRReach-v0"), lookahead=0.0)
 
 
 @pytest.mark.parametrize("env_id", ["StewartGoughReachHard-v0", "DeltaReach-v0"])
@@ -123,8 +124,8 @@ def test_the_planner_wrappers_work_in_every_pose_space(env_id):
 
     base = gym.make(env_id)
     m, n = base.unwrapped.params.robot.n_pose, base.action_space.shape[0]
-    waypoint = envs.PlannerWaypointWrapper(gym.make(env_id))
-    residual = envs.PlannerResidualWrapper(gym.make(env_id))
+    waypoint = robot_control.PlannerWaypointWrapper(gym.make(env_id))
+    residual = robot_control.PlannerResidualWrapper(gym.make(env_id))
     obs, _ = waypoint.reset(seed=0)
     assert obs.shape == (base.observation_space.shape[0] + m,)
     assert residual.reset(seed=0)[0].shape == (base.observation_space.shape[0] + m + n,)

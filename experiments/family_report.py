@@ -1,6 +1,6 @@
 """Write a results table (Markdown) from the ``metrics.json`` files of ``training.evaluate`` runs.
 
-Run as ``python -m training.family_report OUT.md EVAL_DIR [EVAL_DIR ...]``; every figure of the table comes
+Run as ``python -m experiments.family_report OUT.md EVAL_DIR [EVAL_DIR ...]``; every figure of the table comes
 from those files, so re-running the evaluations and this command is how the table is updated. The success rate
 has its 95 % interval (``training.intervals``: rliable's stratified bootstrap over each run's episodes; the seeds
 are not resampled) beside its mean ± std over runs. Evaluations of
@@ -119,7 +119,7 @@ def tracking_table(groups: dict[str, list[dict]]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Group the evaluations by agent and target set (their label without the run name) and write the table."""
-    parser = argparse.ArgumentParser(prog="python -m training.family_report", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m experiments.family_report", description=__doc__.split("\n")[0])
     parser.add_argument("out")
     parser.add_argument("evals", nargs="+", help="folders holding a metrics.json")
     parser.add_argument("--with-return", action="store_true", help="add a column of the episode return")

@@ -39,8 +39,8 @@ certified as usual.
 ``lookahead`` ahead of the platform's closest point along the planned polyline (in z; progress never goes
 back), or the target once the carrot reaches it; between waypoints it is interpolated linearly in the pose
 coordinates (the rotation vector, for spatial robots). It plans when a row shows a new target (a new episode).
-``envs.controllers.PlannerController`` steers toward the carrot with resolved-rate control;
-``envs.wrappers.planner.PlannerWaypointWrapper`` shows the carrot to a policy as part of its observation, and
+``robot_control.controllers.PlannerController`` steers toward the carrot with resolved-rate control;
+``robot_control.wrappers.PlannerWaypointWrapper`` shows the carrot to a policy as part of its observation, and
 ``PlannerResidualWrapper`` adds a policy's correction to the planner controller's action.
 """
 

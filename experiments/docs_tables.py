@@ -6,8 +6,8 @@ A block in a Markdown page reads
     ...
     <!-- end generated -->
 
-and holds that file (a table of ``training.family_report``, a sweep's ``report.md``, the main job's report)
-without its title line, with its pictures' paths made relative to the page. ``python -m training.docs_tables``
+and holds that file (a table of ``experiments.family_report``, a sweep's ``report.md``, the main job's report)
+without its title line, with its pictures' paths made relative to the page. ``python -m experiments.docs_tables``
 rewrites every block of ``README.md`` and ``docs/*.md`` from its file, and ``--check`` fails (exit 1, naming
 the blocks) where a page differs from its files: the tables are never typed.
 """
@@ -66,8 +66,8 @@ def refresh(root: Path, check: bool = False) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``python -m training.docs_tables``; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="python -m training.docs_tables", description=__doc__.split("\n")[0])
+    """Entry point of ``python -m experiments.docs_tables``; returns the exit status."""
+    parser = argparse.ArgumentParser(prog="python -m experiments.docs_tables", description=__doc__.split("\n")[0])
     parser.add_argument("--root", default=".", help="the checkout (default: the working directory)")
     parser.add_argument("--check", action="store_true", help="change nothing; exit 1 if a block is stale")
     args = parser.parse_args(argv)

@@ -2,7 +2,7 @@ r"""Agents on robots built off their drawings: success, final error and singular
 
 Usage::
 
-    python -m training.mismatch_report --env Planar3RPRReach-v0 \\
+    python -m experiments.mismatch_report --env Planar3RPRReach-v0 \\
         --run training/pretrained/ppo-Planar3RPRReach-v0 --tolerances 0 0.5 1 2 4 8 \\
         --out docs/results/mismatch_planar3rpr
 
@@ -79,7 +79,7 @@ def _figure(cells: dict[str, dict[float, dict]], title: str, path: Path) -> None
 
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point (see the module docstring)."""
-    parser = argparse.ArgumentParser(prog="python -m training.mismatch_report", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m experiments.mismatch_report", description=__doc__.splitlines()[0])
     parser.add_argument("--env", required=True, help="the Reach id to evaluate on")
     parser.add_argument("--run", action="append", default=[], help="a run folder to evaluate too (repeatable)")
     parser.add_argument("--tolerances", type=float, nargs="+", default=[0, 0.5, 1, 2, 4, 8], help="[mm]")

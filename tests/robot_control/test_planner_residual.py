@@ -1,4 +1,4 @@
-"""Residual learning over the planner (``envs.PlannerResidualWrapper``): a zero policy is the planner controller."""
+"""Residual learning over the planner (``robot_control.PlannerResidualWrapper``): a zero policy is the planner."""
 
 from __future__ import annotations
 
@@ -10,16 +10,17 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
-from envs.controllers import PlannerController
+import robot_control
 from envs.kernels.generic import observation_layout
 from envs.physics import wrap_angle
+from robot_control.controllers import PlannerController
 
 ERROR = observation_layout("planar", 3, False)["error"]
 
 
 def test_residual_wrapper_passes_the_checker_and_extends_the_observation():
     """Gymnasium's checker is silent; six entries more (carrot offset, planner action), inside the space."""
-    env = envs.PlannerResidualWrapper(gym.make("Planar3RPRReachMixed-v0").unwrapped)
+    env = robot_control.PlannerResidualWrapper(gym.make("Planar3RPRReachMixed-v0").unwrapped)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warnings.filterwarnings("ignore", message=".*is different from the unwrapped")  # it is a wrapper
@@ -41,7 +42,7 @@ def test_residual_wrapper_passes_the_checker_and_extends_the_observation():
 @pytest.mark.parametrize("seed", [10000, 10001, 10002])
 def test_a_zero_policy_is_the_planner_controller(seed):
     """Zero actions through the wrapper replay the planner controller's hard episode step for step."""
-    wrapped = envs.PlannerResidualWrapper(gym.make("Planar3RPRReachHard-v0"))
+    wrapped = robot_control.PlannerResidualWrapper(gym.make("Planar3RPRReachHard-v0"))
     plain = gym.make("Planar3RPRReachHard-v0")
     controller = PlannerController(plain.unwrapped.params, exact_step=False)  # the wrapper's base action
     _, info_w = wrapped.reset(seed=seed)
@@ -61,7 +62,7 @@ def test_a_zero_policy_is_the_planner_controller(seed):
 
 def test_the_policy_action_is_scaled_added_and_clipped():
     """The env gets clip(a_p + scale · clip(a_π, −1, 1), −1, 1)."""
-    env = envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), scale=0.25)
+    env = robot_control.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), scale=0.25)
     obs, _ = env.reset(seed=0)
     a_p = obs[-3:].astype(np.float64)
     for a in (np.zeros(3), np.array([1.0, -1.0, 0.5]), np.array([5.0, -5.0, 0.0])):
@@ -71,16 +72,16 @@ def test_the_policy_action_is_scaled_added_and_clipped():
 def test_bad_arguments_are_named():
     """Scale out of range, a foreign env, the grid planner off-grid and a malformed action get precise errors."""
     with pytest.raises(ValueError, match=r"scale must be a number in \(0, 2\], got 0"):
-        envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), scale=0)
+        robot_control.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), scale=0)
     with pytest.raises(ValueError, match="lookahead must be a positive distance"):
-        envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), lookahead=-1.0)
+        robot_control.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"), lookahead=-1.0)
     with pytest.raises(TypeError, match="wraps the Reach environments of envs, got CartPoleEnv"):
-        envs.PlannerResidualWrapper(gym.make("CartPole-v1"))
+        robot_control.PlannerResidualWrapper(gym.make("CartPole-v1"))
     with pytest.raises(
         ValueError, match="the planner needs a planar robot with task_region='grid', got spatial with task_region='box'"
     ):
-        envs.PlannerResidualWrapper(gym.make("StewartGoughReach-v0"), planner="grid")
-    env = envs.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"))
+        robot_control.PlannerResidualWrapper(gym.make("StewartGoughReach-v0"), planner="grid")
+    env = robot_control.PlannerResidualWrapper(gym.make("Planar3RPRReach-v0"))
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"action must be 3 finite numbers, got shape \(2,\)"):
         env.step(np.zeros(2))
@@ -90,7 +91,7 @@ def test_bad_arguments_are_named():
 
 def test_the_shield_inside_filters_the_summed_action():
     """SingularityShield inside the wrapper: a zero policy still succeeds, with no termination."""
-    env = envs.PlannerResidualWrapper(envs.SingularityShield(gym.make("Planar3RPRReachHard-v0"), k_guard=0.05))
+    env = robot_control.PlannerResidualWrapper(envs.SingularityShield(gym.make("Planar3RPRReachHard-v0"), k_guard=0.05))
     env.reset(seed=10003)
     for _ in range(200):
         _, _, terminated, truncated, info = env.step(np.zeros(3, dtype=np.float32))
@@ -114,6 +115,10 @@ def test_the_shield_inside_keeps_a_random_residual_out_of_singularities():
                 env.reset()
         return reasons
 
-    assert singular & set(run(envs.PlannerResidualWrapper(gym.make("Planar3RPRReachHard-v0"))))  # negative control
-    shielded = envs.PlannerResidualWrapper(envs.SingularityShield(gym.make("Planar3RPRReachHard-v0"), k_guard=0.05))
+    assert singular & set(
+        run(robot_control.PlannerResidualWrapper(gym.make("Planar3RPRReachHard-v0")))
+    )  # negative control
+    shielded = robot_control.PlannerResidualWrapper(
+        envs.SingularityShield(gym.make("Planar3RPRReachHard-v0"), k_guard=0.05)
+    )
     assert not singular & set(run(shielded))

@@ -1,0 +1,1 @@
+"""Tests of the baselines: controllers, the planner and its wrappers."""
