@@ -311,10 +311,11 @@ def initial_state(
     x, plant, codes = start.copy(), None, None
     if known is not None:
         plant, codes = known
-        rows = [fk.initial_batch(plant[i], start[i : i + 1]) for i in range(n)]
+        constants = fk.read_only(plant)  # the state keeps ``plant`` writable (``put_rows`` refills its rows)
+        rows = [fk.initial_batch(constants[i], start[i : i + 1]) for i in range(n)]
         q, k, k1, det_sign, residual = (np.concatenate(column) for column in zip(*rows))
         if reference.strokes is None:
-            strokes = [fk.strokes_batch(plant[i], reference.center[i : i + 1]) for i in range(n)]
+            strokes = [fk.strokes_batch(constants[i], reference.center[i : i + 1]) for i in range(n)]
             reference = reference._replace(strokes=np.concatenate(strokes))
     else:
         q, k, k1, det_sign, residual = fk.initial_batch(params.packed, start)
@@ -464,6 +465,7 @@ class StepBuffers:
         self.evaluation, self.observations = evaluation, observations
         self.fields = (q, x, t, k, k1, residual)
         self.shape = (n, params.robot.n_pose, obs_dim)
+        self.kernels = fk.path_kernels(params.packed)  # the compiled step of the robot's row path
 
 
 def step(
@@ -513,7 +515,7 @@ def step(
             _non_finite(action)
         action, drive = hardware.drive(params, drive, action)
     plant, model = _plant(params, state.plant), _model(params, state)
-    if fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays):
+    if fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays, out.kernels):
         _non_finite(action)
     q, x, t, k, k1, residual = out.fields
     new = FamilyState(q, x, t, state.det_sign, k, k1, residual, ref, state.plant, None, drive, state.geometry)

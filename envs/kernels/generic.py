@@ -32,9 +32,12 @@ on the whole block at once (vectorised across robots, ``envs.kernels.linalg.inve
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
+from numba.core import errors, types
+from numba.extending import overload
 
 from envs.kernels import layout, linalg, planar, setup, three
 from envs.kernels.cache import drop_stale_caches
@@ -60,8 +63,10 @@ __all__ = [
     "observation_layout",
     "pack_certificate",
     "pack_family",
+    "path_kernels",
     "random_streams",
     "reference_batch",
+    "row_path",
     "safe_batch",
     "safety_batch",
     "sample_reach_batch",
@@ -294,6 +299,18 @@ def pack_family(params) -> np.ndarray:
         c[C_PATH_T + len(path) - 1] = 1.0
     c.setflags(write=False)
     return c
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """``a``, or a read-only view of it: the kernels take their constants read-only, one compiled signature for all.
+
+    A writable and a read-only array are two types to Numba, so a kernel given both would be compiled twice.
+    """
+    if not a.flags.writeable:
+        return a
+    view = a.view()
+    view.setflags(write=False)
+    return view
 
 
 def evaluation_rows(m: int) -> dict[str, int | slice]:
@@ -856,19 +873,37 @@ def _advance_spatial(c, state, action, i, w, moved):
     return failed, out
 
 
-#: Row paths of the step (``_path``): planar legs in scalars (``envs.kernels.planar``), three actuators of any
-#: kind in scalars (``envs.kernels.three``), any pose space over work arrays (here).
+#: Row paths of the step: planar legs in scalars (``envs.kernels.planar``), three actuators of any kind in
+#: scalars (``envs.kernels.three``), any pose space over work arrays (here). The path is a compile-time constant
+#: of the entry kernels (``_path_kernels``): a robot compiles its own path only.
 PLANAR_LEGS, THREE, WORK_ARRAYS = 0, 1, 2
+ROW_PATHS = (PLANAR_LEGS, THREE, WORK_ARRAYS)
 
 
-@jit_inline
-def _path(c):
-    """The row path (``PLANAR_LEGS``, ``THREE`` or ``WORK_ARRAYS``) that steps the robot of ``c``."""
-    if c[C_SPATIAL] == 0.0 and c[C_LEGS] != 0.0 and c[C_TRANSLATIONAL] == 0.0:
+def row_path(cs) -> int:
+    """The row path (``PLANAR_LEGS``, ``THREE`` or ``WORK_ARRAYS``) that steps the robot of ``cs``.
+
+    Args:
+        cs: Packed constants, shape (C_SIZE,) or (N, C_SIZE) (the robots of one batch share their pose space and
+            actuator kinds; the first row is read).
+    """
+    spatial = cs.item(C_SPATIAL)
+    if spatial == 0.0 and cs.item(C_LEGS) != 0.0 and cs.item(C_TRANSLATIONAL) == 0.0:
         return PLANAR_LEGS
-    if c[C_N] == 3.0 and c[C_SPATIAL] == 0.0:  # cranks or sliders, planar or translational
+    if spatial == 0.0 and cs.item(C_N) == 3.0:  # cranks or sliders, planar or translational
         return THREE
     return WORK_ARRAYS
+
+
+def _literal_path(path) -> int:
+    """The value of a row path typed as a compile-time constant (the overloads below choose code by it)."""
+    if not isinstance(path, types.IntegerLiteral) or path.literal_value not in ROW_PATHS:
+        raise errors.TypingError(f"the row path must be a compile-time constant in {ROW_PATHS}, got {path}")
+    return path.literal_value
+
+
+#: What the overloads that choose a row path's code are compiled with (as ``setup.jit``).
+_OVERLOAD_OPTIONS = {"nogil": True, "error_model": "numpy"}
 
 
 @jit_inline
@@ -878,25 +913,22 @@ def _row(cs, i):
 
 
 @jit_inline
-def _transition_block(cs, state, action, start, count, w, lanes, moved):
-    """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
+def _planar_block(cs, state, action, start, count, w, lanes, moved):
+    """``_transition_block`` of planar leg robots: each row in scalars (``planar.transition_row``)."""
+    for i in range(start, start + count):
+        planar.transition_row(_row(cs, i), state, action, i, moved)
 
-    Every path runs the algorithm of ``envs.physics.transition`` in its order: predict, correct (the row path),
-    measure (k and k_I at the new pose), terminate (``planar.termination_reason``). Args as ``transition_batch``;
-    ``moved`` holds its outputs. Spatial robots in blocks are moved one by one, then the k of all of them comes
-    from one ``inverse_condition6_lanes`` call over the block (vectorised across robots, each robot's k bit for
-    bit what it would be alone), then their termination reasons. ``cs`` holds one row of constants per robot or
-    one row for all (the robots of one batch share their pose space and actuator kinds, not their geometry).
-    """
-    path = _path(cs[0])
-    if path == PLANAR_LEGS:
-        for i in range(start, start + count):
-            planar.transition_row(_row(cs, i), state, action, i, moved)
-        return
-    if path == THREE:
-        for i in range(start, start + count):
-            three.transition_row(_row(cs, i), state, action, i, moved)
-        return
+
+@jit_inline
+def _three_block(cs, state, action, start, count, w, lanes, moved):
+    """``_transition_block`` of three cranks or sliders: each row in scalars (``three.transition_row``)."""
+    for i in range(start, start + count):
+        three.transition_row(_row(cs, i), state, action, i, moved)
+
+
+@jit_inline
+def _work_block(cs, state, action, start, count, w, lanes, moved):
+    """``_transition_block`` of any pose space over work arrays (spatial robots in SIMD lanes)."""
     det_sign = state[3]
     o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
     if count == 1 or cs[0][C_N] != 6.0:  # one robot (the single env; the plain Jacobi is cheaper) or m = 3
@@ -931,6 +963,30 @@ def _transition_block(cs, state, action, start, count, w, lanes, moved):
         )
 
 
+def _transition_block(path, cs, state, action, start, count, w, lanes, moved):
+    """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
+
+    Every path runs the algorithm of ``envs.physics.transition`` in its order: predict, correct (the row path),
+    measure (k and k_I at the new pose), terminate (``planar.termination_reason``). ``path`` is the row path, a
+    compile-time constant: the overload below compiles that path's block only. Args as ``transition_batch``;
+    ``moved`` holds its outputs. Spatial robots in blocks are moved one by one, then the k of all of them comes
+    from one ``inverse_condition6_lanes`` call over the block (vectorised across robots, each robot's k bit for
+    bit what it would be alone), then their termination reasons. ``cs`` holds one row of constants per robot or
+    one row for all (the robots of one batch share their pose space and actuator kinds, not their geometry).
+    """
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_transition_block, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, moved):
+    block = (_planar_block, _three_block, _work_block)[_literal_path(path)]
+
+    def impl(path, cs, state, action, start, count, w, lanes, moved):
+        block(cs, state, action, start, count, w, lanes, moved)
+
+    return impl
+
+
 @jit
 def _allocate_moved(n, m):
     """The outputs of ``transition_batch`` for n robots with m pose coordinates (see its Returns)."""
@@ -939,7 +995,6 @@ def _allocate_moved(n, m):
     return q, x, k, k1, residual, action, q_rate, np.empty(n, dtype=np.int64), jump
 
 
-@jit
 def transition_batch(cs, state, action):
     """Advance N robots by one control period (the algorithm of ``envs.physics.transition``).
 
@@ -953,13 +1008,7 @@ def transition_batch(cs, state, action):
     Returns:
         (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
     """
-    n, m = action.shape
-    moved = _allocate_moved(n, m)
-    w = _work()
-    lanes = allocate_lanes()
-    for start in range(0, n, LANES):
-        _transition_block(cs, state, action, start, min(LANES, n - start), w, lanes, moved)
-    return moved
+    return _PATH_KERNELS[row_path(cs)].transition(cs, state, action)
 
 
 @jit
@@ -1151,12 +1200,41 @@ def _encode_pose(c, x, o_obs, i, start, low, high):
 
 
 @jit_inline
-def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
-    """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.physics.evaluate``).
+def _evaluate_planar_row(c, observation, measured, reference, outcome, i, w, out):
+    """``_evaluate_row`` of a planar leg robot: its terms and observation are ``envs.kernels.planar``'s."""
+    q, x, t, k, k1, residual = measured
+    center, amplitude, phase, _ = reference
+    action, reason = outcome
+    o_eval, o_obs = out
+    g, vel = w[W_TGT], w[W_VEL]
+    _reference(c, t[i], center, amplitude, phase, i, g, vel)
+    xi = x[i]
+    pose, target = (xi[0], xi[1], xi[2]), (g[0], g[1], g[2])
+    applied = (action[i, 0], action[i, 1], action[i, 2])
+    tr, si, ac, te, ep, eo = planar.reward_terms(c, pose, target, k[i], applied, reason[i])
+    success = reason[i] == 0 and planar.is_success(c, ep, eo)
+    bonus = c[C_BONUS] if success else 0.0
+    o_eval[E_TRACKING, i], o_eval[E_SINGULARITY, i], o_eval[E_ACTION, i], o_eval[E_TERMINATION, i] = tr, si, ac, te
+    o_eval[E_BONUS, i] = bonus
+    o_eval[E_REWARD, i] = tr + si + ac + te + bonus
+    o_eval[E_ACTUATOR, i] = 0.0  # legs: no Type I singularity
+    o_eval[E_K1, i] = k1[i]
+    o_eval[E_COST1, i] = 0.0
+    o_eval[E_POSITION_ERROR, i], o_eval[E_ORIENTATION_ERROR, i] = ep, eo
+    o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
+    o_eval[E_COST, i] = 1.0 if k[i] < c[C_SAFE] else 0.0
+    o_eval[E_K, i] = k[i]
+    o_eval[E_RESIDUAL, i] = residual[i]
+    for j in range(3):
+        o_eval[E_FIXED + j, i] = g[j]
+        o_eval[E_FIXED + 3 + j, i] = vel[j]
+        o_eval[E_FIXED + 6 + j, i] = xi[j]
+    planar.observation_row(c, observation, q, x, k, target, (vel[0], vel[1], vel[2]), i, o_obs)
 
-    Args as ``evaluate_batch``; ``out`` is (evaluation, observations). A planar robot's terms and observation are
-    ``envs.kernels.planar``'s.
-    """
+
+@jit_inline
+def _evaluate_general_row(c, observation, measured, reference, outcome, i, w, out):
+    """``_evaluate_row`` of any robot over work arrays (any pose space and actuator kind)."""
     low, high, with_velocity = observation
     q, x, t, k, k1, residual = measured
     center, amplitude, phase, center_strokes = reference
@@ -1166,29 +1244,6 @@ def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
     g, vel, diff = w[W_TGT], w[W_VEL], w[W_DIFF]
     _reference(c, t[i], center, amplitude, phase, i, g, vel)
     xi = x[i]
-    if _path(c) == PLANAR_LEGS:
-        pose, target = (xi[0], xi[1], xi[2]), (g[0], g[1], g[2])
-        applied = (action[i, 0], action[i, 1], action[i, 2])
-        tr, si, ac, te, ep, eo = planar.reward_terms(c, pose, target, k[i], applied, reason[i])
-        success = reason[i] == 0 and planar.is_success(c, ep, eo)
-        bonus = c[C_BONUS] if success else 0.0
-        o_eval[E_TRACKING, i], o_eval[E_SINGULARITY, i], o_eval[E_ACTION, i], o_eval[E_TERMINATION, i] = tr, si, ac, te
-        o_eval[E_BONUS, i] = bonus
-        o_eval[E_REWARD, i] = tr + si + ac + te + bonus
-        o_eval[E_ACTUATOR, i] = 0.0  # legs: no Type I singularity
-        o_eval[E_K1, i] = k1[i]
-        o_eval[E_COST1, i] = 0.0
-        o_eval[E_POSITION_ERROR, i], o_eval[E_ORIENTATION_ERROR, i] = ep, eo
-        o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
-        o_eval[E_COST, i] = 1.0 if k[i] < c[C_SAFE] else 0.0
-        o_eval[E_K, i] = k[i]
-        o_eval[E_RESIDUAL, i] = residual[i]
-        for j in range(3):
-            o_eval[E_FIXED + j, i] = g[j]
-            o_eval[E_FIXED + 3 + j, i] = vel[j]
-            o_eval[E_FIXED + 6 + j, i] = xi[j]
-        planar.observation_row(c, observation, q, x, k, target, (vel[0], vel[1], vel[2]), i, o_obs)
-        return
     position_error, orientation_error = _errors(c, xi, g, diff)
     ki = k[i]
     tracking = -(c[C_WP] * position_error + c[C_WO] * c[C_LC] * orientation_error)
@@ -1258,7 +1313,25 @@ def _evaluate_row(c, observation, measured, reference, outcome, i, w, out):
             _clip32(o_obs, i, col + j, vel[j], low, high)
 
 
-@jit
+def _evaluate_row(path, c, observation, measured, reference, outcome, i, w, out):
+    """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.physics.evaluate``).
+
+    Args as ``evaluate_batch``; ``out`` is (evaluation, observations); ``path`` is the row path, a compile-time
+    constant: a planar leg robot's terms and observation are ``envs.kernels.planar``'s.
+    """
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_evaluate_row, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _evaluate_row_of_path(path, c, observation, measured, reference, outcome, i, w, out):
+    row = _evaluate_planar_row if _literal_path(path) == PLANAR_LEGS else _evaluate_general_row
+
+    def impl(path, c, observation, measured, reference, outcome, i, w, out):
+        row(c, observation, measured, reference, outcome, i, w, out)
+
+    return impl
+
+
 def evaluate_batch(cs, observation, measured, reference, outcome):
     """Evaluation rows (``evaluation_rows``) and observations of N robots.
 
@@ -1278,29 +1351,24 @@ def evaluate_batch(cs, observation, measured, reference, outcome):
     Returns:
         (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
     """
-    n, m = measured[1].shape
-    out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
-    w = _work()
-    for i in range(n):
-        _evaluate_row(_row(cs, i), observation, measured, reference, outcome, i, w, out)
-    return out
+    return _PATH_KERNELS[row_path(cs)].evaluate(cs, observation, measured, reference, outcome)
 
 
 # -- the fused step: transition then evaluation, on every core for large batches ------------------------
 
 
 @jit_inline
-def _step_block(model, plant, observation, state, reference, action, start, count, w, lanes, out):
+def _step_block(path, model, plant, observation, state, reference, action, start, count, w, lanes, out):
     """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``)."""
     o_q, o_x, o_t, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
     _transition_block(
-        plant, state, action, start, count, w, lanes, (o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
+        path, plant, state, action, start, count, w, lanes, (o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
     )
     t = state[2]
     measured, outcome = (o_q, o_x, o_t, o_k, o_k1, o_res), (o_a, o_reason)
     for i in range(start, start + count):
         o_t[i] = t[i] + 1
-        _evaluate_row(_row(model, i), observation, measured, reference, outcome, i, w, (o_eval, o_obs))
+        _evaluate_row(path, _row(model, i), observation, measured, reference, outcome, i, w, (o_eval, o_obs))
 
 
 @jit
@@ -1313,7 +1381,7 @@ def _finite_actions(action):
 
 
 @jit
-def _step_range(model, plant, observation, state, reference, action, span, out):
+def _step_range(path, model, plant, observation, state, reference, action, span, out):
     """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
 
     Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's parfor analysis
@@ -1324,32 +1392,100 @@ def _step_range(model, plant, observation, state, reference, action, span, out):
     begin, end = span
     for start in range(begin, end, LANES):
         count = min(LANES, end - start)
-        _step_block(model, plant, observation, state, reference, action, start, count, w, lanes, out)
+        _step_block(path, model, plant, observation, state, reference, action, start, count, w, lanes, out)
 
 
-@jit
-def _step_serial(
-    model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, action, out
-):
-    # Flat, unlike the rest: the single env calls it at every step, and Numba types an array inside a tuple
-    # argument slower than a bare one (about 0.2 µs per array per call).
-    if not _finite_actions(action):
-        return True
-    state, reference = (q, x, t, det_sign, residual), (center, amplitude, phase, strokes)
-    _step_range(model, plant, (low, high, with_velocity), state, reference, action, (0, q.shape[0]), out)
-    return False
+class PathKernels(NamedTuple):
+    """The entry kernels of one row path, each compiled for that path alone (see ``_path_kernels``)."""
+
+    transition: Any
+    evaluate: Any
+    step_serial: Any
+    step_parallel: Any
 
 
-@jit_parallel
+def _path_kernels(path: int) -> PathKernels:
+    """The entry kernels of the row path ``path``, which they hold as a compile-time constant.
+
+    A closure over an int is cached by Numba under its value, so each path's kernels compile (and load from the
+    on-disk cache) on their own, when a robot of that path first uses them: a robot compiles its own path only.
+    The parallel step compiles at the first batch of at least ``PARALLEL_MIN_BATCH`` robots.
+    """
+
+    def transition(cs, state, action):
+        n, m = action.shape
+        moved = _allocate_moved(n, m)
+        w = _work()
+        lanes = allocate_lanes()
+        for start in range(0, n, LANES):
+            _transition_block(path, cs, state, action, start, min(LANES, n - start), w, lanes, moved)
+        return moved
+
+    def evaluate(cs, observation, measured, reference, outcome):
+        n, m = measured[1].shape
+        out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
+        w = _work()
+        for i in range(n):
+            _evaluate_row(path, _row(cs, i), observation, measured, reference, outcome, i, w, out)
+        return out
+
+    def step_serial(
+        model,
+        plant,
+        low,
+        high,
+        with_velocity,
+        q,
+        x,
+        t,
+        det_sign,
+        residual,
+        center,
+        amplitude,
+        phase,
+        strokes,
+        action,
+        out,
+    ):
+        # Flat, unlike the rest: the single env calls it at every step, and Numba types an array inside a tuple
+        # argument slower than a bare one (about 0.2 µs per array per call).
+        if not _finite_actions(action):
+            return True
+        observation = (low, high, with_velocity)
+        state, reference = (q, x, t, det_sign, residual), (center, amplitude, phase, strokes)
+        w = _work()
+        lanes = allocate_lanes()
+        n = q.shape[0]
+        for start in range(0, n, LANES):
+            count = min(LANES, n - start)
+            _step_block(path, model, plant, observation, state, reference, action, start, count, w, lanes, out)
+        return False
+
+    def step_parallel(model, plant, observation, state, reference, action, out):
+        if not _finite_actions(action):
+            return True
+        n = action.shape[0]
+        chunks = (n + CHUNK - 1) // CHUNK
+        for chunk in numba.prange(chunks):
+            span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
+            _step_range(path, model, plant, observation, state, reference, action, span, out)
+        return False
+
+    return PathKernels(jit(transition), jit(evaluate), jit(step_serial), jit_parallel(step_parallel))
+
+
+#: The entry kernels of each row path, by path.
+_PATH_KERNELS = tuple(_path_kernels(path) for path in ROW_PATHS)
+
+
+def _step_serial(model, plant, *args):
+    """The one-thread step of ``step_batch`` (flat arguments: observation, state and reference unpacked)."""
+    return _PATH_KERNELS[row_path(plant)].step_serial(model, plant, *args)
+
+
 def _step_parallel(model, plant, observation, state, reference, action, out):
-    if not _finite_actions(action):
-        return True
-    n = action.shape[0]
-    chunks = (n + CHUNK - 1) // CHUNK
-    for chunk in numba.prange(chunks):
-        span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
-        _step_range(model, plant, observation, state, reference, action, span, out)
-    return False
+    """The multi-core step of ``step_batch``."""
+    return _PATH_KERNELS[row_path(plant)].step_parallel(model, plant, observation, state, reference, action, out)
 
 
 def allocate_step(n, m, obs_dim):
@@ -1363,7 +1499,12 @@ def allocate_step(n, m, obs_dim):
     return q, x, t, k, k1, residual, action, q_rate, reason, jump, evaluation, observations
 
 
-def step_batch(model, plant, observation, state, reference, action, out):
+def path_kernels(cs) -> PathKernels:
+    """The entry kernels of the robot of packed constants ``cs`` (its ``row_path``'s), for callers that keep them."""
+    return _PATH_KERNELS[row_path(cs)]
+
+
+def step_batch(model, plant, observation, state, reference, action, out, kernels=None):
     """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite.
 
     Args:
@@ -1376,10 +1517,13 @@ def step_batch(model, plant, observation, state, reference, action, out):
         reference: (center, amplitude, phase, strokes), as ``evaluate_batch``.
         action: Normalised stroke rates, shape (N, n).
         out: The arrays of ``allocate_step``.
+        kernels: ``path_kernels(plant)``, if the caller keeps them (the single env's step saves finding them).
     """
+    if kernels is None:
+        kernels = _PATH_KERNELS[row_path(plant)]
     if action.shape[0] >= PARALLEL_MIN_BATCH:
-        return _step_parallel(model, plant, observation, state, reference, action, out)
-    return _step_serial(model, plant, *observation, *state, *reference, action, out)
+        return kernels.step_parallel(model, plant, observation, state, reference, action, out)
+    return kernels.step_serial(model, plant, *observation, *state, *reference, action, out)
 
 
 # -- the safe set and the task sampler ------------------------------------------------------------------
@@ -1603,6 +1747,7 @@ def sample_reach_batch(c, streams, n, m, hard, min_distance):
     Returns:
         (starts (n, m), targets (n, m), waypoints (n, m): the detour's waypoint, or the target), or None.
     """
+    c = read_only(c)
     o_start, o_target, o_waypoint = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
     parallel = streams.shape[0] > 1 and n >= PARALLEL_MIN_SAMPLES
     kernel = _sample_reach_parallel if parallel else _sample_reach
@@ -1659,6 +1804,7 @@ def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_p
 def sample_track_batch(c, streams, n, m, max_amplitude, n_check):
     """Draw n references whose whole period stays in the safe set (checked between ``n_check`` points), or None."""
     o_center, o_amplitude, o_phase = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    c = read_only(c)
     if (
         _sample_track(c, streams, np.asarray(max_amplitude, dtype=np.float64), n_check, o_center, o_amplitude, o_phase)
         >= 0
