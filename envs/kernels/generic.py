@@ -25,8 +25,9 @@ k_I, residual, action, q_rate, reason, jump), what the transition writes. The st
 legs, three actuators, work arrays) share one order, predict, correct, measure, terminate.
 
 Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
-chunk, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD behind their k runs
-on the whole block at once (vectorised across robots, ``envs.kernels.linalg.inverse_condition6_lanes``).
+chunk of the parallel step, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD
+behind their k runs on the whole block at once (vectorised across robots,
+``envs.kernels.linalg.inverse_condition6_lanes``); the one-thread step moves them robot by robot.
 """
 
 from __future__ import annotations
@@ -557,7 +558,7 @@ def _rows_actuated(c, q, x, w):
         sq[i] = d0 * d0 + d1 * d1 + d2 * d2
 
 
-@jit_inline
+@jit
 def _rows(c, q, x, w):
     """Rows of A = J_x / 2 at (q, x) into w[W_A:], and d_iᵀ d_i into w[W_SQ].
 
@@ -786,7 +787,7 @@ def allocate_lanes():
     return np.empty((6, 6, LANES)), np.empty((6, LANES))
 
 
-@jit_inline
+@jit
 def _advance_spatial(c, state, action, i, w, moved):
     """Move robot i through one control period (predict, correct): its rows of ``moved`` but k, k_I, the reason.
 
@@ -927,20 +928,28 @@ def _three_block(cs, state, action, start, count, w, lanes, moved):
 
 
 @jit_inline
-def _work_block(cs, state, action, start, count, w, lanes, moved):
-    """``_transition_block`` of any pose space over work arrays (spatial robots in SIMD lanes)."""
+def _work_rows(cs, state, action, start, count, w, moved):
+    """``_transition_block`` of any pose space over work arrays, robot by robot."""
     det_sign = state[3]
     o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
-    if count == 1 or cs[0][C_N] != 6.0:  # one robot (the single env; the plain Jacobi is cheaper) or m = 3
-        for i in range(start, start + count):
-            c = _row(cs, i)
-            failed, out = _advance_spatial(c, state, action, i, w, moved)
-            k, sign = _singularity(c, o_q[i], w, W_A)
-            k1 = _actuator_condition(c, w)
-            o_k[i] = k
-            o_k1[i] = k1
-            o_reason[i] = planar.termination_reason(c, failed, o_jump[i], sign, det_sign[i], k, out, k1)
+    for i in range(start, start + count):
+        c = _row(cs, i)
+        failed, out = _advance_spatial(c, state, action, i, w, moved)
+        k, sign = _singularity(c, o_q[i], w, W_A)
+        k1 = _actuator_condition(c, w)
+        o_k[i] = k
+        o_k1[i] = k1
+        o_reason[i] = planar.termination_reason(c, failed, o_jump[i], sign, det_sign[i], k, out, k1)
+
+
+@jit_inline
+def _work_block(cs, state, action, start, count, w, lanes, moved):
+    """``_transition_block`` of any pose space over work arrays, spatial robots with m = 6 in SIMD lanes."""
+    if count == 1 or cs[0][C_N] != 6.0:  # one robot (the plain Jacobi is cheaper) or m = 3
+        _work_rows(cs, state, action, start, count, w, moved)
         return
+    det_sign = state[3]
+    o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
     H, lane = lanes
     for r in range(count):
         i = start + r
@@ -969,9 +978,10 @@ def _transition_block(path, cs, state, action, start, count, w, lanes, moved):
     Every path runs the algorithm of ``envs.physics.transition`` in its order: predict, correct (the row path),
     measure (k and k_I at the new pose), terminate (``planar.termination_reason``). ``path`` is the row path, a
     compile-time constant: the overload below compiles that path's block only. Args as ``transition_batch``;
-    ``moved`` holds its outputs. Spatial robots in blocks are moved one by one, then the k of all of them comes
-    from one ``inverse_condition6_lanes`` call over the block (vectorised across robots, each robot's k bit for
-    bit what it would be alone), then their termination reasons. ``cs`` holds one row of constants per robot or
+    ``moved`` holds its outputs. With work arrays for SIMD lanes (``allocate_lanes``; None: robot by robot),
+    spatial robots in blocks are moved one by one, then the k of all of them comes from one
+    ``inverse_condition6_lanes`` call over the block (vectorised across robots, each robot's k bit for bit what
+    it would be alone), then their termination reasons. ``cs`` holds one row of constants per robot or
     one row for all (the robots of one batch share their pose space and actuator kinds, not their geometry).
     """
     raise NotImplementedError("compiled only (see its overload)")
@@ -979,7 +989,14 @@ def _transition_block(path, cs, state, action, start, count, w, lanes, moved):
 
 @overload(_transition_block, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, moved):
-    block = (_planar_block, _three_block, _work_block)[_literal_path(path)]
+    chosen = _literal_path(path)
+    if chosen == WORK_ARRAYS and isinstance(lanes, types.NoneType):  # no lanes: robot by robot
+
+        def rows(path, cs, state, action, start, count, w, lanes, moved):
+            _work_rows(cs, state, action, start, count, w, moved)
+
+        return rows
+    block = (_planar_block, _three_block, _work_block)[chosen]
 
     def impl(path, cs, state, action, start, count, w, lanes, moved):
         block(cs, state, action, start, count, w, lanes, moved)
@@ -1454,7 +1471,7 @@ def _path_kernels(path: int) -> PathKernels:
         observation = (low, high, with_velocity)
         state, reference = (q, x, t, det_sign, residual), (center, amplitude, phase, strokes)
         w = _work()
-        lanes = allocate_lanes()
+        lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
         n = q.shape[0]
         for start in range(0, n, LANES):
             count = min(LANES, n - start)

@@ -111,7 +111,7 @@ def _leg(c, i, translational, cs, sn, x0, x1, x2, an):
     return r0, r1, r2, sq, dq
 
 
-@jit_inline
+@jit
 def rows(c, anc, x0, x1, x2):
     """Rows of A = J_x / 2 (9 numbers), d_iᵀ d_i (3) and −(J_q)_ii / 2 (3) at the pose, from ``anchors``."""
     translational = c[C_TRANSLATIONAL] != 0.0
@@ -152,7 +152,7 @@ def _metric(c, translational, s0, s1, s2):
     return math.sqrt(s0 * s0 + s1 * s1 + lc * lc * s2 * s2)
 
 
-@jit_inline
+@jit
 def _newton(c, anc, x0, x1, x2, tolerance, max_iterations):
     """Newton's method on Φ(q, x) = 0 at the q of ``anc`` from x: (x, residual, rows at x)."""
     a = rows(c, anc, x0, x1, x2)
