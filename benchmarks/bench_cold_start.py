@@ -158,7 +158,7 @@ def _short(signature: str, width: int = 400) -> str:
 def main(argv: list[str] | None = None) -> None:
     """Measure the anchor, each id and the warm-up in fresh processes; print the table (and the profile)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ids", nargs="+", default=None, help="ids to measure (default: every id of envs.ENV_IDS)")
+    parser.add_argument("--ids", nargs="*", default=None, help="ids to measure (default: every id of envs.ENV_IDS; none: --ids alone)")
     parser.add_argument("--no-warmup", action="store_true", help="skip the test suite's warm-up")
     parser.add_argument("--profile", action="store_true", help=f"write the compile profile to {PROFILE_PATH}")
     parser.add_argument("--profile-out", type=Path, default=PROFILE_PATH, help="where --profile writes its table")

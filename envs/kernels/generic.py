@@ -1004,7 +1004,7 @@ def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, m
     return impl
 
 
-@jit
+@jit_inline
 def _allocate_moved(n, m):
     """The outputs of ``transition_batch`` for n robots with m pose coordinates (see its Returns)."""
     q, x, action, q_rate = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
@@ -1189,12 +1189,12 @@ def _errors(c, x, g, diff):
     return math.sqrt(diff[0] * diff[0] + diff[1] * diff[1]), abs(diff[2])
 
 
-@jit
+@jit_inline
 def _clip32(o_obs, i, j, value, low, high):
     o_obs[i, j] = min(max(value, low[j]), high[j])
 
 
-@jit
+@jit_inline
 def _encode_pose(c, x, o_obs, i, start, low, high):
     """Position and a continuous rotation code, (x, y, cos φ, sin φ), (p, quaternion, w ≥ 0) or p; next column."""
     if c[C_SPATIAL] != 0.0:
@@ -1388,7 +1388,7 @@ def _step_block(path, model, plant, observation, state, reference, action, start
         _evaluate_row(path, _row(model, i), observation, measured, reference, outcome, i, w, (o_eval, o_obs))
 
 
-@jit
+@jit_inline
 def _finite_actions(action):
     for i in range(action.shape[0]):
         for j in range(action.shape[1]):
@@ -1510,8 +1510,9 @@ def allocate_step(n, m, obs_dim):
 
     (q, x, t, k, k_I, residual, action, stroke rates, reasons, jumps, evaluation, observations).
     """
-    q, x, k, k1, residual, action, q_rate, reason, jump = _allocate_moved(n, m)
-    t = np.empty(n, dtype=np.int64)
+    q, x, action, q_rate = (np.empty((n, m)) for _ in range(4))
+    k, k1, residual, jump = (np.empty(n) for _ in range(4))
+    reason, t = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
     evaluation, observations = np.empty((E_FIXED + 3 * m, n)), np.empty((n, obs_dim), dtype=np.float32)
     return q, x, t, k, k1, residual, action, q_rate, reason, jump, evaluation, observations
 

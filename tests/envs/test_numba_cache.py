@@ -25,3 +25,59 @@ def test_a_changed_dependency_drops_the_cache_and_an_unchanged_one_keeps_it(tmp_
     dependency.write_text("def f(): return 2\n")
     assert drop_stale_caches(module, [dependency])  # changed: dropped
     assert not any(p.exists() for p in mine) and other.exists()
+
+
+#: Run in a subprocess: the first step of an id, then the number of kernels Numba compiled (not loaded from its
+#: on-disk cache) on the way, and their names.
+_FIRST_STEP = r"""
+import sys
+import numba.core.dispatcher as nd
+from numba.core import sigutils
+
+compiled, original = [], nd.Dispatcher.compile
+
+def compile(self, sig):
+    args, _ = sigutils.normalize_signature(sig)
+    if tuple(args) in self.overloads:
+        return original(self, sig)
+    hits = sum(self._cache_hits.values())
+    try:
+        return original(self, sig)
+    finally:
+        if sum(self._cache_hits.values()) == hits and self.py_func.__module__.startswith("envs"):
+            compiled.append(self.py_func.__qualname__)
+
+nd.Dispatcher.compile = compile
+import gymnasium as gym
+import envs
+
+env = gym.make(sys.argv[1])
+env.reset(seed=0)
+env.step(env.action_space.sample())
+print(len(compiled), sorted(set(compiled)))
+"""
+
+
+def test_a_second_process_loads_every_kernel_of_the_first_step_from_the_cache():
+    """``cache=True`` holds across processes: a process that steps an id compiles nothing an earlier one compiled.
+
+    The process runs on the project's cache (in the suite, the warm-up filled it); if it had to compile (a cold
+    or stale cache), a second process must load all of it, the entry kernels too (closures over the robot's row
+    path, which Numba caches under its value).
+    """
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=str(root))
+    for _ in range(2):
+        run = subprocess.run(
+            [sys.executable, "-c", _FIRST_STEP, "DeltaReach-v0"], cwd=root, env=env, capture_output=True, text=True
+        )
+        assert run.returncode == 0, run.stderr[-2000:]
+        compiled = run.stdout.strip().splitlines()[-1]
+        if compiled.startswith("0 "):
+            return
+    raise AssertionError(f"compiled again in a second process: {compiled}")
