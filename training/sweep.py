@@ -10,7 +10,8 @@ then scored by ``training.evaluate``'s functions on held-out episodes: standard 
 for a Reach id, hard targets on its ``…ReachHard-v0`` sibling, each with and without the singularity shield. A
 trial writes ``result.json`` only when everything is done, so an interrupted sweep (Ctrl-C) keeps its finished
 trials and a resumed one skips them. Ray starts locally on this machine's cores by default (``--max-concurrent``
-bounds the trials run at once); ``--address`` runs the same sweep on an existing Ray cluster.
+bounds the trials run at once); ``--address`` runs the same sweep on an existing Ray cluster; called from Python,
+``main`` uses a Ray session the caller has already started and leaves it running.
 
 The results are aggregated over seeds with ``rliable`` (interquartile mean, mean, 95 % stratified-bootstrap
 confidence intervals, performance profiles) into ``sweep_results.json`` and ``report.md`` with its plots; the
@@ -34,7 +35,7 @@ import envs
 from envs._extras import require, require_all
 from training.config import ALGORITHMS, ConfigError, parse_overrides
 
-__all__ = ["aggregate_results", "main", "plan_trials", "run_trial"]
+__all__ = ["aggregate_results", "connect_ray", "main", "plan_trials", "run_trial"]
 
 #: Guard level of the shielded evaluations.
 SHIELD = 0.05
@@ -393,7 +394,7 @@ def run_on_ray(
 
     pending = [t for t in plan["trials"] if not (out / "trials" / t["name"] / "result.json").is_file()]
     if pending:
-        ray.init(address=address, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
+        started = connect_ray(address)
         folder = str(out.resolve() / "trials")
         timesteps, episodes, seed = plan["timesteps"], plan["episodes"], plan["eval_seed"]
         root = str(Path(__file__).resolve().parent.parent)
@@ -407,7 +408,8 @@ def run_on_ray(
         tuner = tune.Tuner(
             tune.with_resources(trainable, {"cpu": cpus}),
             param_space={"trial": tune.grid_search(pending)},
-            tune_config=tune.TuneConfig(max_concurrent_trials=max_concurrent),
+            # a worker process runs trial after trial: torch, SB3 and the compiled kernels are loaded once
+            tune_config=tune.TuneConfig(max_concurrent_trials=max_concurrent, reuse_actors=True),
             run_config=tune.RunConfig(
                 name="tune", storage_path=str(out.resolve() / "ray"), verbose=0, failure_config=None
             ),
@@ -415,8 +417,25 @@ def run_on_ray(
         try:
             tuner.fit()
         finally:
-            ray.shutdown()
+            if started:
+                ray.shutdown()
     return finished_trials(plan, out)
+
+
+def connect_ray(address: str | None = None) -> bool:
+    """Connect to Ray: a session already open in this process is used as it is, else one is started.
+
+    Args:
+        address: An existing Ray cluster; None starts a local Ray on this machine's cores.
+
+    Returns:
+        Whether the session was started here (the sweep then shuts it down when its trials end).
+    """
+    ray = require("ray", "sweep", "the sweep")
+    if ray.is_initialized():
+        return False
+    ray.init(address=address, include_dashboard=False, log_to_driver=False)
+    return True
 
 
 def finished_trials(plan: dict[str, Any], out: Path) -> tuple[list[dict], list[tuple[str, str]]]:

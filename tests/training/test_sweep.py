@@ -30,12 +30,28 @@ def test_plan_refuses_unknown_names(algos, env_ids, match):
         sweep.plan_trials(algos, env_ids, [0], {})
 
 
+@pytest.fixture(scope="module")
+def local_ray():
+    """One local Ray session, started by the sweep's own ``connect_ray``, for every sweep of this module."""
+    import ray
+
+    assert sweep.connect_ray(None)  # no session was open: started here
+    yield
+    ray.shutdown()
+
+
 @pytest.mark.slow
-def test_tiny_sweep_on_local_ray_resumes_without_rerunning(tmp_path, capsys):
-    """Two trials on a local Ray; the report aggregates them; --resume re-runs nothing; a name is not reused."""
+def test_tiny_sweep_on_local_ray_resumes_without_rerunning(tmp_path, capsys, local_ray):
+    """Two trials on a local Ray; the report aggregates them; --resume re-runs nothing; a name is not reused.
+
+    The trials run one after the other in one reused worker; the caller's Ray session is left running.
+    """
+    import ray
+
     argv = ["--root", str(tmp_path), "--name", "tiny", "--algos", "ppo", "--envs", "Planar3RPRReach-v0"]
-    argv += ["--seeds", "0", "1", "--timesteps", "128", "--episodes", "2", "--max-concurrent", "2"]
+    argv += ["--seeds", "0", "1", "--timesteps", "128", "--episodes", "2", "--max-concurrent", "1"]
     assert sweep.main(argv) == 0
+    assert ray.is_initialized()
     out = tmp_path / "tiny"
     results = json.loads((out / "sweep_results.json").read_text())
     assert results["trials"] == 2
@@ -68,11 +84,11 @@ def test_tiny_sweep_on_local_ray_resumes_without_rerunning(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_a_failing_trial_is_reported_and_left_for_resume(tmp_path, capsys):
+def test_a_failing_trial_is_reported_and_left_for_resume(tmp_path, capsys, local_ray):
     """A trial that raises is reported by name with the resume command; the sweep exits 1 and keeps the others."""
     argv = ["--root", str(tmp_path), "--name", "bad", "--algos", "ppo", "--envs", "Planar3RPRReach-v0"]
     argv += ["--seeds", "0", "--grid", "n_epochs=1,0", "--timesteps", "64", "--episodes", "1"]
-    argv += ["--max-concurrent", "2"]
+    argv += ["--max-concurrent", "1"]
     assert sweep.main(argv) == 1
     printed = capsys.readouterr().out
     assert "trial ppo-Planar3RPRReach-v0-n_epochs=0-s0 failed" in printed and "--resume" in printed
