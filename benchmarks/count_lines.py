@@ -34,6 +34,7 @@ CORE = [
     "envs/kernels/planar.py",
     "envs/kernels/three.py",
     "envs/kernels/linalg.py",
+    "envs/arguments.py",
     "envs/params.py",
     "envs/presets.py",
     "envs/physics.py",

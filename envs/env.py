@@ -17,7 +17,7 @@ from gymnasium import spaces
 
 from envs import hardware
 from envs.kernels import generic as fk
-from envs.params import TARGET_MODES, FamilyParams
+from envs.params import RENDER_MODE, ROBOT, TARGET_MODES, TARGETS, FamilyParams, Parameter, arguments_table
 from envs.physics import (
     INFO_KEYS,
     TERMINATION_REASONS,
@@ -75,6 +75,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
     with_velocity = False
     reset_options: tuple[str, ...] = ()
+    #: The constructor's named arguments (``envs.params``: documented and checked there); FamilyParams' follow.
+    named_arguments: tuple[Parameter, ...] = ()
 
     def _setup(self, render_mode: str | None, params: FamilyParams) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -251,59 +253,6 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         raise NotImplementedError
 
 
-_ARGUMENTS_DOC = """
-    ## Arguments
-    | Parameter | Type | Default | Description |
-    |-----------|------|---------|-------------|
-    | `render_mode` | str or None | `None` | "rgb_array" (headless) or "human" (a window) |
-    | `robot` | mechanism, str or None | `None` | a mechanism, a preset or robot name; None: "stewart_gough" |
-    | `stroke_limits` | (float, float) | `(0.45, 0.75)` | actuator limits: leg lengths [m], crank angles [rad] |
-    | `dt` | float | `0.05` | control period [s] |
-    | `max_rate` | float | `0.1` | stroke rate of a unit action [m/s] |
-    | `integrator` | str | `"euler"` | "euler" or "rk4" |
-    | `pose_low` | sequence of m floats | `(-0.2, -0.2, 0.3, -0.6, -0.6, -1.9)` | pose bounds [m, rad] |
-    | `pose_high` | sequence of m floats | `(0.2, 0.2, 0.75, 0.6, 0.6, 1.9)` | pose bounds [m, rad] |
-    | `sample_low` | sequence of m floats | `(-0.1, -0.1, 0.4, -0.2, -0.2, -0.5)` | task box [m, rad] |
-    | `sample_high` | sequence of m floats | `(0.1, 0.1, 0.6, 0.2, 0.2, 0.5)` | task box [m, rad] |
-    | `safe_threshold` | float | `0.1` | k below which the penalty and the cost start |
-    | `hard_threshold` | float | `0.03` | k below which the episode terminates |
-    | `actuator_safe_threshold` | float | `0.1` | k_I (cranks, sliders) below which its penalty and the cost start |
-    | `actuator_hard_threshold` | float | `0.02` | k_I (cranks, sliders) below which the episode terminates |
-    | `actuator_singularity_weight` | float | `1.0` | w_s1, the Type I penalty's weight |
-    | `position_weight` | float | `1.0` | w_p [1/m] |
-    | `orientation_weight` | float | `1.0` | w_o [1/m] |
-    | `singularity_weight` | float | `1.0` | w_s |
-    | `action_weight` | float | `0.01` | w_a |
-    | `termination_penalty` | float | `50.0` | P |
-    | `success_reward` | float | `0.0` | b, added at every step that ends within the success tolerances |
-    | `success_position_tolerance` | float | `0.01` | [m] |
-    | `success_orientation_tolerance` | float | `0.05` | [rad] |
-    | `track_period` | float | `8.0` | Track reference period [s] |
-    | `track_amplitude` | sequence of m floats | `(0.05, 0.0, 0.04, 0.0, 0.1, 0.0)` | largest amplitudes [m, rad] |
-    | `track_path` | sequence of m-tuples | `()` | vertices of a polyline Track reference (units of the amplitudes) |
-    | `track_path_times` | sequence of floats | `()` | share of the period of each segment of the path |
-    | `hard_kind` | str | `"detour"` | "detour", "ill_conditioned" or "crossing" (grid only) hard targets |
-    | `task_region` | str | `"box"` | "box" (the sampling box) or "grid" (regions of a certified grid; m = 3) |
-    | `grid_cell` | (float, float, float) | `(0.025, 0.025, 0.05)` | spacing of the certified grid [m, rad] |
-    | `track_shape` | str | `"sinusoid"` | "sinusoid" (or the `track_path`) or "circle" (grid only) |
-    | `track_radius_range` | (float, float) | `(0.05, 0.15)` | radius of a circle reference [m] |
-    | `track_angle_range` | (float, float) | `(0.0, 0.4)` | amplitude of a circle's third coordinate [rad] |
-    | `observation_source` | str | `"pose"` | "pose" (the true pose) or "encoders" (strokes measured, pose estimated) |
-    | `encoder_resolution` | float or n floats | `()` | encoder count [m, rad]; (): 10 µm, 0.01° (`envs.hardware`) |
-    | `encoder_noise` | float or n floats | `()` | encoder noise, standard deviation [m, rad]; (): one count |
-    | `estimator_iterations` | int | `20` | Newton iterations of the pose estimate per step |
-    | `geometry_tolerance` | float | `0.0` | the robot as built: anchors, points, lengths within ± this [m] |
-    | `geometry_variation` | float | `0.0` | ν: each episode's robot scaled, sheared by up to ±ν, known (Reach, box) |
-    | `max_acceleration` | float or n floats | `()` | largest change of an actuator's rate [m/s², rad/s²]; (): none |
-    | `action_delay` | int | `0` | control steps between an action and its effect |
-    | `**kwargs` | | | any other field of `FamilyParams` (Newton, substeps, margins) |
-
-    `robot` may name a preset of `ROBOT_PRESETS` (its settings apply under the caller's own); a mechanism gets
-    bounds, task box, strokes, amplitudes, rates and lengths scaled by its size around its `home_pose()`
-    (`derived_defaults`; the task box shrunk until at least half of it is safe) unless given.
-"""
-
-
 class FamilyReachEnv(FamilyEnvBase):
     r"""Reach a target pose with any parallel robot of the distance-constraint family, away from singularities.
 
@@ -393,8 +342,8 @@ class FamilyReachEnv(FamilyEnvBase):
     measure below `actuator_hard_threshold`). Truncation after the registered 200 steps.
     `info["is_success"]`: position error ≤ `success_position_tolerance` and orientation error ≤
     `success_orientation_tolerance`.
+
     {arguments}
-    | `targets` | str | `"standard"` | "standard", "hard" or "mixed" (hard with probability 1/2 per episode) |
 
     ## Version History
     * v0: Initial version.
@@ -402,13 +351,12 @@ class FamilyReachEnv(FamilyEnvBase):
 
     reset_options = ("targets", "start", "target")
     target_modes = TARGET_MODES
+    named_arguments = (RENDER_MODE, TARGETS, ROBOT)
 
     def __init__(
         self, render_mode: str | None = None, targets: str = "standard", robot: Any = None, **kwargs: Any
     ) -> None:
-        if targets not in TARGET_MODES:
-            raise ValueError(f"targets must be one of {TARGET_MODES}, got {targets!r}")
-        self.targets = targets
+        self.targets = TARGETS.check("targets", targets, {})
         self._setup(render_mode, build_family_params(robot, **kwargs))
 
     def sample_tasks(
@@ -545,6 +493,7 @@ class FamilyTrackEnv(FamilyEnvBase):
 
     ## Episode End
     As ``FamilyReachEnv`` (400 steps).
+
     {arguments}
 
     ## Version History
@@ -552,6 +501,7 @@ class FamilyTrackEnv(FamilyEnvBase):
     """
 
     with_velocity = True
+    named_arguments = (RENDER_MODE, ROBOT)
 
     def __init__(self, render_mode: str | None = None, robot: Any = None, **kwargs: Any) -> None:
         self._setup(render_mode, build_family_params(robot, **kwargs))
@@ -585,5 +535,5 @@ class FamilyTrackEnv(FamilyEnvBase):
         return start, FamilyReference(center, amplitude, phase)
 
 
-FamilyReachEnv.__doc__ = FamilyReachEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)
-FamilyTrackEnv.__doc__ = FamilyTrackEnv.__doc__.replace("{arguments}", _ARGUMENTS_DOC)
+for _cls in (FamilyReachEnv, FamilyTrackEnv):  # the Arguments tables, from the arguments' metadata
+    _cls.__doc__ = _cls.__doc__.replace("    {arguments}", arguments_table(_cls.named_arguments))

@@ -1,12 +1,38 @@
-"""The constants of an environment: one frozen dataclass for every robot and task (``FamilyParams``)."""
+"""The constants of an environment: one frozen dataclass for every robot and task (``FamilyParams``).
+
+Every keyword argument of the envs is described once, here: each field of ``FamilyParams`` carries its
+``envs.arguments.Doc`` (type text, description, unit, the check of its values, whether the robot's preset gives its
+default), which validates it (``check_fields``), writes ``FamilyParams``' Attributes and the envs' Arguments table
+(``arguments_table``). The per-robot values themselves are data: ``envs.presets.ROBOT_PRESETS``.
+"""
 
 from __future__ import annotations
 
 import functools
+import textwrap
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from envs.arguments import (
+    CONDITION,
+    NON_NEGATIVE,
+    NON_NEGATIVE_INT,
+    POSITIVE,
+    POSITIVE_INT,
+    Choice,
+    Doc,
+    Parameter,
+    Range,
+    Vector,
+    attributes,
+    documented,
+    parameters,
+    table,
+)
+from envs.hardware import OBSERVATION_SOURCES
 from envs.kernels import generic as fk
 from envs.tasks.grid import WorkspaceMap, WorkspaceSpec, certify_workspace, restore_read_only
 from kinematics import DistanceConstraintMechanism, StewartGough
@@ -14,11 +40,18 @@ from kinematics import DistanceConstraintMechanism, StewartGough
 __all__ = [
     "HARD_KINDS",
     "INTEGRATORS",
+    "RENDER_MODE",
     "REWARD_FIELDS",
+    "ROBOT",
+    "TARGETS",
     "TARGET_MODES",
     "TASK_REGIONS",
     "TRACK_SHAPES",
     "FamilyParams",
+    "Parameter",
+    "arguments_table",
+    "check_fields",
+    "field_parameters",
 ]
 
 TARGET_MODES = ("standard", "hard", "mixed")
@@ -38,126 +71,172 @@ REWARD_FIELDS = (
 )
 
 
+#: The constructor arguments of the envs that are not fields of ``FamilyParams``, and the env's form of ``robot``.
+RENDER_MODE = Parameter("render_mode", None, '"rgb_array" (headless) or "human" (a window)', type="str or None")
+TARGETS = Parameter(
+    "targets", "standard", '"standard", "hard" or "mixed" (hard with probability 1/2 per episode)',
+    check=Choice(TARGET_MODES),
+)  # fmt: skip
+ROBOT = Parameter(
+    "robot", None, 'a mechanism, its data or JSON file, a preset or robot name; None: "stewart_gough"',
+    type="mechanism, dict, str or None",
+)  # fmt: skip
+#: Checks of a pose vector (m values) and of an inverse condition number's threshold, in (0, 1).
+M = Vector("m")
+K = CONDITION
+
+
 @dataclass(frozen=True)
 class FamilyParams:
-    """Every constant of a family environment (see ``FamilyReachEnv`` for meanings and units).
+    """Every constant of a family environment (see ``FamilyReachEnv`` for the tasks, the reward and the ends).
+
+    Each field's ``metadata["doc"]`` (``envs.arguments.Doc``) documents and checks it. Its default is the hexapod's
+    (``StewartGough()``); where marked †, a robot's preset (``envs.presets.ROBOT_PRESETS``) or its size
+    (``derived_defaults``) gives its own.
 
     Attributes:
-        robot: The mechanism (pose space, legs, geometry, ℓ_c).
-        stroke_limits: (q_min, q_max) hard stops of every actuator [m, or rad for cranks].
-        dt: Control period [s].
-        max_rate: Stroke rate of a unit action [m/s].
-        integrator: "euler" or "rk4" prediction of the twist J_f q̇ (on the rotation group).
-        pose_low: Lower pose bounds, shape (m,) [m, rad]; leaving them terminates.
-        pose_high: Upper pose bounds, shape (m,).
-        sample_low: Lower corner of the box starts and targets are drawn from, shape (m,).
-        sample_high: Upper corner of that box, shape (m,).
-        safe_threshold: k below which the penalty and the cost start.
-        hard_threshold: k below which the episode terminates.
-        actuator_hard_threshold: Actuator condition number (the Type I measure of cranks and sliders; 1 for
-            legs) below which the episode terminates ("actuator_singular").
-        actuator_safe_threshold: Actuator condition number below which the Type I penalty and the cost start.
-        actuator_singularity_weight: w_s1, the weight of the Type I penalty.
-        position_weight: w_p [1/m].
-        orientation_weight: w_o [1/m] (multiplies ℓ_c · orientation error).
-        singularity_weight: w_s.
-        action_weight: w_a.
-        termination_penalty: P.
-        success_reward: b: reward added at every step that ends within the success tolerances (not terminated).
-        success_position_tolerance: [m].
-        success_orientation_tolerance: [rad].
-        newton_tolerance: Residual max_i |Φ_i| of the correction [m²].
-        newton_max_iterations: Newton iterations per substep.
-        jump_tolerance: Largest ‖(δp, ℓ_c δθ)‖ between prediction and correction [m].
-        max_substep: Largest predicted motion per substep [m].
-        max_substeps: Most substeps per period.
-        track_period: Period of the Track references [s].
-        track_amplitude: Largest amplitude of each pose coordinate of a Track reference, shape (m,); with a
-            ``track_path``, the scale a_j of its coordinate j.
-        track_path: Vertices W_k of a closed polyline Track reference, each of m normalised coordinates
-            (x*_j = c_j + a_j W_kj at vertex k, the first two turned by a random heading); () for sinusoids.
-        track_path_times: The share of the period each segment W_k → W_k+1 (mod K) takes, K positive values.
-        stroke_margin: Strokes of the safe set keep this far from the limits [m].
-        segment_spacing: Largest gap between checked points of a certified path [m]; unless given, capped per robot
-            by ``envs.presets.certificate_spacing`` (the safety may not fall by more than half the safe-to-hard
-            margin between two checked points).
-        min_distance: Smallest ‖(δp, ℓ_c δθ)‖ between start and target [m].
-        hard_kind: What makes a hard target: "detour" (the straight path dips below k_safe, a detour is
-            certified), "ill_conditioned" (the target lies where 2 k_hard ≤ k < k_safe) or "crossing" (the
-            straight line in pose space dips below k_hard; start and target in one region of the grid, which
-            certifies a detour; needs ``task_region="grid"``).
-        task_region: Where starts and targets are drawn: "box" (uniformly in the sampling box, paths certified
-            segment by segment) or "grid" (three pose coordinates only: in one connected safe region of a
-            certified grid over the pose bounds, ``envs.tasks.grid``).
-        grid_cell: Grid spacing of ``task_region="grid"``, shape (3,) [m, rad].
-        track_shape: The Track reference: "sinusoid" (x*_j = c_j + a_j sin(ω t + θ_j), or the ``track_path``) or
-            "circle" (three pose coordinates, ``task_region="grid"``: a circle of radius r in the first two
-            coordinates, the third oscillating by ±a, all of one period in one safe region).
-        track_radius_range: (r_min, r_max) of a circle reference [m].
-        track_angle_range: (a_min, a_max) of a circle reference's third coordinate [rad, or m if translational].
-        observation_source: "pose" (the observation holds the true pose) or "encoders" (measured actuator
-            coordinates and the pose estimated from them by the nominal forward kinematics: ``envs.hardware``).
-        encoder_resolution: Count of each actuator's encoder [m, or rad for cranks], shape (n,); () for the
-            defaults of ``envs.hardware.ENCODER_RESOLUTION`` (10 µm, 0.01°).
-        encoder_noise: Standard deviation of each encoder's noise before quantisation, shape (n,) [m, rad]; ()
-            for one count.
-        estimator_iterations: Most Newton iterations of the pose estimate per step.
-        geometry_tolerance: δ [m]: each episode's robot has its anchors, platform points and (cranks, sliders)
-            link lengths and crank radii drawn within ±δ of the nominal ones, which every controller assumes.
-        geometry_variation: ν: each episode's robot has its base and platform scaled and sheared by up to ±ν
-            (``envs.hardware.varied_plants``), known to the controller and coded at the end of the observation.
-        max_acceleration: Largest change of each actuator's rate per second [m/s², rad/s²], shape (n,); () for none.
-        action_delay: Whole control steps between an action and its effect.
+        {attributes}
     """
 
-    robot: DistanceConstraintMechanism = field(default_factory=StewartGough)
-    stroke_limits: tuple[float, float] = (0.45, 0.75)
-    dt: float = 0.05
-    max_rate: float = 0.1
-    integrator: str = "euler"
-    pose_low: tuple[float, ...] = (-0.2, -0.2, 0.3, -0.6, -0.6, -1.9)
-    pose_high: tuple[float, ...] = (0.2, 0.2, 0.75, 0.6, 0.6, 1.9)
-    sample_low: tuple[float, ...] = (-0.1, -0.1, 0.4, -0.2, -0.2, -0.5)
-    sample_high: tuple[float, ...] = (0.1, 0.1, 0.6, 0.2, 0.2, 0.5)
-    safe_threshold: float = 0.1
-    hard_threshold: float = 0.03
-    actuator_hard_threshold: float = 0.02
-    actuator_safe_threshold: float = 0.1
-    actuator_singularity_weight: float = 1.0
-    position_weight: float = 1.0
-    orientation_weight: float = 1.0
-    singularity_weight: float = 1.0
-    action_weight: float = 0.01
-    termination_penalty: float = 50.0
-    success_reward: float = 0.0
-    success_position_tolerance: float = 0.01
-    success_orientation_tolerance: float = 0.05
-    newton_tolerance: float = 1e-12
-    newton_max_iterations: int = 8
-    jump_tolerance: float = 0.02
-    max_substep: float = 0.01
-    max_substeps: int = 16
-    track_period: float = 8.0
-    track_amplitude: tuple[float, ...] = (0.05, 0.0, 0.04, 0.0, 0.1, 0.0)
-    track_path: tuple[tuple[float, ...], ...] = ()
-    track_path_times: tuple[float, ...] = ()
-    stroke_margin: float = 0.02
-    segment_spacing: float = 0.01
-    min_distance: float = 0.05
-    hard_kind: str = "detour"
-    task_region: str = "box"
-    grid_cell: tuple[float, float, float] = (0.025, 0.025, 0.05)
-    track_shape: str = "sinusoid"
-    track_radius_range: tuple[float, float] = (0.05, 0.15)
-    track_angle_range: tuple[float, float] = (0.0, 0.4)
-    observation_source: str = "pose"
-    encoder_resolution: tuple[float, ...] = ()
-    encoder_noise: tuple[float, ...] = ()
-    estimator_iterations: int = 20
-    geometry_tolerance: float = 0.0
-    geometry_variation: float = 0.0
-    max_acceleration: tuple[float, ...] = ()
-    action_delay: int = 0
+    robot: DistanceConstraintMechanism = field(
+        default_factory=StewartGough, metadata={"doc": Doc("the mechanism (pose space, legs, geometry, ℓ_c)")}
+    )
+    stroke_limits: tuple[float, float] = documented(
+        (0.45, 0.75),
+        "hard stops q_min < q_max of every actuator (0 < q_min for legs)",
+        "m, rad for cranks",
+        Vector(2),
+        per_robot=True,
+    )
+    dt: float = documented(0.05, "control period", "s", POSITIVE)
+    max_rate: float = documented(0.1, "stroke rate of a unit action", "m/s, rad/s", POSITIVE, per_robot=True)
+    integrator: str = documented("euler", '"euler" or "rk4" prediction of the twist J_f q̇', check=Choice(INTEGRATORS))
+    pose_low: tuple[float, ...] = documented(
+        (-0.2, -0.2, 0.3, -0.6, -0.6, -1.9), "lower pose bounds; leaving them terminates", "m, rad", M, per_robot=True
+    )
+    pose_high: tuple[float, ...] = documented(
+        (0.2, 0.2, 0.75, 0.6, 0.6, 1.9), "upper pose bounds", "m, rad", M, per_robot=True
+    )
+    sample_low: tuple[float, ...] = documented(
+        (-0.1, -0.1, 0.4, -0.2, -0.2, -0.5), "task box (starts, targets): lower corner", "m, rad", M, per_robot=True
+    )
+    sample_high: tuple[float, ...] = documented(
+        (0.1, 0.1, 0.6, 0.2, 0.2, 0.5), "task box: upper corner", "m, rad", M, per_robot=True
+    )
+    safe_threshold: float = documented(0.1, "k below which the penalty and the cost start", check=K, per_robot=True)
+    hard_threshold: float = documented(0.03, "k below which the episode terminates (< safe_threshold)", check=K)
+    actuator_hard_threshold: float = documented(
+        0.02, "k_I (cranks, sliders) below which the episode ends", check=Range(0.0, 1.0, high_open=True),
+        note='k_I is the Type I measure, 1 for legs; the termination reason is "actuator_singular".',
+    )  # fmt: skip
+    actuator_safe_threshold: float = documented(0.1, "k_I (cranks, sliders) below which its penalty starts", check=K)
+    actuator_singularity_weight: float = documented(1.0, "w_s1, the Type I penalty's weight", check=NON_NEGATIVE)
+    position_weight: float = documented(1.0, "w_p", "1/m", NON_NEGATIVE)
+    orientation_weight: float = documented(1.0, "w_o (multiplies ℓ_c θ_err)", "1/m", NON_NEGATIVE)
+    singularity_weight: float = documented(1.0, "w_s", check=NON_NEGATIVE)
+    action_weight: float = documented(0.01, "w_a", check=NON_NEGATIVE)
+    termination_penalty: float = documented(50.0, "P, paid on termination", check=NON_NEGATIVE)
+    success_reward: float = documented(
+        0.0, "b, added at every step that ends within the success tolerances", check=NON_NEGATIVE
+    )
+    success_position_tolerance: float = documented(0.01, "success: position error", "m", POSITIVE, per_robot=True)
+    success_orientation_tolerance: float = documented(
+        0.05, "success: orientation error", "rad", POSITIVE, per_robot=True
+    )
+    newton_tolerance: float = documented(1e-12, "Newton residual max_i abs(Φ_i)", "m²", POSITIVE, per_robot=True)
+    newton_max_iterations: int = documented(8, "Newton iterations per substep", check=POSITIVE_INT)
+    jump_tolerance: float = documented(
+        0.02, "largest ‖(δp, ℓ_c δθ)‖ from prediction to correction", "m", POSITIVE, per_robot=True,
+        note='A larger jump terminates ("assembly_mode_change").',
+    )  # fmt: skip
+    max_substep: float = documented(0.01, "largest predicted motion per substep", "m", POSITIVE, per_robot=True)
+    max_substeps: int = documented(16, "most substeps per period", check=POSITIVE_INT)
+    track_period: float = documented(8.0, "Track reference period", "s", POSITIVE, per_robot=True)
+    track_amplitude: tuple[float, ...] = documented(
+        (0.05, 0.0, 0.04, 0.0, 0.1, 0.0), "largest amplitudes of a Track reference", "m, rad", M, per_robot=True,
+        note="With a ``track_path``, a_j scales its coordinate j.",
+    )  # fmt: skip
+    track_path: tuple[tuple[float, ...], ...] = documented(
+        (), "vertices of a polyline Track reference (units of the amplitudes)", per_robot=True,
+        type="sequence of m-tuples",
+        note="2 to 8 vertices W_k of m coordinates, x*_j = c_j + a_j W_kj, the first two turned by a random heading.",
+    )  # fmt: skip
+    track_path_times: tuple[float, ...] = documented(
+        (), "share of the period of each segment of the path", per_robot=True, type="sequence of floats",
+        note="One positive value per vertex W_k: the segment W_k → W_k+1 (mod K).",
+    )  # fmt: skip
+    stroke_margin: float = documented(
+        0.02, "strokes of the safe set keep this far from the limits", "m, rad for cranks", NON_NEGATIVE, per_robot=True
+    )
+    segment_spacing: float = documented(
+        0.01, "largest gap between the checked points of a certified path", "m", POSITIVE, per_robot=True,
+        note="Unless given, capped per robot by ``envs.presets.certificate_spacing``.",
+    )  # fmt: skip
+    min_distance: float = documented(
+        0.05, "smallest ‖(δp, ℓ_c δθ)‖ between start and target", "m", NON_NEGATIVE, per_robot=True
+    )
+    hard_kind: str = documented(
+        "detour", '"detour", "ill_conditioned" or "crossing" (grid only) hard targets', check=Choice(HARD_KINDS),
+        per_robot=True,
+        note=(
+            '"detour": the straight path dips below k_safe, a detour is certified; "ill_conditioned": '
+            '2 k_hard ≤ k < k_safe at the target; "crossing": the straight line dips below k_hard, the grid region '
+            "certifies a detour."
+        ),
+    )  # fmt: skip
+    task_region: str = documented(
+        "box", '"box" (the task box) or "grid" (regions of a certified grid; m = 3)', check=Choice(TASK_REGIONS),
+        per_robot=True,
+        note='"grid": start and target in one connected safe region of a certified grid (``envs.tasks.grid``).',
+    )  # fmt: skip
+    grid_cell: tuple[float, float, float] = documented(
+        (0.025, 0.025, 0.05), "spacing of the certified grid", "m, rad", Vector(3, POSITIVE)
+    )
+    track_shape: str = documented(
+        "sinusoid", '"sinusoid" (or the `track_path`) or "circle" (grid only)', check=Choice(TRACK_SHAPES),
+        per_robot=True,
+        note=(
+            '"sinusoid": x*_j = c_j + a_j sin(ω t + θ_j); "circle": radius r in the first two coordinates, the third '
+            "oscillating by ±a, all in one safe region."
+        ),
+    )  # fmt: skip
+    track_radius_range: tuple[float, float] = documented(
+        (0.05, 0.15), "radius of a circle reference", "m", Vector(2, NON_NEGATIVE)
+    )
+    track_angle_range: tuple[float, float] = documented(
+        (0.0, 0.4), "amplitude of a circle's third coordinate", "rad, m if translational", Vector(2, NON_NEGATIVE)
+    )
+    observation_source: str = documented(
+        "pose", '"pose" (the true pose) or "encoders" (strokes measured, pose estimated)',
+        check=Choice(OBSERVATION_SOURCES),
+        note="The pose is estimated by the nominal forward kinematics (``envs.hardware``).",
+    )  # fmt: skip
+    encoder_resolution: tuple[float, ...] = documented(
+        (), "encoder count (() for 10 µm, 0.01°: `envs.hardware`)", "m, rad", Vector("n", POSITIVE, per_actuator=True)
+    )
+    encoder_noise: tuple[float, ...] = documented(
+        (),
+        "encoder noise, standard deviation (() for one count)",
+        "m, rad",
+        Vector("n", NON_NEGATIVE, per_actuator=True),
+    )
+    estimator_iterations: int = documented(20, "Newton iterations of the pose estimate per step", check=POSITIVE_INT)
+    geometry_tolerance: float = documented(
+        0.0, "the robot as built: anchors, points, lengths within ± this", "m", NON_NEGATIVE,
+        note="Every controller assumes the nominal robot.",
+    )  # fmt: skip
+    geometry_variation: float = documented(
+        0.0, "ν: each episode's robot scaled, sheared by up to ±ν, known (Reach, box)",
+        check=Range(0.0, 0.5, high_open=True), per_robot=True,
+        note="Its base and platform (``envs.hardware.varied_plants``); its codes end the observation.",
+    )  # fmt: skip
+    max_acceleration: tuple[float, ...] = documented(
+        (),
+        "largest change of an actuator's rate (() for none)",
+        "m/s², rad/s²",
+        Vector("n", POSITIVE, per_actuator=True),
+    )
+    action_delay: int = documented(0, "control steps between an action and its effect", check=NON_NEGATIVE_INT)
 
     def __setstate__(self, state: dict) -> None:
         restore_read_only(self, state)  # the kernels' constants stay read-only: one compiled signature
@@ -274,3 +353,52 @@ def _track_speed_bounds(params: FamilyParams) -> np.ndarray:
     if len(amplitude) >= 2:
         peak[:, :2] = np.pi * np.linalg.norm(step[:, :2], axis=1, keepdims=True) / (2.0 * times[:, None])
     return peak.max(axis=0)
+
+
+@functools.cache
+def field_parameters() -> tuple[Parameter, ...]:
+    """The ``Parameter`` of every field of ``FamilyParams`` but ``robot`` (an env's ``ROBOT``), in field order."""
+    return parameters(FamilyParams, skip=("robot",))
+
+
+def check_fields(args: dict[str, Any], sizes: dict[str, int]) -> dict[str, Any]:
+    """Every field of ``args`` (all but ``robot``) checked by its ``Doc.check``; those without one passed on.
+
+    Args:
+        args: A value for every field of ``FamilyParams`` but ``robot``.
+        sizes: {"m": pose coordinates, "n": actuators} of the robot, the sizes of the ``Vector`` checks.
+
+    Raises:
+        TypeError: On a value of the wrong type, naming the field, the expected and the actual value.
+        ValueError: On a value out of its range, naming the field, the range and the value.
+    """
+    return {
+        p.name: args[p.name] if p.check is None else p.check(p.name, args[p.name], sizes) for p in field_parameters()
+    }
+
+
+#: What the † of the Arguments table means.
+_DEFAULTS_NOTE = (
+    "† The hexapod's default. A robot named by a preset of `ROBOT_PRESETS` takes the preset's settings (under the "
+    "caller's own); a mechanism gets bounds, task box, strokes, amplitudes, rates and lengths scaled by its size "
+    "around its `home_pose()` (`derived_defaults`; the task box shrunk until at least half of it is safe) unless "
+    "given, and the certified `segment_spacing` is capped per robot unless given (`certificate_spacing`)."
+)
+
+
+def arguments_table(head: Sequence[Parameter]) -> str:
+    """The ``## Arguments`` section of an env's docstring: its named arguments ``head``, then every field."""
+    note = textwrap.fill(_DEFAULTS_NOTE, 116, initial_indent="    ", subsequent_indent="    ")
+    return "\n".join(
+        [
+            "    ## Arguments",
+            "    The named arguments, then every field of `FamilyParams` (given through `**kwargs`):",
+            "",
+            table((*head, *field_parameters())),
+            "",
+            note,
+        ]
+    )
+
+
+FamilyParams.__doc__ = FamilyParams.__doc__.replace("        {attributes}", attributes(FamilyParams))

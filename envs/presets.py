@@ -8,7 +8,6 @@ from its size and home pose, ``derived_defaults``).
 
 from __future__ import annotations
 
-import math
 from pathlib import PurePath
 from typing import Any
 
@@ -16,7 +15,7 @@ import numpy as np
 
 from envs import hardware
 from envs.kernels import generic as fk
-from envs.params import HARD_KINDS, INTEGRATORS, REWARD_FIELDS, TASK_REGIONS, TRACK_SHAPES, FamilyParams
+from envs.params import FamilyParams, check_fields
 from kinematics import (
     Delta,
     DistanceConstraintMechanism,
@@ -170,25 +169,6 @@ ROBOT_PRESETS: dict[str, dict[str, Any]] = {
     # ``kinematics.Planar3PRR()``: sliders along the base triangle's sides at 0.1 m/s; bounds around its home.
     "planar_3prr": {"robot": "planar_3prr"},
 }
-
-
-def _number(name: str, value: Any, *, allow_zero: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
-    value = float(value)
-    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
-        raise ValueError(f"{name} must be finite and {'≥' if allow_zero else '>'} 0, got {value!r}")
-    return value
-
-
-def _vector(name: str, value: Any, size: int) -> tuple[float, ...]:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a sequence of {size} numbers, got {value!r}") from exc
-    if arr.shape != (size,) or not np.isfinite(arr).all():
-        raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
-    return tuple(float(v) for v in arr)
 
 
 def _track_path(path: Any, times: Any, m: int) -> tuple[tuple[tuple[float, ...], ...], tuple[float, ...]]:
@@ -418,10 +398,8 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     if unknown:
         raise TypeError(f"unknown argument(s) {sorted(unknown)}")
     args = {name: spec.default for name, spec in defaults.items()} | kwargs  # the given values, else the defaults
-    values: dict[str, Any] = {}
-    for name in ("pose_low", "pose_high", "sample_low", "sample_high", "track_amplitude"):
-        values[name] = _vector(name, args[name], m)
-    lo, hi = _vector("stroke_limits", args["stroke_limits"], 2)
+    values = check_fields(args, {"m": m, "n": robot.n_actuators})  # each value in its range (``FamilyParams`` docs)
+    lo, hi = values["stroke_limits"]
     has_legs = "leg" in robot.actuator_kinds
     if not (0 < lo < hi if has_legs else lo < hi):
         bound = "0 < q_min < q_max (leg lengths)" if has_legs else "q_min < q_max"
@@ -440,57 +418,29 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     if robot.pose_space.name == "spatial" and max(map(abs, values["pose_low"][3:] + values["pose_high"][3:])) >= 2.5:
         raise ValueError("rotation-vector bounds must stay within ±2.5 rad, away from the wrap at |r| = π")
     values["track_path"], values["track_path_times"] = _track_path(args["track_path"], args["track_path_times"], m)
-    for name, valid in (("hard_kind", HARD_KINDS), ("task_region", TASK_REGIONS), ("track_shape", TRACK_SHAPES)):
-        values[name] = args[name]
-        if values[name] not in valid:
-            raise ValueError(f"{name} must be one of {valid}, got {values[name]!r}")
     if values["task_region"] == "grid" and m != 3:
         raise ValueError(f"task_region='grid' needs a robot with 3 pose coordinates, got {m} ({robot.pose_space.name})")
     if values["hard_kind"] == "crossing" and values["task_region"] != "grid":
         raise ValueError(f"hard_kind='crossing' needs task_region='grid', got {values['task_region']!r}")
     if values["track_shape"] == "circle" and (values["task_region"] != "grid" or values["track_path"]):
         raise ValueError("track_shape='circle' needs task_region='grid' and no track_path")
-    values["grid_cell"] = _vector("grid_cell", args["grid_cell"], 3)
-    if not all(v > 0 for v in values["grid_cell"]):
-        raise ValueError(f"grid_cell must be 3 positive spacings, got {values['grid_cell']}")
     for name in ("track_radius_range", "track_angle_range"):
-        values[name] = _vector(name, args[name], 2)
-        if not 0 <= values[name][0] <= values[name][1]:
+        if not values[name][0] <= values[name][1]:
             raise ValueError(f"{name} must satisfy 0 ≤ low ≤ high, got {values[name]}")
-    values["integrator"] = args["integrator"]
-    if values["integrator"] not in INTEGRATORS:
-        raise ValueError(f"integrator must be one of {INTEGRATORS}, got {values['integrator']!r}")
-    safe = values["safe_threshold"] = _number("safe_threshold", args["safe_threshold"])
-    hard = values["hard_threshold"] = _number("hard_threshold", args["hard_threshold"])
-    if not 0 < hard < safe < 1:
+    safe, hard = values["safe_threshold"], values["hard_threshold"]
+    if not hard < safe:
         raise ValueError(f"thresholds must satisfy 0 < hard_threshold < safe_threshold < 1, got {hard} and {safe}")
-    hard1 = values["actuator_hard_threshold"] = _number(
-        "actuator_hard_threshold", args["actuator_hard_threshold"], allow_zero=True
-    )
-    safe1 = values["actuator_safe_threshold"] = _number("actuator_safe_threshold", args["actuator_safe_threshold"])
-    if not hard1 < safe1 < 1:
+    safe1, hard1 = values["actuator_safe_threshold"], values["actuator_hard_threshold"]
+    if not hard1 < safe1:
         raise ValueError(
             f"thresholds must satisfy actuator_hard_threshold < actuator_safe_threshold < 1, got {hard1} and {safe1}"
         )
-    for name in ("newton_max_iterations", "max_substeps"):
-        count = args[name]
-        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
-            raise ValueError(f"{name} must be an int ≥ 1, got {count!r}")
-        values[name] = int(count)
-    for name in (
-        "dt",
-        "max_rate",
-        "success_position_tolerance",
-        "success_orientation_tolerance",
-        "newton_tolerance",
-        "jump_tolerance",
-        "max_substep",
-        "track_period",
-        "segment_spacing",
-    ):
-        values[name] = _number(name, args[name])
-    for name in (*REWARD_FIELDS, "stroke_margin", "min_distance"):
-        values[name] = _number(name, args[name], allow_zero=True)
+    if values["geometry_variation"] and (values["task_region"] != "box" or values["geometry_tolerance"]):
+        raise ValueError(
+            "geometry_variation needs task_region='box' (tasks certified on each robot's own geometry) and no "
+            f"geometry_tolerance, got task_region={values['task_region']!r}, "
+            f"geometry_tolerance={values['geometry_tolerance']}"
+        )
     if box_derived:
         values["sample_low"], values["sample_high"] = _fit_task_box(
             robot, values["sample_low"], values["sample_high"], (lo, hi), values["stroke_margin"], safe, safe1
@@ -502,53 +452,6 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
             values["segment_spacing"],
             certificate_spacing(certificate, robot, values["sample_low"], values["sample_high"], margin),
         )
-    values.update(_hardware(robot, args))
-    params = FamilyParams(robot=robot, stroke_limits=(lo, hi), **values)
+    params = FamilyParams(robot=robot, **values)
     hardware.check_tolerance(params)
     return params
-
-
-def _per_actuator(name: str, value: Any, n: int, default: tuple[float, ...], *, allow_zero: bool) -> tuple[float, ...]:
-    """() → ``default``; a number → n of it; else n numbers, each finite and > 0 (≥ 0 with ``allow_zero``)."""
-    if isinstance(value, (tuple, list, np.ndarray)) and len(value) == 0:
-        return default
-    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
-        value = (value,) * n
-    values = _vector(name, value, n)
-    if not all(v > 0 or (allow_zero and v == 0) for v in values):
-        raise ValueError(f"{name} must be {n} numbers {'≥' if allow_zero else '>'} 0, got {list(values)}")
-    return values
-
-
-def _hardware(robot: DistanceConstraintMechanism, args: dict[str, Any]) -> dict[str, Any]:
-    """The validated options of the robot as built and measured (``envs.hardware``)."""
-    n = robot.n_actuators
-    source = args["observation_source"]
-    if source not in hardware.OBSERVATION_SOURCES:
-        raise ValueError(f"observation_source must be one of {hardware.OBSERVATION_SOURCES}, got {source!r}")
-    values = {
-        "observation_source": source,
-        "encoder_resolution": _per_actuator("encoder_resolution", args["encoder_resolution"], n, (), allow_zero=False),
-        "encoder_noise": _per_actuator("encoder_noise", args["encoder_noise"], n, (), allow_zero=True),
-        "geometry_tolerance": _number("geometry_tolerance", args["geometry_tolerance"], allow_zero=True),
-        "geometry_variation": _number("geometry_variation", args["geometry_variation"], allow_zero=True),
-        "max_acceleration": _per_actuator("max_acceleration", args["max_acceleration"], n, (), allow_zero=False),
-    }
-    if values["geometry_variation"]:
-        if not values["geometry_variation"] < 0.5:
-            raise ValueError(
-                f"geometry_variation must be < 0.5 (a share of the size), got {values['geometry_variation']}"
-            )
-        if args["task_region"] != "box" or values["geometry_tolerance"]:
-            raise ValueError(
-                "geometry_variation needs task_region='box' (tasks certified on each robot's own geometry) and no "
-                f"geometry_tolerance, got task_region={args['task_region']!r}, "
-                f"geometry_tolerance={values['geometry_tolerance']}"
-            )
-    for name in ("estimator_iterations", "action_delay"):
-        count = args[name]
-        low = 1 if name == "estimator_iterations" else 0
-        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < low:
-            raise ValueError(f"{name} must be an int ≥ {low}, got {count!r}")
-        values[name] = int(count)
-    return values

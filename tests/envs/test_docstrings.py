@@ -10,23 +10,11 @@ import re
 import gymnasium as gym
 import pytest
 
-from envs import ENV_IDS, FamilyParams, FamilyReachEnv, FamilyTrackEnv
+from envs import ENV_IDS, FamilyParams, FamilyReachEnv, FamilyTrackEnv, presets
 from envs import params as env_params
+from envs.arguments import Choice, Range, Vector
 
 ENV_CLASSES = [FamilyReachEnv, FamilyTrackEnv]
-
-#: Fields of ``FamilyParams`` the Arguments table leaves to its ``**kwargs`` row ("Newton, substeps, margins").
-#: Every other field has a row of its own.
-KWARGS_ROW_FIELDS = {
-    "newton_tolerance",
-    "newton_max_iterations",
-    "jump_tolerance",
-    "max_substep",
-    "max_substeps",
-    "stroke_margin",
-    "segment_spacing",
-    "min_distance",
-}
 
 #: The sections of a Gymnasium environment page, in order.
 SECTIONS = (
@@ -63,28 +51,29 @@ def _table(body: str) -> list[list[str]]:
 
 
 def _argument_rows(cls: type) -> dict[str, list[str]]:
-    """Parameter name → row of the Arguments table (``**kwargs`` included, as "**kwargs")."""
+    """Parameter name → row (Parameter, Type, Default, Description) of the Arguments table, in table order."""
     header, *rows = _table(_sections(cls)["Arguments"])
     assert header == ["Parameter", "Type", "Default", "Description"], header
+    for row in rows:
+        assert len(row) == 4, f"not 4 cells (a stray '|'?): {row}"
+        assert re.fullmatch(r"`\w+`", row[0]), f"parameter cell {row[0]!r} is not a backticked name"
     names = [row[0] for row in rows]
     assert len(names) == len(set(names)), f"duplicate rows in {names}"
-    for row in rows:
-        assert len(row) == 4, row
     return {row[0].strip("`"): row for row in rows}
 
 
-def _arguments(cls: type) -> dict[str, str]:
-    """Parameter name → Default cell of the Arguments table (the ``**kwargs`` row left out)."""
-    out = {}
-    for row in _argument_rows(cls).values():
-        name, default = row[0], row[2]
-        if name == "`**kwargs`":
-            assert default == "", f"the **kwargs row has a default: {default!r}"
-            continue
-        assert re.fullmatch(r"`\w+`", name), f"parameter cell {name!r} is not a backticked name"
-        assert re.fullmatch(r"`[^`]+`", default), f"default cell {default!r} of {name} is not backticked"
-        out[name.strip("`")] = default.strip("`")
-    return out
+def _default(cell: str) -> tuple[object, bool]:
+    """The Default cell read back: (the value, by ``ast.literal_eval``; whether it is marked † per robot)."""
+    match = re.fullmatch(r"`([^`]+)`( †)?", cell)
+    assert match, f"default cell {cell!r} is not a backticked literal, optionally marked †"
+    return ast.literal_eval(match.group(1)), match.group(2) is not None
+
+
+def _same(documented: object, actual: object) -> bool:
+    """Equal and of one type (0.0 is not 0), tuples elementwise to the last bit of a float."""
+    if isinstance(actual, tuple):
+        return isinstance(documented, tuple) and documented == pytest.approx(actual, rel=1e-15, abs=0)
+    return type(documented) is type(actual) and documented == actual
 
 
 @pytest.mark.parametrize("cls", ENV_CLASSES)
@@ -95,66 +84,88 @@ def test_docstring_has_gymnasium_sections(cls):
 
 
 @pytest.mark.parametrize("cls", ENV_CLASSES)
-def test_arguments_table_lists_every_parameter(cls):
-    """Every named parameter and every FamilyParams field (but those of the **kwargs row) has a row; no other."""
-    documented = set(_argument_rows(cls))
+def test_every_keyword_argument_has_metadata_and_a_row(cls):
+    """The constructor's keywords (named, and every FamilyParams field through **kwargs) = the metadata = the rows."""
     signature = inspect.signature(cls.__init__).parameters
     named = {n for n, p in signature.items() if n != "self" and p.kind is not inspect.Parameter.VAR_KEYWORD}
-    assert "kwargs" in signature and "**kwargs" in documented, "the **kwargs row (FamilyParams fields) is missing"
-    fields = {f.name for f in dataclasses.fields(FamilyParams)} - {"robot"}
-    assert KWARGS_ROW_FIELDS <= fields, KWARGS_ROW_FIELDS - fields
-    accepted = named | fields | {"**kwargs"}
-    expected = named | (fields - KWARGS_ROW_FIELDS) | {"**kwargs"}
-    assert documented - accepted == set(), f"documented but not accepted: {sorted(documented - accepted)}"
-    assert expected - documented == set(), f"accepted but not documented: {sorted(expected - documented)}"
+    assert "kwargs" in signature, "the FamilyParams fields are no longer taken through **kwargs"
+    fields = {f.name for f in dataclasses.fields(FamilyParams)}
+    accepted = named | fields
+    described = [p.name for p in (*cls.named_arguments, *env_params.field_parameters())]
+    assert len(described) == len(set(described)), f"described twice: {described}"
+    assert accepted - set(described) == set(), f"keywords without metadata: {sorted(accepted - set(described))}"
+    assert set(described) - accepted == set(), f"metadata of no keyword: {sorted(set(described) - accepted)}"
+    assert list(_argument_rows(cls)) == described, "the Arguments table is not the metadata, in its order"
+
+
+@pytest.mark.parametrize("cls", ENV_CLASSES)
+def test_arguments_table_is_the_metadata(cls):
+    """Each row shows its Parameter: the type text, the default (marked † per robot), description, unit and range."""
+    rows = _argument_rows(cls)
+    mismatches = []
+    for p in (*cls.named_arguments, *env_params.field_parameters()):
+        _, type_cell, default_cell, description = rows[p.name]
+        assert p.description and type_cell, f"{p.name}: no description or type"
+        default, per_robot = _default(default_cell)
+        if not _same(default, p.default) or per_robot != p.per_robot:
+            mismatches.append(f"{p.name}: table {default_cell}, metadata {p.default!r} (per robot: {p.per_robot})")
+        if type_cell != p.type_text():
+            mismatches.append(f"{p.name}: type {type_cell!r}, metadata {p.type_text()!r}")
+        wanted = [p.description] + [f"[{p.unit}]"] * bool(p.unit)
+        if isinstance(p.check, (Range, Vector)) and p.check.text:
+            wanted.append(p.check.text)
+        mismatches += [f"{p.name}: {text!r} not in {description!r}" for text in wanted if text not in description]
+    assert not mismatches, "\n".join(mismatches)
+
+
+@pytest.mark.parametrize("cls", ENV_CLASSES)
+def test_arguments_table_defaults_are_what_the_constructor_builds(cls):
+    """The Default column: each named argument's signature default, and each field's value in the built params."""
+    signature = inspect.signature(cls.__init__).parameters
+    params = cls().params  # what the defaults build (the hexapod): the fields of **kwargs
+    mismatches = []
+    for name, row in _argument_rows(cls).items():
+        default, _ = _default(row[2])
+        actual = signature[name].default if name in signature else getattr(params, name)
+        if not _same(default, actual):
+            mismatches.append(f"{name}: documented {default!r}, the constructor {actual!r}")
+    assert not mismatches, "\n".join(mismatches)
+
+
+def test_per_robot_marks_are_the_fields_presets_and_sizes_set():
+    """† marks exactly the fields a preset of ROBOT_PRESETS or ``derived_defaults`` (any robot of ROBOTS) sets."""
+    set_per_robot = set()
+    for preset in presets.ROBOT_PRESETS.values():
+        set_per_robot |= set(preset) - {"robot"}
+    for robot in presets.ROBOTS.values():
+        set_per_robot |= set(presets.derived_defaults(robot()))
+    marked = {p.name for p in env_params.field_parameters() if p.per_robot}
+    assert marked - set_per_robot == set(), f"marked † but set by no preset: {sorted(marked - set_per_robot)}"
+    assert set_per_robot - marked == set(), f"set per robot but not marked †: {sorted(set_per_robot - marked)}"
 
 
 @pytest.mark.parametrize("cls", ENV_CLASSES)
 def test_arguments_table_names_every_choice(cls):
     """The rows of the string-valued choices name every accepted value (render modes, hard kinds, …)."""
     rows = _argument_rows(cls)
-    choices = {
-        "render_mode": tuple(cls.metadata["render_modes"]),
-        "integrator": env_params.INTEGRATORS,
-        "hard_kind": env_params.HARD_KINDS,
-        "task_region": env_params.TASK_REGIONS,
-        "track_shape": env_params.TRACK_SHAPES,
-    }
-    if cls is FamilyReachEnv:
-        choices["targets"] = env_params.TARGET_MODES
+    choices = {"render_mode": tuple(cls.metadata["render_modes"])}
+    for p in (*cls.named_arguments, *env_params.field_parameters()):
+        if isinstance(p.check, Choice):
+            choices[p.name] = p.check.values
+    assert {"integrator", "hard_kind", "task_region", "track_shape", "observation_source"} <= set(choices)
     missing = []
     for name, values in choices.items():
-        description = rows[name][3] if name in rows else ""
-        missing += [f"{name}: {value!r}" for value in values if f'"{value}"' not in description]
+        missing += [f"{name}: {value!r}" for value in values if f'"{value}"' not in rows[name][3]]
     assert not missing, "values not named in the Arguments table:\n" + "\n".join(missing)
 
 
-@pytest.mark.parametrize("cls", ENV_CLASSES)
-def test_arguments_table_defaults_match_the_signature(cls):
-    """The Default column, read with ast.literal_eval, equals each constructor default (or the params it builds)."""
-    signature = inspect.signature(cls.__init__)
-    params = cls().params  # what the defaults build: the fields of **kwargs
-    mismatches = []
-    for name, text in _arguments(cls).items():
-        if name in signature.parameters:
-            default = signature.parameters[name].default
-            assert default is not inspect.Parameter.empty, f"{name} has no default"
-        elif name in {f.name for f in dataclasses.fields(FamilyParams)}:
-            default = getattr(params, name)
-            assert default == FamilyParams.__dataclass_fields__[name].default, (
-                f"{name}: the class default is not the field's"
-            )
-        else:
-            mismatches.append(f"{name}: documented but not a parameter")
-            continue
-        documented = ast.literal_eval(text)
-        if isinstance(default, tuple):
-            same = isinstance(documented, tuple) and documented == pytest.approx(default, rel=1e-15, abs=0)
-        else:
-            same = type(documented) is type(default) and documented == default
-        if not same:
-            mismatches.append(f"{name}: documented {documented!r}, signature {default!r}")
-    assert not mismatches, "\n".join(mismatches)
+def test_family_params_attributes_are_the_metadata():
+    """FamilyParams' docstring has one Attributes entry per field, in field order, its description from the metadata."""
+    doc = inspect.getdoc(FamilyParams)
+    entries = re.findall(r"^    (\w+): (.*)$", doc.split("Attributes:", 1)[1], flags=re.MULTILINE)
+    assert [name for name, _ in entries] == [f.name for f in dataclasses.fields(FamilyParams)]
+    for (name, text), p in zip(entries[1:], env_params.field_parameters()):
+        assert text.lower().startswith(" ".join(p.describe().split())[:20].lower()), (name, text)
 
 
 def _declared_size(body: str, symbol: str) -> None:

@@ -326,7 +326,7 @@ def test_geometry_variation_is_refused_where_it_cannot_hold():
     """Grid tasks certify one geometry; a tolerance on top is not combined; ν must stay below 0.5."""
     with pytest.raises(ValueError, match="geometry_variation needs task_region='box'"):
         gym.make("Planar3RPRReach-v0", geometry_variation=0.1)
-    with pytest.raises(ValueError, match=r"geometry_variation must be < 0\.5"):
+    with pytest.raises(ValueError, match=r"geometry_variation must be finite and in \[0, 0\.5\), got 0\.6"):
         gym.make("Planar3RPRReachFamily-v0", geometry_variation=0.6)
 
 

@@ -10,6 +10,8 @@ import pytest
 
 import kinematics
 from envs import ENV_IDS, FamilyReachEnv, FamilyTrackEnv
+from envs.arguments import Choice, Range, Vector
+from envs.params import field_parameters
 
 ENV_CLASSES = [FamilyReachEnv, FamilyTrackEnv]
 
@@ -34,7 +36,8 @@ BAD_ARGUMENTS = [
     ({"integrator": "rk5"}, ValueError, r"integrator must be one of \('euler', 'rk4'\), got 'rk5'"),
     ({"safe_threshold": 0.03}, ValueError, r"0 < hard_threshold < safe_threshold < 1, got 0\.03 and 0\.03"),
     ({"safe_threshold": 0.02}, ValueError, r"0 < hard_threshold < safe_threshold < 1, got 0\.03 and 0\.02"),
-    ({"hard_threshold": 0}, ValueError, r"hard_threshold must be finite and > 0, got 0\.0"),
+    ({"hard_threshold": 0}, ValueError, r"hard_threshold must be finite and in \(0, 1\), got 0\.0"),
+    ({"safe_threshold": 1}, ValueError, r"safe_threshold must be finite and in \(0, 1\), got 1\.0"),
     ({"render_mode": "video"}, ValueError, r"render_mode must be one of \['human', 'rgb_array'\] or None, got 'video'"),
     ({"robot": "hexapod"}, ValueError, r"robot must be a DistanceConstraintMechanism or one of \[.*'planar_3rpr'"),
     ({"robot": 42}, TypeError, r"robot must be a kinematics\.DistanceConstraintMechanism, got int"),
@@ -51,7 +54,7 @@ BAD_ARGUMENTS = [
     ({"hard_kind": "crossing"}, ValueError, r"hard_kind='crossing' needs task_region='grid', got 'box'"),
     ({"track_shape": "circle"}, ValueError, r"track_shape='circle' needs task_region='grid' and no track_path"),
     ({"track_shape": "square"}, ValueError, r"track_shape must be one of \('sinusoid', 'circle'\), got 'square'"),
-    ({"grid_cell": (0.1, 0.0, 0.1)}, ValueError, r"grid_cell must be 3 positive spacings"),
+    ({"grid_cell": (0.1, 0.0, 0.1)}, ValueError, r"grid_cell must be 3 numbers > 0, got \[0\.1, 0\.0, 0\.1\]"),
     ({"track_radius_range": (0.2, 0.1)}, ValueError, r"track_radius_range must satisfy 0 ≤ low ≤ high"),
 ]
 
@@ -126,6 +129,36 @@ def test_invalid_constructor_arguments(cls, kwargs, error, match):
     """Each invalid argument is refused with the right exception and a message naming it."""
     with pytest.raises(error, match=match):
         cls(**kwargs)
+
+
+def _outside(check: Range | Choice | Vector) -> tuple[object, str]:
+    """A value the check refuses, and the pattern of the refusal (the expected and the actual value)."""
+    if isinstance(check, Choice):
+        return "nonsense", re.escape(f"must be one of {check.values}, got 'nonsense'")
+    if isinstance(check, Vector):
+        size = {"m": 6, "n": 6}.get(check.size, check.size)  # the hexapod's
+        if check.element is None:
+            return (0.0,) * (size + 1), re.escape(f"must be {size} finite numbers, got {(0.0,) * (size + 1)}")
+        bad = check.element.low - (0.0 if check.element.low_open else 1.0)
+        return (bad,) * size, re.escape(f"must be {size} numbers {check.element.text}, got {[bad] * size}")
+    bad = check.low - (0 if check.low_open else 1)
+    if check.integer:
+        return bad, re.escape(f"must be an int {check.text}, got {bad!r}")
+    return float(bad), re.escape(f"must be finite and {check.text}, got {float(bad)!r}")
+
+
+@pytest.mark.parametrize("parameter", [p for p in field_parameters() if p.check is not None], ids=lambda p: p.name)
+def test_every_checked_field_refuses_a_value_outside_its_metadata(parameter):
+    """Each field's Doc.check is what validates it: a value outside gives a message naming it, the range, the value."""
+    value, pattern = _outside(parameter.check)
+    with pytest.raises(ValueError, match=rf"^{parameter.name} {pattern}$"):
+        FamilyReachEnv(**{parameter.name: value})
+    if isinstance(parameter.check, Range) and parameter.check.high < np.inf:
+        high = parameter.check.high + (0.0 if parameter.check.high_open else 1.0)
+        with pytest.raises(
+            ValueError, match=rf"^{parameter.name} must be finite and {re.escape(parameter.check.text)}"
+        ):
+            FamilyReachEnv(**{parameter.name: high})
 
 
 @pytest.mark.parametrize("env_id", ["Planar3RPRReach-v0", "Planar3RPRTrack-v0", "ParallelRobotReach-v0"])
