@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -11,7 +12,7 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
-import envs
+import envs  # noqa: F401  (registers the ids)
 from envs.params import REWARD_FIELDS
 from robot_control.controllers import CONTROLLERS
 from training.config import ConfigError, algorithm_class, resolve_env_wrapper
@@ -285,7 +286,7 @@ def wrap_vector_for_run(venv: gym.vector.VectorEnv, config: dict[str, Any]) -> g
     cls = getattr(wrapper, "func", wrapper)
     kwargs = getattr(wrapper, "keywords", {})
     form = getattr(cls, "vector_form", None)
-    return None if form is None else getattr(envs, form)(venv, **kwargs)
+    return None if form is None else getattr(sys.modules[cls.__module__], form)(venv, **kwargs)
 
 
 def _shapes(space: gym.Space) -> Any:

@@ -71,21 +71,28 @@ def test_vector_evaluation_refuses_what_the_single_one_refuses():
         make_vector_env("CartPole-v1", 2)
 
 
-@pytest.mark.parametrize("wrapper", ["PlannerResidualWrapper", "PlannerWaypointWrapper", "PreviousActionWrapper"])
-def test_vector_planner_wrappers_equal_the_single_ones(wrapper):
+@pytest.mark.parametrize(
+    "package, wrapper",
+    [
+        (robot_control, "PlannerResidualWrapper"),
+        (robot_control, "PlannerWaypointWrapper"),
+        (envs, "PreviousActionWrapper"),
+    ],
+)
+def test_vector_planner_wrappers_equal_the_single_ones(package, wrapper):
     """Row i of the vector wrappers (the planner's, the previous action's) is the single wrapper on episode i."""
     from training.evaluate import wrap_vector_for_run
 
-    config = {"hyperparams": {"env_wrapper": f"envs.{wrapper}"}}
+    config = {"hyperparams": {"env_wrapper": f"{package.__name__}.{wrapper}"}}
     n = 6
 
     def agent(obs):  # a fixed function of the observation, row by row: batching cannot change it
         return (0.8 * np.tanh(3.0 * obs[:, -3:] - obs[:, :3])).astype(np.float32)
 
-    env = getattr(envs, wrapper)(envs.SingularityShield(gym.make("Planar3RPRReach-v0"), k_guard=0.05))
+    env = getattr(package, wrapper)(envs.SingularityShield(gym.make("Planar3RPRReach-v0"), k_guard=0.05))
     one_by_one = evaluate_agent(agent, env, n, 5000, "hard")
     venv = wrap_vector_for_run(make_vector_env("Planar3RPRReach-v0", n, shield=0.05), config)
-    assert isinstance(venv, getattr(envs, "Vector" + wrapper))
+    assert isinstance(venv, getattr(package, "Vector" + wrapper))
     assert venv.single_observation_space == env.observation_space
     assert_same_records(one_by_one, evaluate_vector(agent, venv, 5000, "hard"))
     assert wrap_vector_for_run(make_vector_env("Planar3RPRReach-v0", 2), {"hyperparams": {}}) is not None
