@@ -12,6 +12,7 @@ import math
 import textwrap
 from collections.abc import Sequence
 from dataclasses import field, fields
+from enum import Enum
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -208,7 +209,10 @@ def parameters(cls: type, skip: Sequence[str] = ()) -> tuple[Parameter, ...]:
 
 def _default_cell(parameter: Parameter) -> str:
     value = parameter.default
-    text = f'"{value}"' if isinstance(value, str) else repr(value)
+    if isinstance(value, Enum):
+        text = f"{type(value).__name__}.{value.name}"
+    else:
+        text = f'"{value}"' if isinstance(value, str) else repr(value)
     return f"`{text}`" + (" †" if parameter.per_robot else "")
 
 

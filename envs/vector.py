@@ -13,6 +13,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from envs import physics
+from envs.arguments import Parameter, Range, table
 from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv, render_frames
 from envs.kernels.setup import random_streams
 from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate, step_info
@@ -41,11 +42,26 @@ def episode_starts(mode: AutoresetMode, ended: np.ndarray, terminated: np.ndarra
     return np.zeros(np.shape(ended), dtype=bool)
 
 
-def _positive_int(name: str, value: Any) -> int:
+#: The vector env's own keyword arguments (its Arguments table); every other one is the single env's.
+NUM_ENVS = Parameter("num_envs", 1, "number of robots N", check=Range(1, integer=True))
+MAX_EPISODE_STEPS = Parameter(
+    "max_episode_steps", None, "truncation length; None: the registered one", check=Range(1, integer=True),
+    type="int or None",
+)  # fmt: skip
+VECTOR_ARGUMENTS = (
+    NUM_ENVS,
+    MAX_EPISODE_STEPS,
+    Parameter("autoreset_mode", AutoresetMode.NEXT_STEP, "see Episode End", type="AutoresetMode or str"),
+    Parameter("render_mode", None, '"rgb_array": `render()` returns the N frames', type="str or None"),
+)
+
+
+def _count(parameter: Parameter, value: Any) -> int:
+    """``value`` as an int in the range of ``parameter.check``, or a TypeError / ValueError naming it."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an int, got {type(value).__name__} {value!r}")
-    if value < 1:
-        raise ValueError(f"{name} must be ≥ 1, got {value}")
+        raise TypeError(f"{parameter.name} must be an int, got {type(value).__name__} {value!r}")
+    if not parameter.check.contains(value):
+        raise ValueError(f"{parameter.name} must be {parameter.check.text}, got {value}")
     return int(value)
 
 
@@ -103,13 +119,7 @@ class FamilyVectorEnv(VectorEnv):
     (`termination_reason` is an object array of strings).
 
     ## Arguments
-    | Parameter | Type | Default | Description |
-    |-----------|------|---------|-------------|
-    | `num_envs` | int | `1` | number of robots N |
-    | `max_episode_steps` | int or None | `None` | truncation length; None: the registered one |
-    | `autoreset_mode` | AutoresetMode or str | `AutoresetMode.NEXT_STEP` | see Episode End |
-    | `render_mode` | str or None | `None` | "rgb_array": `render()` returns the N frames |
-    | `**kwargs` | | | every argument of the single env, with its defaults and checks |
+    {arguments}
 
     ## Memory
     Memory grows linearly with N (`benchmarks.bench_vector_env` prints the figures): the state arrays (q, x,
@@ -143,10 +153,10 @@ class FamilyVectorEnv(VectorEnv):
         cls = type(self).single_env_class
         if cls is None:
             raise TypeError("FamilyVectorEnv is abstract; use FamilyReachVectorEnv or FamilyTrackVectorEnv")
-        self.num_envs = _positive_int("num_envs", num_envs)
+        self.num_envs = _count(NUM_ENVS, num_envs)
         if max_episode_steps is None:
             max_episode_steps = type(self).default_max_episode_steps
-        self.max_episode_steps = _positive_int("max_episode_steps", max_episode_steps)
+        self.max_episode_steps = _count(MAX_EPISODE_STEPS, max_episode_steps)
         try:
             self.autoreset_mode = AutoresetMode(autoreset_mode)
         except ValueError as exc:
@@ -539,3 +549,10 @@ class FamilyTrackVectorEnv(FamilyVectorEnv):
 
     single_env_class = FamilyTrackEnv
     default_max_episode_steps = 400
+
+
+FamilyVectorEnv.__doc__ = FamilyVectorEnv.__doc__.replace(
+    "    {arguments}",
+    table(VECTOR_ARGUMENTS)
+    + "\n    | `**kwargs` | | | every argument of the single env, with its defaults and checks |",
+)

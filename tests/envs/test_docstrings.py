@@ -9,10 +9,12 @@ import re
 
 import gymnasium as gym
 import pytest
+from gymnasium.vector import AutoresetMode
 
 from envs import ENV_IDS, FamilyParams, FamilyReachEnv, FamilyTrackEnv, presets
 from envs import params as env_params
 from envs.arguments import Choice, Range, Vector
+from envs.vector import VECTOR_ARGUMENTS, FamilyVectorEnv
 
 ENV_CLASSES = [FamilyReachEnv, FamilyTrackEnv]
 
@@ -56,7 +58,7 @@ def _argument_rows(cls: type) -> dict[str, list[str]]:
     assert header == ["Parameter", "Type", "Default", "Description"], header
     for row in rows:
         assert len(row) == 4, f"not 4 cells (a stray '|'?): {row}"
-        assert re.fullmatch(r"`\w+`", row[0]), f"parameter cell {row[0]!r} is not a backticked name"
+        assert re.fullmatch(r"`(\*\*)?\w+`", row[0]), f"parameter cell {row[0]!r} is not a backticked name"
     names = [row[0] for row in rows]
     assert len(names) == len(set(names)), f"duplicate rows in {names}"
     return {row[0].strip("`"): row for row in rows}
@@ -130,6 +132,20 @@ def test_arguments_table_defaults_are_what_the_constructor_builds(cls):
         if not _same(default, actual):
             mismatches.append(f"{name}: documented {default!r}, the constructor {actual!r}")
     assert not mismatches, "\n".join(mismatches)
+
+
+def test_vector_arguments_table_is_its_metadata_and_signature():
+    """The vector env's table: its own arguments (VECTOR_ARGUMENTS, signature defaults), then the single env's."""
+    rows = _argument_rows(FamilyVectorEnv)
+    signature = inspect.signature(FamilyVectorEnv.__init__).parameters
+    named = [n for n, p in signature.items() if n != "self" and p.kind is not inspect.Parameter.VAR_KEYWORD]
+    assert [p.name for p in VECTOR_ARGUMENTS] == named
+    assert list(rows) == [*named, "**kwargs"]
+    for p in VECTOR_ARGUMENTS:
+        text = re.fullmatch(r"`([^`]+)`", rows[p.name][2]).group(1)
+        default = AutoresetMode[text.split(".")[1]] if text.startswith("AutoresetMode.") else ast.literal_eval(text)
+        assert _same(default, signature[p.name].default) and _same(default, p.default), (p.name, text)
+        assert rows[p.name][1] == p.type_text() and rows[p.name][3] == p.describe(), rows[p.name]
 
 
 def test_per_robot_marks_are_the_fields_presets_and_sizes_set():
