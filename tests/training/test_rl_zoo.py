@@ -14,13 +14,16 @@ from training.config import default_config_path
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
+#: Env steps of every run: one PPO rollout (2 envs × 64 steps); 32 gradient steps of the off-policy algorithms.
+TIMESTEPS = 128
+
 #: One env id per config file (each file lists every id; the family ids and the 3-RPR ones both appear), with
 #: budget overrides in the Zoo's own ``--hyperparams key:value`` syntax that keep the run to a few seconds.
 CASES = {
     "ppo": ("Planar3RPRReach-v0", ["n_envs:2", "n_steps:64", "batch_size:64", "n_epochs:1"]),
-    "sac": ("StewartGoughReach-v0", ["n_envs:1", "buffer_size:1000", "learning_starts:100", "batch_size:32"]),
-    "td3": ("Planar3RPRReach-v0", ["n_envs:1", "buffer_size:1000", "learning_starts:100", "batch_size:32"]),
-    "tqc": ("StewartGoughReach-v0", ["n_envs:1", "buffer_size:1000", "learning_starts:100", "batch_size:32"]),
+    "sac": ("StewartGoughReach-v0", ["n_envs:1", "buffer_size:1000", "learning_starts:96", "batch_size:32"]),
+    "td3": ("Planar3RPRReach-v0", ["n_envs:1", "buffer_size:1000", "learning_starts:96", "batch_size:32"]),
+    "tqc": ("StewartGoughReach-v0", ["n_envs:1", "buffer_size:1000", "learning_starts:96", "batch_size:32"]),
 }
 
 
@@ -43,7 +46,9 @@ def test_rl_zoo_trains_the_shipped_config_and_evaluate_scores_its_run(algo, tmp_
         "-conf",
         str(default_config_path(algo)),
         "-n",
-        "256",
+        str(TIMESTEPS),
+        "--num-threads",  # one torch thread, as in the tests' own processes: more are ~4× slower on a shared core
+        "1",
         "--eval-freq",
         "-1",
         "-f",
