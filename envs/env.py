@@ -536,4 +536,5 @@ class FamilyTrackEnv(FamilyEnvBase):
 
 
 for _cls in (FamilyReachEnv, FamilyTrackEnv):  # the Arguments tables, from the arguments' metadata
-    _cls.__doc__ = _cls.__doc__.replace("    {arguments}", arguments_table(_cls.named_arguments))
+    if _cls.__doc__:  # None under python -OO
+        _cls.__doc__ = _cls.__doc__.replace("    {arguments}", arguments_table(_cls.named_arguments))

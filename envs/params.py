@@ -401,4 +401,5 @@ def arguments_table(head: Sequence[Parameter]) -> str:
     )
 
 
-FamilyParams.__doc__ = FamilyParams.__doc__.replace("        {attributes}", attributes(FamilyParams))
+if FamilyParams.__doc__:  # None under python -OO
+    FamilyParams.__doc__ = FamilyParams.__doc__.replace("        {attributes}", attributes(FamilyParams))

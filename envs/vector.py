@@ -551,8 +551,9 @@ class FamilyTrackVectorEnv(FamilyVectorEnv):
     default_max_episode_steps = 400
 
 
-FamilyVectorEnv.__doc__ = FamilyVectorEnv.__doc__.replace(
-    "    {arguments}",
-    table(VECTOR_ARGUMENTS)
-    + "\n    | `**kwargs` | | | every argument of the single env, with its defaults and checks |",
-)
+if FamilyVectorEnv.__doc__:  # None under python -OO
+    FamilyVectorEnv.__doc__ = FamilyVectorEnv.__doc__.replace(
+        "    {arguments}",
+        table(VECTOR_ARGUMENTS)
+        + "\n    | `**kwargs` | | | every argument of the single env, with its defaults and checks |",
+    )
