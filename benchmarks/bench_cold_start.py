@@ -155,10 +155,22 @@ def _short(signature: str, width: int = 400) -> str:
     return out if len(out) <= width else out[: width - 1] + "…"
 
 
+def _commit(repo: Path) -> str:
+    """The short hash of the checkout measured (with "+" if it has uncommitted changes), or "?"."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=repo, capture_output=True, text=True)
+        dirty = subprocess.run(["git", "status", "--porcelain", "envs"], cwd=repo, capture_output=True, text=True)
+    except OSError:
+        return "?"
+    return head.stdout.strip() + ("+" if dirty.stdout.strip() else "") if head.returncode == 0 else "?"
+
+
 def main(argv: list[str] | None = None) -> None:
     """Measure the anchor, each id and the warm-up in fresh processes; print the table (and the profile)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ids", nargs="*", default=None, help="ids to measure (default: every id of envs.ENV_IDS; none: --ids alone)")
+    parser.add_argument(
+        "--ids", nargs="*", default=None, help="ids to measure (default: every id of envs.ENV_IDS; none: --ids alone)"
+    )
     parser.add_argument("--no-warmup", action="store_true", help="skip the test suite's warm-up")
     parser.add_argument("--profile", action="store_true", help=f"write the compile profile to {PROFILE_PATH}")
     parser.add_argument("--profile-out", type=Path, default=PROFILE_PATH, help="where --profile writes its table")
@@ -170,8 +182,10 @@ def main(argv: list[str] | None = None) -> None:
 
         args.ids = list(ENV_IDS)
 
-    print(f"# cold start: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
-          f"Python {platform.python_version()}, repo {args.repo}")
+    print(
+        f"# cold start: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
+        f"Python {platform.python_version()}, repo {args.repo}"
+    )
     anchor = measure("torch", "", False, args.repo)[0] if torch_available() else None
     rows, runs = [], {}
     for env_id in args.ids:
@@ -190,14 +204,16 @@ def main(argv: list[str] | None = None) -> None:
     for name, cpu, target in rows:
         ratio = f"{cpu / anchor:8.2f}" if anchor else f"{'-':>8}"
         verdict = "ok" if cpu <= target else "over"
-        print(f"{name:<{width}} {cpu:7.1f} {ratio} {'≤ %g s' % target:>8} {verdict}")
+        limit = f"≤ {target:g} s"
+        print(f"{name:<{width}} {cpu:7.1f} {ratio} {limit:>8} {verdict}")
     ids = [r for r in rows if r[0].startswith("first step")]
     if ids:
         worst = max(ids, key=lambda r: r[1])
         print(f"worst first step: {worst[0][len('first step ') :]} {worst[1]:.1f} s")
     if args.profile:
+        command = " ".join(["python -m benchmarks.bench_cold_start", *(argv if argv is not None else sys.argv[1:])])
         header = (
-            "Numba compile profile of the cold start (python -m benchmarks.bench_cold_start --profile): own CPU\n"
+            f"Numba compile profile of the cold start ({command}; commit {_commit(args.repo)}): own CPU\n"
             "seconds of each compiled function (without the jitted functions it compiles in turn), per\n"
             "specialisation. Inlined functions (inline='always') count in their callers.\n"
         )

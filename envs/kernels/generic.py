@@ -672,7 +672,7 @@ def _homogeneous_lane(c, q, w, src, H, lane):
         row = w[src + i]
         for j in range(6):
             H[j, i, lane] = row[j] * inv * c[C_SCALE + j]
-    det = _solve(w, 6, src, w[W_RHS], w[W_SOL])
+    det = _solve(w, np.int64(6), src, w[W_RHS], w[W_SOL])  # m as int64: one compiled _solve for every caller
     return 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
 
 

@@ -81,7 +81,8 @@ def anchor(c, i, qi):
 @jit_inline
 def anchors(c, q0, q1, q2):
     """The three legs' ``anchor`` values at q = (q0, q1, q2): a tuple of three 8-tuples."""
-    return anchor(c, 0, q0), anchor(c, 1, q1), anchor(c, 2, q2)
+    # The indices as int64, not as constants: Numba would compile ``anchor`` once per constant index.
+    return anchor(c, np.int64(0), q0), anchor(c, np.int64(1), q1), anchor(c, np.int64(2), q2)
 
 
 @jit_inline
