@@ -1664,6 +1664,7 @@ def _draw_band(c, fn, st, w, strokes, low, high, out):
 def _sample_reach_one(c, fn, st, hard, min_distance, w, strokes, start, target, waypoint, step):
     """One certified pair from the stream (fn, st) into start, target, waypoint (see ``_sample_reach``); success."""
     safe = c[C_SAFE]
+    box = np.bool_(True)  # a bool, not the constant True: one compiled _segment_min_k for every caller
     band = hard and c[C_HARD_KIND] != 0.0
     floor = 2.0 * c[C_HARD]
     for _ in range(SAMPLER_TRIES):
@@ -1678,18 +1679,18 @@ def _sample_reach_one(c, fn, st, hard, min_distance, w, strokes, start, target, 
         if not _metric(c, step) >= min_distance:
             continue
         if not hard:
-            if _segment_min_k(c, start, target, w, strokes, safe, c[C_SPACING], True) >= safe:
+            if _segment_min_k(c, start, target, w, strokes, safe, c[C_SPACING], box) >= safe:
                 return True
         elif band:
-            if _segment_min_k(c, start, target, w, strokes, floor, c[C_SPACING], True) >= floor:
+            if _segment_min_k(c, start, target, w, strokes, floor, c[C_SPACING], box) >= floor:
                 return True
-        elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf, c[C_SPACING], True) < safe:
+        elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf, c[C_SPACING], box) < safe:
             for _ in range(WAYPOINT_TRIES):
                 if not _draw_safe(c, fn, st, w, strokes, waypoint):
                     return False
                 if (
-                    _segment_min_k(c, start, waypoint, w, strokes, safe, c[C_SPACING], True) >= safe
-                    and _segment_min_k(c, waypoint, target, w, strokes, safe, c[C_SPACING], True) >= safe
+                    _segment_min_k(c, start, waypoint, w, strokes, safe, c[C_SPACING], box) >= safe
+                    and _segment_min_k(c, waypoint, target, w, strokes, safe, c[C_SPACING], box) >= safe
                 ):
                     return True
     return False
@@ -1783,6 +1784,7 @@ def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_p
     """
     m = int(c[C_N])
     safe = c[C_SAFE]
+    box = np.bool_(True)  # a bool, not the constant True (see ``_sample_reach_one``)
     path = c[C_PATH] != 0.0
     shared = streams.shape[0] == 1
     w = _work()
@@ -1806,7 +1808,7 @@ def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_p
             ok = True
             for step in range(n_check + 1):
                 _reference_at(c, _TWO_PI * step / n_check, o_center, o_amplitude, o_phase, i, point, rate)
-                if step > 0 and _segment_min_k(c, previous, point, w, strokes, safe, c[C_SPACING], True) < safe:
+                if step > 0 and _segment_min_k(c, previous, point, w, strokes, safe, c[C_SPACING], box) < safe:
                     ok = False
                     break
                 for j in range(m):
