@@ -155,6 +155,34 @@ def _short(signature: str, width: int = 400) -> str:
     return out if len(out) <= width else out[: width - 1] + "…"
 
 
+def summary(rows: list[tuple[str, float, float]], anchor: float | None) -> str:
+    """The table of the measurements: CPU seconds, ratio to ``import torch`` and target of each."""
+    width = max((len(r[0]) for r in rows), default=22) + 2
+    lines = [f"{'measurement':<{width}} {'CPU s':>7} {'× torch':>8} {'target':>8}"]
+    if anchor is not None:
+        lines.append(f"{'import torch (anchor)':<{width}} {anchor:7.1f} {1.0:8.2f} {'':>8}")
+    for name, cpu, target in rows:
+        ratio = f"{cpu / anchor:8.2f}" if anchor else f"{'-':>8}"
+        verdict = "ok" if cpu <= target else "over"
+        limit = f"≤ {target:g} s"
+        lines.append(f"{name:<{width}} {cpu:7.1f} {ratio} {limit:>8} {verdict}")
+    ids = [r for r in rows if r[0].startswith("first step")]
+    if ids:
+        worst = max(ids, key=lambda r: r[1])
+        lines.append(f"worst first step: {worst[0][len('first step ') :]} {worst[1]:.1f} s")
+    return "\n".join(lines)
+
+
+def _version(package: str) -> str:
+    """The installed version of ``package``, or "?"."""
+    import importlib.metadata
+
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return "?"
+
+
 def _commit(repo: Path) -> str:
     """The short hash of the checkout measured (with "+" if it has uncommitted changes), or "?"."""
     try:
@@ -182,10 +210,11 @@ def main(argv: list[str] | None = None) -> None:
 
         args.ids = list(ENV_IDS)
 
-    print(
-        f"# cold start: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
-        f"Python {platform.python_version()}, repo {args.repo}"
+    machine = (
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, "
+        f"numba {_version('numba')}, repo {args.repo}"
     )
+    print(f"# cold start: {machine}")
     anchor = measure("torch", "", False, args.repo)[0] if torch_available() else None
     rows, runs = [], {}
     for env_id in args.ids:
@@ -197,28 +226,18 @@ def main(argv: list[str] | None = None) -> None:
         cpu, records = measure("warmup", "", args.profile, args.repo)
         rows.append(("warm-up of every id (tests/numba_warmup.py)", cpu, TARGET_WARMUP))
         runs["the test suite's warm-up"] = records
-    width = max(len(r[0]) for r in rows) + 2
-    print(f"\n{'measurement':<{width}} {'CPU s':>7} {'× torch':>8} {'target':>8}")
-    if anchor is not None:
-        print(f"{'import torch (anchor)':<{width}} {anchor:7.1f} {1.0:8.2f} {'':>8}")
-    for name, cpu, target in rows:
-        ratio = f"{cpu / anchor:8.2f}" if anchor else f"{'-':>8}"
-        verdict = "ok" if cpu <= target else "over"
-        limit = f"≤ {target:g} s"
-        print(f"{name:<{width}} {cpu:7.1f} {ratio} {limit:>8} {verdict}")
-    ids = [r for r in rows if r[0].startswith("first step")]
-    if ids:
-        worst = max(ids, key=lambda r: r[1])
-        print(f"worst first step: {worst[0][len('first step ') :]} {worst[1]:.1f} s")
+    table = summary(rows, anchor)
+    print("\n" + table)
     if args.profile:
         command = " ".join(["python -m benchmarks.bench_cold_start", *(argv if argv is not None else sys.argv[1:])])
         header = (
             f"Numba compile profile of the cold start ({command}; commit {_commit(args.repo)}): own CPU\n"
             "seconds of each compiled function (without the jitted functions it compiles in turn), per\n"
             "specialisation. Inlined functions (inline='always') count in their callers.\n"
+            f"Machine: {machine}.\n"
         )
         args.profile_out.parent.mkdir(parents=True, exist_ok=True)
-        args.profile_out.write_text(header + profile_table(runs) + "\n")
+        args.profile_out.write_text(header + "\n" + table + "\n" + profile_table(runs) + "\n")
         print(f"compile profile written to {args.profile_out}")
 
 
