@@ -95,10 +95,22 @@ def test_pretrained_policy_keeps_its_recorded_performance(pretrained_run, regres
 
 
 @pytest.mark.slow
-def test_demo_writes_report(pretrained_run, tmp_path, capsys):
-    """experiments.demo.main writes the report, the metrics, the pictures and the policy's GIF."""
+def test_demo_writes_report(pretrained_run, tmp_path, capsys, monkeypatch):
+    """experiments.demo.main writes the report, the metrics, the pictures and the policy's GIF.
+
+    It asks each family robot for its section with the same folder, episodes, seed and shield; those sections are
+    run here by name only (``run_family_demo`` is run for every robot by the tests below).
+    """
     out = tmp_path / "demo"
+    sections = []
+
+    def family_section(name, folder, episodes, seed, shield):
+        sections.append((name, folder, episodes, seed, shield))
+        return {}
+
+    monkeypatch.setattr(demo, "run_family_demo", family_section)
     assert demo.main(["--episodes", "2", "--out", str(out)]) == 0
+    assert sections == [(name, out, 2, 1000, demo.DEMO_SHIELD) for name in demo.FAMILY_DEMOS]
     names = (
         "report.md",
         "metrics.json",
@@ -130,7 +142,9 @@ def test_demo_writes_report(pretrained_run, tmp_path, capsys):
             assert image.format == "PNG"
     with Image.open(out / "policy_hard.gif") as gif:
         assert gif.format == "GIF" and gif.n_frames > 2
-    assert "report written to" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "report written to" in printed
+    assert all(f"{name}.md" in printed for name in demo.FAMILY_DEMOS)
     if demo.PRETRAINED_TRACK_RUN.is_dir():
         track = json.loads((out / "track_metrics.json").read_text())
         assert set(track) == {"PPO policy @ track", "resolved-rate @ track"}
