@@ -896,6 +896,25 @@ def row_path(cs) -> int:
     return WORK_ARRAYS
 
 
+#: Pose spaces, the second compile-time constant of the entry kernels (the evaluation encodes and compares poses
+#: of its own space only).
+PLANAR_SPACE, SPATIAL_SPACE, TRANSLATIONAL_SPACE = 0, 1, 2
+
+
+def pose_space_code(cs) -> int:
+    """The pose space (``PLANAR_SPACE``, ``SPATIAL_SPACE`` or ``TRANSLATIONAL_SPACE``) of the robot of ``cs``."""
+    if cs.item(C_SPATIAL) != 0.0:
+        return SPATIAL_SPACE
+    return TRANSLATIONAL_SPACE if cs.item(C_TRANSLATIONAL) != 0.0 else PLANAR_SPACE
+
+
+def _literal_space(space) -> int:
+    """The value of a pose space typed as a compile-time constant."""
+    if not isinstance(space, types.IntegerLiteral) or space.literal_value not in (0, 1, 2):
+        raise errors.TypingError(f"the pose space must be a compile-time constant in (0, 1, 2), got {space}")
+    return space.literal_value
+
+
 def _literal_path(path) -> int:
     """The value of a row path typed as a compile-time constant (the overloads below choose code by it)."""
     if not isinstance(path, types.IntegerLiteral) or path.literal_value not in ROW_PATHS:
@@ -1025,7 +1044,7 @@ def transition_batch(cs, state, action):
     Returns:
         (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
     """
-    return _PATH_KERNELS[row_path(cs)].transition(cs, state, action)
+    return path_kernels(cs).transition(cs, state, action)
 
 
 @jit
@@ -1172,21 +1191,44 @@ def reference_batch(c, t, center, amplitude, phase):
     return o_pose, o_velocity
 
 
-@jit
-def _errors(c, x, g, diff):
-    """(‖p* − p‖ [m], orientation error [rad]) of pose x against target g; diff gets the error vector."""
-    if c[C_SPATIAL] != 0.0:
-        diff[0], diff[1], diff[2] = g[0] - x[0], g[1] - x[1], g[2] - x[2]
-        diff[3], diff[4], diff[5] = _relative_rotvec(g[3], g[4], g[5], x[3], x[4], x[5])
-        position = math.sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2])
-        orientation = math.sqrt(diff[3] * diff[3] + diff[4] * diff[4] + diff[5] * diff[5])
-        return position, orientation
-    if c[C_TRANSLATIONAL] != 0.0:
-        diff[0], diff[1], diff[2] = g[0] - x[0], g[1] - x[1], g[2] - x[2]
-        return math.sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2]), 0.0
+@jit_inline
+def _errors_spatial(x, g, diff):
+    diff[0], diff[1], diff[2] = g[0] - x[0], g[1] - x[1], g[2] - x[2]
+    diff[3], diff[4], diff[5] = _relative_rotvec(g[3], g[4], g[5], x[3], x[4], x[5])
+    position = math.sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2])
+    orientation = math.sqrt(diff[3] * diff[3] + diff[4] * diff[4] + diff[5] * diff[5])
+    return position, orientation
+
+
+@jit_inline
+def _errors_translational(x, g, diff):
+    diff[0], diff[1], diff[2] = g[0] - x[0], g[1] - x[1], g[2] - x[2]
+    return math.sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2]), 0.0
+
+
+@jit_inline
+def _errors_planar(x, g, diff):
     diff[0], diff[1] = g[0] - x[0], g[1] - x[1]
     diff[2] = _wrap(g[2] - x[2])
     return math.sqrt(diff[0] * diff[0] + diff[1] * diff[1]), abs(diff[2])
+
+
+def _errors(space, x, g, diff):
+    """(‖p* − p‖ [m], orientation error [rad]) of pose x against target g; diff gets the error vector.
+
+    ``space`` is the pose space, a compile-time constant: the overload below compiles its comparison only.
+    """
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_errors, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _errors_of_space(space, x, g, diff):
+    errors_in = (_errors_planar, _errors_spatial, _errors_translational)[_literal_space(space)]
+
+    def impl(space, x, g, diff):
+        return errors_in(x, g, diff)
+
+    return impl
 
 
 @jit_inline
@@ -1195,25 +1237,48 @@ def _clip32(o_obs, i, j, value, low, high):
 
 
 @jit_inline
-def _encode_pose(c, x, o_obs, i, start, low, high):
-    """Position and a continuous rotation code, (x, y, cos φ, sin φ), (p, quaternion, w ≥ 0) or p; next column."""
-    if c[C_SPATIAL] != 0.0:
-        qw, qx, qy, qz = _quat_from_rotvec(x[3], x[4], x[5])
-        if qw < 0.0:
-            qw, qx, qy, qz = -qw, -qx, -qy, -qz
-        values = (x[0], x[1], x[2], qw, qx, qy, qz)
-        for j in range(7):
-            _clip32(o_obs, i, start + j, values[j], low, high)
-        return start + 7
-    if c[C_TRANSLATIONAL] != 0.0:
-        for j in range(3):
-            _clip32(o_obs, i, start + j, x[j], low, high)
-        return start + 3
+def _encode_spatial(x, o_obs, i, start, low, high):
+    qw, qx, qy, qz = _quat_from_rotvec(x[3], x[4], x[5])
+    if qw < 0.0:
+        qw, qx, qy, qz = -qw, -qx, -qy, -qz
+    values = (x[0], x[1], x[2], qw, qx, qy, qz)
+    for j in range(7):
+        _clip32(o_obs, i, start + j, values[j], low, high)
+    return start + 7
+
+
+@jit_inline
+def _encode_translational(x, o_obs, i, start, low, high):
+    for j in range(3):
+        _clip32(o_obs, i, start + j, x[j], low, high)
+    return start + 3
+
+
+@jit_inline
+def _encode_planar(x, o_obs, i, start, low, high):
     _clip32(o_obs, i, start, x[0], low, high)
     _clip32(o_obs, i, start + 1, x[1], low, high)
     _clip32(o_obs, i, start + 2, math.cos(x[2]), low, high)
     _clip32(o_obs, i, start + 3, math.sin(x[2]), low, high)
     return start + 4
+
+
+def _encode_pose(space, x, o_obs, i, start, low, high):
+    """Position and a continuous rotation code, (x, y, cos φ, sin φ), (p, quaternion, w ≥ 0) or p; next column.
+
+    ``space`` is the pose space, a compile-time constant: the overload below compiles its code only.
+    """
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_encode_pose, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _encode_pose_of_space(space, x, o_obs, i, start, low, high):
+    encode = (_encode_planar, _encode_spatial, _encode_translational)[_literal_space(space)]
+
+    def impl(space, x, o_obs, i, start, low, high):
+        return encode(x, o_obs, i, start, low, high)
+
+    return impl
 
 
 @jit_inline
@@ -1250,7 +1315,7 @@ def _evaluate_planar_row(c, observation, measured, reference, outcome, i, w, out
 
 
 @jit_inline
-def _evaluate_general_row(c, observation, measured, reference, outcome, i, w, out):
+def _evaluate_general_row(space, c, observation, measured, reference, outcome, i, w, out):
     """``_evaluate_row`` of any robot over work arrays (any pose space and actuator kind)."""
     low, high, with_velocity = observation
     q, x, t, k, k1, residual = measured
@@ -1261,7 +1326,7 @@ def _evaluate_general_row(c, observation, measured, reference, outcome, i, w, ou
     g, vel, diff = w[W_TGT], w[W_VEL], w[W_DIFF]
     _reference(c, t[i], center, amplitude, phase, i, g, vel)
     xi = x[i]
-    position_error, orientation_error = _errors(c, xi, g, diff)
+    position_error, orientation_error = _errors(space, xi, g, diff)
     ki = k[i]
     tracking = -(c[C_WP] * position_error + c[C_WO] * c[C_LC] * orientation_error)
     safe = c[C_SAFE]
@@ -1301,8 +1366,8 @@ def _evaluate_general_row(c, observation, measured, reference, outcome, i, w, ou
         o_eval[E_FIXED + j, i] = g[j]
         o_eval[E_FIXED + m + j, i] = vel[j]
         o_eval[E_FIXED + 2 * m + j, i] = xi[j]
-    col = _encode_pose(c, xi, o_obs, i, 0, low, high)
-    col = _encode_pose(c, g, o_obs, i, col, low, high)
+    col = _encode_pose(space, xi, o_obs, i, 0, low, high)
+    col = _encode_pose(space, g, o_obs, i, col, low, high)
     for j in range(m):
         _clip32(o_obs, i, col + j, diff[j], low, high)
     col += m
@@ -1330,21 +1395,28 @@ def _evaluate_general_row(c, observation, measured, reference, outcome, i, w, ou
             _clip32(o_obs, i, col + j, vel[j], low, high)
 
 
-def _evaluate_row(path, c, observation, measured, reference, outcome, i, w, out):
+def _evaluate_row(path, space, c, observation, measured, reference, outcome, i, w, out):
     """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.physics.evaluate``).
 
     Args as ``evaluate_batch``; ``out`` is (evaluation, observations); ``path`` is the row path, a compile-time
-    constant: a planar leg robot's terms and observation are ``envs.kernels.planar``'s.
+    constant, and so is ``space``, the pose space: a planar leg robot's terms and observation are
+    ``envs.kernels.planar``'s, the others' those of their pose space.
     """
     raise NotImplementedError("compiled only (see its overload)")
 
 
 @overload(_evaluate_row, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _evaluate_row_of_path(path, c, observation, measured, reference, outcome, i, w, out):
-    row = _evaluate_planar_row if _literal_path(path) == PLANAR_LEGS else _evaluate_general_row
+def _evaluate_row_of_path(path, space, c, observation, measured, reference, outcome, i, w, out):
+    if _literal_path(path) == PLANAR_LEGS:
 
-    def impl(path, c, observation, measured, reference, outcome, i, w, out):
-        row(c, observation, measured, reference, outcome, i, w, out)
+        def planar_row(path, space, c, observation, measured, reference, outcome, i, w, out):
+            _evaluate_planar_row(c, observation, measured, reference, outcome, i, w, out)
+
+        return planar_row
+    _literal_space(space)
+
+    def impl(path, space, c, observation, measured, reference, outcome, i, w, out):
+        _evaluate_general_row(space, c, observation, measured, reference, outcome, i, w, out)
 
     return impl
 
@@ -1368,14 +1440,14 @@ def evaluate_batch(cs, observation, measured, reference, outcome):
     Returns:
         (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
     """
-    return _PATH_KERNELS[row_path(cs)].evaluate(cs, observation, measured, reference, outcome)
+    return path_kernels(cs).evaluate(cs, observation, measured, reference, outcome)
 
 
 # -- the fused step: transition then evaluation, on every core for large batches ------------------------
 
 
 @jit_inline
-def _step_block(path, model, plant, observation, state, reference, action, start, count, w, lanes, out):
+def _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out):
     """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``)."""
     o_q, o_x, o_t, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
     _transition_block(
@@ -1385,7 +1457,7 @@ def _step_block(path, model, plant, observation, state, reference, action, start
     measured, outcome = (o_q, o_x, o_t, o_k, o_k1, o_res), (o_a, o_reason)
     for i in range(start, start + count):
         o_t[i] = t[i] + 1
-        _evaluate_row(path, _row(model, i), observation, measured, reference, outcome, i, w, (o_eval, o_obs))
+        _evaluate_row(path, space, _row(model, i), observation, measured, reference, outcome, i, w, (o_eval, o_obs))
 
 
 @jit_inline
@@ -1398,7 +1470,7 @@ def _finite_actions(action):
 
 
 @jit
-def _step_range(path, model, plant, observation, state, reference, action, span, out):
+def _step_range(path, space, model, plant, observation, state, reference, action, span, out):
     """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
 
     Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's parfor analysis
@@ -1409,7 +1481,7 @@ def _step_range(path, model, plant, observation, state, reference, action, span,
     begin, end = span
     for start in range(begin, end, LANES):
         count = min(LANES, end - start)
-        _step_block(path, model, plant, observation, state, reference, action, start, count, w, lanes, out)
+        _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out)
 
 
 class PathKernels(NamedTuple):
@@ -1421,10 +1493,10 @@ class PathKernels(NamedTuple):
     step_parallel: Any
 
 
-def _path_kernels(path: int) -> PathKernels:
-    """The entry kernels of the row path ``path``, which they hold as a compile-time constant.
+def _path_kernels(path: int, space: int) -> PathKernels:
+    """The entry kernels of the row path ``path`` and the pose space ``space``, both compile-time constants.
 
-    A closure over an int is cached by Numba under its value, so each path's kernels compile (and load from the
+    A closure over ints is cached by Numba under their values, so each path's kernels compile (and load from the
     on-disk cache) on their own, when a robot of that path first uses them: a robot compiles its own path only.
     The parallel step compiles at the first batch of at least ``PARALLEL_MIN_BATCH`` robots.
     """
@@ -1443,7 +1515,7 @@ def _path_kernels(path: int) -> PathKernels:
         out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
         w = _work()
         for i in range(n):
-            _evaluate_row(path, _row(cs, i), observation, measured, reference, outcome, i, w, out)
+            _evaluate_row(path, space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
         return out
 
     def step_serial(
@@ -1475,7 +1547,7 @@ def _path_kernels(path: int) -> PathKernels:
         n = q.shape[0]
         for start in range(0, n, LANES):
             count = min(LANES, n - start)
-            _step_block(path, model, plant, observation, state, reference, action, start, count, w, lanes, out)
+            _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out)
         return False
 
     def step_parallel(model, plant, observation, state, reference, action, out):
@@ -1485,24 +1557,24 @@ def _path_kernels(path: int) -> PathKernels:
         chunks = (n + CHUNK - 1) // CHUNK
         for chunk in numba.prange(chunks):
             span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
-            _step_range(path, model, plant, observation, state, reference, action, span, out)
+            _step_range(path, space, model, plant, observation, state, reference, action, span, out)
         return False
 
     return PathKernels(jit(transition), jit(evaluate), jit(step_serial), jit_parallel(step_parallel))
 
 
-#: The entry kernels of each row path, by path.
-_PATH_KERNELS = tuple(_path_kernels(path) for path in ROW_PATHS)
+#: The entry kernels of each row path and pose space, by (path, space).
+_PATH_KERNELS = {(path, space): _path_kernels(path, space) for path in ROW_PATHS for space in range(3)}
 
 
 def _step_serial(model, plant, *args):
     """The one-thread step of ``step_batch`` (flat arguments: observation, state and reference unpacked)."""
-    return _PATH_KERNELS[row_path(plant)].step_serial(model, plant, *args)
+    return path_kernels(plant).step_serial(model, plant, *args)
 
 
 def _step_parallel(model, plant, observation, state, reference, action, out):
     """The multi-core step of ``step_batch``."""
-    return _PATH_KERNELS[row_path(plant)].step_parallel(model, plant, observation, state, reference, action, out)
+    return path_kernels(plant).step_parallel(model, plant, observation, state, reference, action, out)
 
 
 def allocate_step(n, m, obs_dim):
@@ -1518,8 +1590,8 @@ def allocate_step(n, m, obs_dim):
 
 
 def path_kernels(cs) -> PathKernels:
-    """The entry kernels of the robot of packed constants ``cs`` (its ``row_path``'s), for callers that keep them."""
-    return _PATH_KERNELS[row_path(cs)]
+    """The entry kernels of the robot of packed constants ``cs`` (its ``row_path``'s and pose space's)."""
+    return _PATH_KERNELS[row_path(cs), pose_space_code(cs)]
 
 
 def step_batch(model, plant, observation, state, reference, action, out, kernels=None):
@@ -1538,7 +1610,7 @@ def step_batch(model, plant, observation, state, reference, action, out, kernels
         kernels: ``path_kernels(plant)``, if the caller keeps them (the single env's step saves finding them).
     """
     if kernels is None:
-        kernels = _PATH_KERNELS[row_path(plant)]
+        kernels = path_kernels(plant)
     if action.shape[0] >= PARALLEL_MIN_BATCH:
         return kernels.step_parallel(model, plant, observation, state, reference, action, out)
     return kernels.step_serial(model, plant, *observation, *state, *reference, action, out)
