@@ -27,6 +27,35 @@ def pytest_configure(config: pytest.Config) -> None:
         config.issue_config_time_warning(pytest.PytestWarning(f"Numba warm-up failed: {exc!r}"), stacklevel=2)
 
 
+#: Test modules whose tests share an expensive module fixture (one local Ray session): run by one worker.
+ONE_WORKER_MODULES = ("tests/training/test_sweep.py",)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Put the tests marked ``slow`` first, each part in its collected order (the same in every process)."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """With ``pytest -n N`` (xdist's default ``--dist load``), hand the workers one test at a time, slow ones first.
+
+    The long tests then start early, on every worker, and the short ones fill in behind them, so that the
+    workers finish together instead of one waiting on a long test at the end. The tests of a module in
+    ``ONE_WORKER_MODULES`` go to one worker together (first: they are the longest). Another ``--dist`` is
+    left to xdist.
+    """
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class SlowFirst(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            module = nodeid.split("::", 1)[0]
+            return module if module in ONE_WORKER_MODULES else nodeid
+
+    return SlowFirst(config, log)
+
+
 @pytest.fixture
 def make_env() -> Iterator[Callable[..., gym.Env]]:
     """Factory around ``gym.make`` (default id Planar3RPRReach-v0) whose environments are closed at teardown."""

@@ -32,7 +32,10 @@ def test_plan_refuses_unknown_names(algos, env_ids, match):
 
 @pytest.fixture(scope="module")
 def local_ray():
-    """One local Ray session, started by the sweep's own ``connect_ray``, for every sweep of this module."""
+    """One local Ray session, started by the sweep's own ``connect_ray``, for every sweep of this module.
+
+    (Under xdist the module's tests run on one worker: ``ONE_WORKER_MODULES`` in ``tests/conftest.py``.)
+    """
     import ray
 
     assert sweep.connect_ray(None)  # no session was open: started here
