@@ -11,4 +11,4 @@ for distance in 0.03 0.01 0.0001; do
   [ -f "$out/metrics.json" ] || "$PY" -m training.evaluate --controller planner --env Planar3RPRReach-v0 \
     --targets hard --episodes 100 --seed 5000 --replan-distance "$distance" --out "$out" > /dev/null
 done
-"$PY" -m training.family_report "$OUT/table.md" "$OUT"/replan-*/
+"$PY" -m experiments.family_report "$OUT/table.md" "$OUT"/replan-*/

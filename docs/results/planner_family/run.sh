@@ -20,4 +20,4 @@ for controller in planner resolved-rate singularity-aware; do
 done
 run planner-ompl-Planar3RPRReachHard-v0 --controller planner --planner ompl --env Planar3RPRReachHard-v0
 run planner-ompl-3rpr-box-detour --controller planner --planner ompl "${BOX_DETOUR[@]}"
-"$PY" -m training.family_report "$OUT/table.md" --by-env "$OUT"/*/
+"$PY" -m experiments.family_report "$OUT/table.md" --by-env "$OUT"/*/
