@@ -21,8 +21,13 @@ The kernels take their arrays in a few records (tuples of arrays, built by ``env
 constants (``envs.kernels.layout``); ``state`` = (q, x, t, det_sign, residual); ``reference`` = (center,
 amplitude, phase, strokes); ``observation`` = (low, high, with_velocity), the observation's bounds; ``measured``
 = (q, x, t, k, k_I, residual) and ``outcome`` = (action, reason), what the evaluation reads; ``moved`` = (q, x, k,
-k_I, residual, action, q_rate, reason, jump), what the transition writes. The step's row paths (``_path``: planar
-legs, three actuators, work arrays) share one order, predict, correct, measure, terminate.
+k_I, residual, action, q_rate, reason, jump), what the transition writes. The step's row paths (``row_path``:
+planar legs, three actuators, work arrays) share one order, predict, correct, measure, terminate.
+
+Compile time: the row path and the pose space are compile-time constants of the entry kernels (closures over
+them, ``path_kernels``), and overloads (``numba.extending.overload``) choose each path's and space's code by
+them, so a robot compiles its own path and pose space only, not every robot's. The constants reach the kernels
+read-only (``read_only``): a writable copy would be a second specialisation of every kernel.
 
 Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
 chunk of the parallel step, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD
