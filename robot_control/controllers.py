@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from envs.kernels.generic import observation_layout
+from envs.kernels.packing import observation_layout
 from envs.params import FamilyParams
 from envs.physics import wrap_angle
 from robot_control.planner import PathFollower

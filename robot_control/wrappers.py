@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.kernels.generic import observation_layout
+from envs.kernels.packing import observation_layout
 from envs.params import FamilyParams
 from envs.vector import episode_starts
 from robot_control.controllers import PlannerController, pose_error

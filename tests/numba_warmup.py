@@ -66,7 +66,7 @@ def warm_up(ids: tuple[str, ...] = IDS) -> None:
             with the first id of their robot among them.
     """
     import envs  # noqa: F401  (registers the ids)
-    from envs.kernels.generic import PARALLEL_MIN_BATCH
+    from envs.kernels.setup import PARALLEL_MIN_BATCH
 
     for env_id in ids:
         env = gym.make(env_id)

@@ -175,7 +175,7 @@ def _policy(config: DistillConfig, params: Any, normalizer: Any) -> tuple[Any, d
     kwargs: dict[str, Any] = {"net_arch": list(config.net_arch), "log_std_init": -1.0}
     if not (config.damped_output or config.hold_fraction > 0.0 or config.error_gain):
         return "MlpPolicy", kwargs
-    from envs.kernels.generic import observation_layout
+    from envs.kernels.packing import observation_layout
     from training.policies import PlanFreeMlpPolicy
 
     space = params.robot.pose_space

@@ -19,15 +19,28 @@ import math
 
 import numpy as np
 
-from envs.kernels import generic, layout, setup
+from envs.kernels import constraints, layout, linalg, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.generic import W_A, _inverse_kinematics, _safe, _singularity, _work
+from envs.kernels.constraints import W_A, _inverse_kinematics, _singularity, _work
 from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL
 from envs.kernels.setup import _next_double, jit
+from envs.tasks import certificate
+from envs.tasks.certificate import _safe
 
 __all__ = ["SAMPLER_TRIES", "SEGMENT_POINTS", "pack_workspace", "sample_circle_batch", "sample_reach_batch"]
 
-drop_stale_caches(__file__, [generic.__file__, layout.__file__, setup.__file__])
+drop_stale_caches(
+    __file__,
+    [
+        certificate.__file__,
+        constraints.__file__,
+        layout.__file__,
+        linalg.__file__,
+        pose.__file__,
+        setup.__file__,
+        three.__file__,
+    ],
+)
 
 #: Candidates a sampler may reject (per pose or pair) before it reports failure.
 SAMPLER_TRIES = 6400
@@ -202,7 +215,7 @@ def sample_reach_batch(c, ws, streams, n, hard, min_distance, fixed_kind=0, fixe
     """Draw n start/target pairs in one safe region each (``_sample_reach``), or None if one could not be found.
 
     Args:
-        c: The family's packed constants (``generic.pack_family``).
+        c: The family's packed constants (``envs.kernels.packing.pack_family``).
         ws: The packed grid (``pack_workspace``).
         streams: ``random_streams`` of one generator (shape (1, 2)) or of n generators (shape (n, 2)).
         n: Number of pairs.

@@ -18,7 +18,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.kernels.generic import observation_layout
+from envs.kernels.packing import observation_layout
 from envs.physics import TERMINATION_REASONS, reward_terms
 
 __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]

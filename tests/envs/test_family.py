@@ -10,6 +10,7 @@ from gymnasium.utils.env_checker import check_env
 import envs
 from envs import physics, presets
 from envs.kernels import generic as fk
+from envs.kernels import step as step_kernels
 from envs.wrappers.shield import SingularityShield
 from kinematics import DistanceConstraintMechanism, Planar3RPR, StewartGough
 from kinematics.stewart_gough import semi_regular_hexagon
@@ -152,8 +153,8 @@ def test_parallel_step_equals_serial_step_bit_for_bit(hexapod):
     motion = (state.q, state.x, state.t, state.det_sign, state.residual)
     grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 6, low.shape[0]) for _ in range(2)]
-    assert not fk._step_parallel(hexapod.packed_rows, hexapod.packed_rows, *grouped, outs[0])
-    assert not fk._step_serial(
+    assert not step_kernels._step_parallel(hexapod.packed_rows, hexapod.packed_rows, *grouped, outs[0])
+    assert not step_kernels._step_serial(
         hexapod.packed_rows, hexapod.packed_rows, low, high, False, *motion, *state.reference, action, outs[1]
     )
     for a, b in zip(*outs):

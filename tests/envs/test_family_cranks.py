@@ -10,7 +10,10 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 from envs import physics, presets
+from envs.kernels import constraints
 from envs.kernels import generic as fk
+from envs.kernels import step as step_kernels
+from envs.tasks import samplers
 from envs.wrappers.shield import SingularityShield
 from robot_control.controllers import ResolvedRateController
 
@@ -120,8 +123,8 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
     motion = (state.q, state.x, state.t, state.det_sign, state.residual)
     grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 3, low.shape[0]) for _ in range(2)]
-    assert not fk._step_parallel(params.packed_rows, params.packed_rows, *grouped, outs[0])
-    assert not fk._step_serial(
+    assert not step_kernels._step_parallel(params.packed_rows, params.packed_rows, *grouped, outs[0])
+    assert not step_kernels._step_serial(
         params.packed_rows, params.packed_rows, low, high, False, *motion, *state.reference, action, outs[1]
     )
     for a, b in zip(*outs):
@@ -152,13 +155,13 @@ def test_scalar_transition_equals_the_work_array_algorithm_bit_for_bit(env_id, i
         new = fk.transition_batch(params.packed_rows, motion, action)
         ref = [np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)]
         o_q, o_x, o_res, o_a, o_qr, o_jump = ref
-        w = fk._work()
+        w = constraints._work()
         k, k1 = np.empty(n), np.empty(n)
         moved = (o_q, o_x, np.empty(n), np.empty(n), o_res, o_a, o_qr, np.empty(n, dtype=np.int64), o_jump)
         for i in range(n):
-            fk._advance_spatial(c, motion, action, i, w, moved)
-            k[i] = fk._singularity(c, o_q[i], w, fk.W_A)[0]
-            k1[i] = fk._actuator_condition(c, w)
+            step_kernels._advance_spatial(c, motion, action, i, w, moved)
+            k[i] = constraints._singularity(c, o_q[i], w, constraints.W_A)[0]
+            k1[i] = constraints._actuator_condition(c, w)
         for got, want in zip(
             (new[0], new[1], new[2], new[3], new[4], new[5], new[6], new[8]),
             (o_q, o_x, k, k1, o_res, o_a, o_qr, o_jump),
@@ -351,7 +354,7 @@ def test_parallel_reach_sampler_equals_the_serial_one(hard):
     params = gym.make("Planar3RRRReach-v0").unwrapped.params
     n = 3 * fk.PARALLEL_MIN_SAMPLES + 1
     outs = []
-    for kernel in (fk._sample_reach, fk._sample_reach_parallel):
+    for kernel in (samplers._sample_reach, samplers._sample_reach_parallel):
         generators = [np.random.default_rng(100 + i) for i in range(n)]
         streams = fk.random_streams(generators)
         arrays = [np.empty((n, 3)) for _ in range(3)]

@@ -19,6 +19,7 @@ from envs.kernels import generic as fk
 from envs.kernels import layout as family_layout
 from envs.kernels import linalg as linalg_kernels
 from envs.kernels import setup as numba_setup
+from envs.kernels import step as step_kernels
 from envs.params import FamilyParams
 from envs.physics import FamilyReference, FamilyState, initial_state
 from envs.presets import build_family_params
@@ -314,7 +315,7 @@ def test_parallel_kernel_equals_serial(params, rng, monkeypatch):
     action = rng.uniform(-1, 1, size=(n, 3))
     parallel = [a.copy() for a in _step_arrays(physics.step(params, state, action, False))]
     assert numba.threading_layer() == numba_setup.THREADING_LAYER
-    monkeypatch.setattr(fk, "PARALLEL_MIN_BATCH", 10**9)
+    monkeypatch.setattr(step_kernels, "PARALLEL_MIN_BATCH", 10**9)
     serial = _step_arrays(physics.step(params, state, action, False))
     for a, b in zip(parallel, serial):
         np.testing.assert_array_equal(a, b)

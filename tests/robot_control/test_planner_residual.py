@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 import robot_control
-from envs.kernels.generic import observation_layout
+from envs.kernels.packing import observation_layout
 from envs.physics import wrap_angle
 from robot_control.controllers import PlannerController
 

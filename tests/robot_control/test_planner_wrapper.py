@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import envs
 import robot_control
-from envs.kernels.generic import observation_layout
+from envs.kernels.packing import observation_layout
 
 ERROR = observation_layout("planar", 3, False)["error"]
 
@@ -130,7 +129,7 @@ def test_the_planner_wrappers_work_in_every_pose_space(env_id):
     assert obs.shape == (base.observation_space.shape[0] + m,)
     assert residual.reset(seed=0)[0].shape == (base.observation_space.shape[0] + m + n,)
     plain, _ = base.reset(seed=0)
-    error = envs.kernels.generic.observation_layout(base.unwrapped.params.robot.pose_space.name, n, False)["error"]
+    error = observation_layout(base.unwrapped.params.robot.pose_space.name, n, False)["error"]
     np.testing.assert_allclose(obs[-m:], plain[error], atol=1e-5)
     with warnings.catch_warnings():  # any checker warning fails, but its note that a wrapper is not the raw env
         warnings.simplefilter("error")

@@ -1,0 +1,499 @@
+"""The compiled step of the family: transition (predict, correct, measure, terminate), then evaluation.
+
+The kernels take their arrays in a few records (tuples of arrays, built by ``envs.physics``): ``c``, the robot's
+constants (``envs.kernels.packing``); ``state`` = (q, x, t, det_sign, residual); ``moved`` = (q, x, k, k_I,
+residual, action, q_rate, reason, jump), what the transition writes; the evaluation's records are
+``envs.kernels.evaluation``'s. The step's row paths (``row_path``: planar legs, three actuators, work arrays)
+share one order, predict, correct, measure, terminate.
+
+Compile time: the row path and the pose space are compile-time constants of the entry kernels (closures over
+them, ``path_kernels``), and overloads (``numba.extending.overload``) choose each path's and space's code by
+them, so a robot compiles its own path and pose space only, not every robot's.
+
+Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
+chunk of the parallel step, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD
+behind their k runs on the whole block at once (vectorised across robots,
+``envs.kernels.linalg.inverse_condition6_lanes``); the one-thread step moves them robot by robot.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple
+
+import numba
+import numpy as np
+from numba.core import types
+from numba.extending import overload
+
+from envs.kernels import constraints, evaluation, layout, linalg, packing, planar, pose, setup, three
+from envs.kernels.cache import drop_stale_caches
+from envs.kernels.constraints import (
+    W_A,
+    W_DIFF,
+    W_K1,
+    W_K2,
+    W_K3,
+    W_KQ,
+    W_KX,
+    W_NQ,
+    W_PRED,
+    W_QM,
+    W_QR,
+    W_T,
+    W_V,
+    W_XM,
+    W_Y,
+    _actuator_condition,
+    _homogeneous_lane,
+    _newton,
+    _rate_at,
+    _row,
+    _rows,
+    _singularity,
+    _substeps,
+    _twist_rate,
+    _work,
+)
+from envs.kernels.evaluation import _evaluate_row
+from envs.kernels.layout import (
+    C_DT,
+    C_HIGH,
+    C_LMAX,
+    C_LMIN,
+    C_LOW,
+    C_N,
+    C_NEWTON_IT,
+    C_NEWTON_TOL,
+    C_RATE,
+    C_RK4,
+    E_FIXED,
+)
+from envs.kernels.linalg import LANES, inverse_condition6_lanes
+from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
+from envs.kernels.pose import _all_finite, _difference, _metric, _retract
+from envs.kernels.setup import PARALLEL_MIN_BATCH, jit, jit_inline, jit_parallel
+
+__all__ = ["allocate_step", "evaluate_batch", "path_kernels", "step_batch", "transition_batch"]
+
+drop_stale_caches(
+    __file__,
+    [
+        constraints.__file__,
+        evaluation.__file__,
+        layout.__file__,
+        linalg.__file__,
+        packing.__file__,
+        planar.__file__,
+        pose.__file__,
+        setup.__file__,
+        three.__file__,
+    ],
+)
+
+
+#: Robots per chunk of a batch: each chunk allocates its work arrays once (a multiple of ``LANES``).
+CHUNK = 64
+
+
+L_K, L_WORST, L_ACTIVE, L_SIGN, L_FLAGS, L_K1 = 0, 1, 2, 3, 4, 5
+
+
+@jit
+def allocate_lanes():
+    """Work arrays of one block of up to ``LANES`` spatial robots: (H (6, 6, LANES), lane rows (6, LANES))."""
+    return np.empty((6, 6, LANES)), np.empty((6, LANES))
+
+
+@jit
+def _advance_spatial(c, state, action, i, w, moved):
+    """Move robot i through one control period (predict, correct): its rows of ``moved`` but k, k_I, the reason.
+
+    Returns (whether the correction failed, whether the pose left its bounds); the rows of A at the new pose
+    are left in w.
+    """
+    q, x, _, _, residual = state
+    o_q, o_x, _, _, o_res, o_a, o_qr, _, o_jump = moved
+    m = int(c[C_N])
+    dt = c[C_DT]
+    lo, hi = c[C_LMIN], c[C_LMAX]
+    stroke = c[C_RATE] * dt
+    q0, x0 = q[i], x[i]
+    nq, qr, kq, kx = w[W_NQ], w[W_QR], w[W_KQ], w[W_KX]
+    v, pred, y, t = w[W_V], w[W_PRED], w[W_Y], w[W_T]
+    for j in range(m):
+        a = min(max(action[i, j], -1.0), 1.0)
+        o_a[i, j] = a
+        nq[j] = min(max(q0[j] + a * stroke, lo), hi)
+        qr[j] = (nq[j] - q0[j]) / dt
+        kq[j] = q0[j]
+        kx[j] = x0[j]
+    _rows(c, kq, kx, w)
+    _twist_rate(c, kq, qr, w, W_A, v)
+    count = _substeps(c, v)
+    h = dt / count
+    rk4 = c[C_RK4] != 0.0
+    tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])
+    res = residual[i]
+    jump = 0.0
+    failed = False
+    for s in range(count):
+        frac = (s + 1) / count
+        for j in range(m):
+            t[j] = q0[j] + frac * (nq[j] - q0[j])
+        if s > 0:  # at the pose Newton's method just returned, whose rows are in w
+            _twist_rate(c, kq, qr, w, W_A, v)
+        if rk4:
+            k1, k2, k3, xm, qm = w[W_K1], w[W_K2], w[W_K3], w[W_XM], w[W_QM]
+            for j in range(m):
+                qm[j] = kq[j] + 0.5 * h * qr[j]
+            _retract(c, kx, v, 0.5 * h, xm)
+            _rate_at(c, qm, xm, qr, w, k1)
+            _retract(c, kx, k1, 0.5 * h, xm)
+            _rate_at(c, qm, xm, qr, w, k2)
+            for j in range(m):
+                qm[j] = kq[j] + h * qr[j]
+            _retract(c, kx, k2, h, xm)
+            _rate_at(c, qm, xm, qr, w, k3)
+            for j in range(m):
+                k3[j] = (v[j] + 2.0 * k1[j] + 2.0 * k2[j] + k3[j]) / 6.0
+            _retract(c, kx, k3, h, pred)
+        else:
+            _retract(c, kx, v, h, pred)
+        if not _all_finite(pred, m):
+            failed = True
+            break
+        fres = _newton(c, t, pred, w, y, tolerance, iterations)
+        if not fres <= tolerance:
+            failed = True
+            break
+        _difference(c, y, pred, w[W_DIFF])
+        jump = max(jump, _metric(c, w[W_DIFF]))
+        for j in range(m):
+            kq[j] = t[j]
+            kx[j] = y[j]
+        res = fres
+    if failed:
+        for j in range(m):
+            kq[j] = q0[j]
+            kx[j] = x0[j]
+        res = residual[i]
+        _rows(c, kq, kx, w)  # back at the start pose (rare: only when the correction failed)
+    out = False
+    for j in range(m):
+        if kx[j] < c[C_LOW + j] or kx[j] > c[C_HIGH + j]:
+            out = True
+    for j in range(m):
+        o_q[i, j] = kq[j]
+        o_x[i, j] = kx[j]
+        o_qr[i, j] = qr[j]
+    o_res[i] = res
+    o_jump[i] = jump
+    return failed, out
+
+
+@jit_inline
+def _planar_block(cs, state, action, start, count, w, lanes, moved):
+    """``_transition_block`` of planar leg robots: each row in scalars (``planar.transition_row``)."""
+    for i in range(start, start + count):
+        planar.transition_row(_row(cs, i), state, action, i, moved)
+
+
+@jit_inline
+def _three_block(cs, state, action, start, count, w, lanes, moved):
+    """``_transition_block`` of three cranks or sliders: each row in scalars (``three.transition_row``)."""
+    for i in range(start, start + count):
+        three.transition_row(_row(cs, i), state, action, i, moved)
+
+
+@jit_inline
+def _work_rows(cs, state, action, start, count, w, moved):
+    """``_transition_block`` of any pose space over work arrays, robot by robot."""
+    det_sign = state[3]
+    o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
+    for i in range(start, start + count):
+        c = _row(cs, i)
+        failed, out = _advance_spatial(c, state, action, i, w, moved)
+        k, sign = _singularity(c, o_q[i], w, W_A)
+        k1 = _actuator_condition(c, w)
+        o_k[i] = k
+        o_k1[i] = k1
+        o_reason[i] = planar.termination_reason(c, failed, o_jump[i], sign, det_sign[i], k, out, k1)
+
+
+@jit_inline
+def _work_block(cs, state, action, start, count, w, lanes, moved):
+    """``_transition_block`` of any pose space over work arrays, spatial robots with m = 6 in SIMD lanes."""
+    if count == 1 or cs[0][C_N] != 6.0:  # one robot (the plain Jacobi is cheaper) or m = 3
+        _work_rows(cs, state, action, start, count, w, moved)
+        return
+    det_sign = state[3]
+    o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
+    H, lane = lanes
+    for r in range(count):
+        i = start + r
+        c = _row(cs, i)
+        failed, out = _advance_spatial(c, state, action, i, w, moved)
+        lane[L_SIGN, r] = _homogeneous_lane(c, o_q[i], w, W_A, H, r)
+        lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if out else 0.0)
+        lane[L_K1, r] = _actuator_condition(c, w)
+    inverse_condition6_lanes(H, count, lane[L_K], lane[L_WORST], lane[L_ACTIVE])
+    for r in range(count):
+        i = start + r
+        flags = lane[L_FLAGS, r]
+        failed = flags == 1.0 or flags == 3.0
+        out = flags >= 2.0
+        k = lane[L_K, r]
+        o_k[i] = k
+        o_k1[i] = lane[L_K1, r]
+        o_reason[i] = planar.termination_reason(
+            _row(cs, i), failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out, lane[L_K1, r]
+        )
+
+
+def _transition_block(path, cs, state, action, start, count, w, lanes, moved):
+    """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
+
+    Every path runs the algorithm of ``envs.physics.transition`` in its order: predict, correct (the row path),
+    measure (k and k_I at the new pose), terminate (``planar.termination_reason``). ``path`` is the row path, a
+    compile-time constant: the overload below compiles that path's block only. Args as ``transition_batch``;
+    ``moved`` holds its outputs. With work arrays for SIMD lanes (``allocate_lanes``; None: robot by robot),
+    spatial robots in blocks are moved one by one, then the k of all of them comes from one
+    ``inverse_condition6_lanes`` call over the block (vectorised across robots, each robot's k bit for bit what
+    it would be alone), then their termination reasons. ``cs`` holds one row of constants per robot or
+    one row for all (the robots of one batch share their pose space and actuator kinds, not their geometry).
+    """
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_transition_block, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, moved):
+    chosen = _literal_path(path)
+    if chosen == WORK_ARRAYS and isinstance(lanes, types.NoneType):  # no lanes: robot by robot
+
+        def rows(path, cs, state, action, start, count, w, lanes, moved):
+            _work_rows(cs, state, action, start, count, w, moved)
+
+        return rows
+    block = (_planar_block, _three_block, _work_block)[chosen]
+
+    def impl(path, cs, state, action, start, count, w, lanes, moved):
+        block(cs, state, action, start, count, w, lanes, moved)
+
+    return impl
+
+
+@jit_inline
+def _allocate_moved(n, m):
+    """The outputs of ``transition_batch`` for n robots with m pose coordinates (see its Returns)."""
+    q, x, action, q_rate = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    k, k1, residual, jump = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    return q, x, k, k1, residual, action, q_rate, np.empty(n, dtype=np.int64), jump
+
+
+def transition_batch(cs, state, action):
+    """Advance N robots by one control period (the algorithm of ``envs.physics.transition``).
+
+    Args:
+        cs: Packed constants (``pack_family``) of the robots that move: shape (N, C_SIZE), one row per robot, or
+            (1, C_SIZE), one geometry for all.
+        state: (q, x, t, det_sign, residual): strokes [m] (N, n), poses (N, m), steps (N,) int (not read), the
+            working mode sign(det J_x) of each episode (N,), the constraint residual at (q, x) [m²] (N,).
+        action: Normalised stroke rates, shape (N, n), finite.
+
+    Returns:
+        (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
+    """
+    return path_kernels(cs).transition(cs, state, action)
+
+
+def evaluate_batch(cs, observation, measured, reference, outcome):
+    """Evaluation rows (``evaluation_rows``) and observations of N robots.
+
+    Args:
+        cs: Packed constants of the model the observation and the reward are computed with: shape (N, C_SIZE) or
+            (1, C_SIZE), as ``transition_batch``.
+        observation: (low, high, with_velocity): the observation's float32 bounds, shape (D,) each, and whether it
+            ends with the target velocity.
+        measured: (q, x, t, k, k_I, residual): strokes [m] (N, n), poses (N, m), step indices (N,) int, inverse
+            condition numbers (N,), actuator condition numbers (Type I measure, 1 for legs) (N,), constraint
+            residuals [m²] (N,).
+        reference: (center, amplitude, phase, strokes) of the targets (``envs.physics.FamilyReference``), each
+            (N, m); strokes, the actuator coordinates of the centres (``strokes_batch``, (N, n)), are read for the
+            robots whose target is fixed (a = 0, C_PATH = 0) instead of solving the inverse kinematics again.
+        outcome: (action, reason): applied actions (N, n) and termination reason codes (N,).
+
+    Returns:
+        (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
+    """
+    return path_kernels(cs).evaluate(cs, observation, measured, reference, outcome)
+
+
+@jit_inline
+def _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out):
+    """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``)."""
+    o_q, o_x, o_t, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
+    _transition_block(
+        path, plant, state, action, start, count, w, lanes, (o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
+    )
+    t = state[2]
+    measured, outcome = (o_q, o_x, o_t, o_k, o_k1, o_res), (o_a, o_reason)
+    for i in range(start, start + count):
+        o_t[i] = t[i] + 1
+        _evaluate_row(path, space, _row(model, i), observation, measured, reference, outcome, i, w, (o_eval, o_obs))
+
+
+@jit_inline
+def _finite_actions(action):
+    for i in range(action.shape[0]):
+        for j in range(action.shape[1]):
+            if not math.isfinite(action[i, j]):
+                return False
+    return True
+
+
+@jit
+def _step_range(path, space, model, plant, observation, state, reference, action, span, out):
+    """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
+
+    Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's parfor analysis
+    never sees the tuples it unpacks.
+    """
+    w = _work()
+    lanes = allocate_lanes()
+    begin, end = span
+    for start in range(begin, end, LANES):
+        count = min(LANES, end - start)
+        _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out)
+
+
+class PathKernels(NamedTuple):
+    """The entry kernels of one row path, each compiled for that path alone (see ``_path_kernels``)."""
+
+    transition: Any
+    evaluate: Any
+    step_serial: Any
+    step_parallel: Any
+
+
+def _path_kernels(path: int, space: int) -> PathKernels:
+    """The entry kernels of the row path ``path`` and the pose space ``space``, both compile-time constants.
+
+    A closure over ints is cached by Numba under their values, so each path's kernels compile (and load from the
+    on-disk cache) on their own, when a robot of that path first uses them: a robot compiles its own path only.
+    The parallel step compiles at the first batch of at least ``PARALLEL_MIN_BATCH`` robots.
+    """
+
+    def transition(cs, state, action):
+        n, m = action.shape
+        moved = _allocate_moved(n, m)
+        w = _work()
+        lanes = allocate_lanes()
+        for start in range(0, n, LANES):
+            _transition_block(path, cs, state, action, start, min(LANES, n - start), w, lanes, moved)
+        return moved
+
+    def evaluate(cs, observation, measured, reference, outcome):
+        n, m = measured[1].shape
+        out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
+        w = _work()
+        for i in range(n):
+            _evaluate_row(path, space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
+        return out
+
+    def step_serial(
+        model,
+        plant,
+        low,
+        high,
+        with_velocity,
+        q,
+        x,
+        t,
+        det_sign,
+        residual,
+        center,
+        amplitude,
+        phase,
+        strokes,
+        action,
+        out,
+    ):
+        # Flat, unlike the rest: the single env calls it at every step, and Numba types an array inside a tuple
+        # argument slower than a bare one (about 0.2 µs per array per call).
+        if not _finite_actions(action):
+            return True
+        observation = (low, high, with_velocity)
+        state, reference = (q, x, t, det_sign, residual), (center, amplitude, phase, strokes)
+        w = _work()
+        lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
+        n = q.shape[0]
+        for start in range(0, n, LANES):
+            count = min(LANES, n - start)
+            _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out)
+        return False
+
+    def step_parallel(model, plant, observation, state, reference, action, out):
+        if not _finite_actions(action):
+            return True
+        n = action.shape[0]
+        chunks = (n + CHUNK - 1) // CHUNK
+        for chunk in numba.prange(chunks):
+            span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
+            _step_range(path, space, model, plant, observation, state, reference, action, span, out)
+        return False
+
+    return PathKernels(jit(transition), jit(evaluate), jit(step_serial), jit_parallel(step_parallel))
+
+
+#: The entry kernels of each row path and pose space, by (path, space).
+_PATH_KERNELS = {(path, space): _path_kernels(path, space) for path in ROW_PATHS for space in range(3)}
+
+
+def _step_serial(model, plant, *args):
+    """The one-thread step of ``step_batch`` (flat arguments: observation, state and reference unpacked)."""
+    return path_kernels(plant).step_serial(model, plant, *args)
+
+
+def _step_parallel(model, plant, observation, state, reference, action, out):
+    """The multi-core step of ``step_batch``."""
+    return path_kernels(plant).step_parallel(model, plant, observation, state, reference, action, out)
+
+
+def allocate_step(n, m, obs_dim):
+    """Output arrays of ``step_batch`` for n robots with m pose coordinates and obs_dim observations.
+
+    (q, x, t, k, k_I, residual, action, stroke rates, reasons, jumps, evaluation, observations).
+    """
+    q, x, action, q_rate = (np.empty((n, m)) for _ in range(4))
+    k, k1, residual, jump = (np.empty(n) for _ in range(4))
+    reason, t = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    evaluation, observations = np.empty((E_FIXED + 3 * m, n)), np.empty((n, obs_dim), dtype=np.float32)
+    return q, x, t, k, k1, residual, action, q_rate, reason, jump, evaluation, observations
+
+
+def path_kernels(cs) -> PathKernels:
+    """The entry kernels of the robot of packed constants ``cs`` (its ``row_path``'s and pose space's)."""
+    return _PATH_KERNELS[row_path(cs), pose_space_code(cs)]
+
+
+def step_batch(model, plant, observation, state, reference, action, out, kernels=None):
+    """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite.
+
+    Args:
+        model: Packed constants of the model the reward and the observation are computed with, shape (N, C_SIZE)
+            or (1, C_SIZE) (``transition_batch``'s ``cs``).
+        plant: Packed constants of the robots that move (the integrated geometry), shape (N, C_SIZE) or
+            (1, C_SIZE).
+        observation: (low, high, with_velocity), as ``evaluate_batch``.
+        state: (q, x, t, det_sign, residual), as ``transition_batch``.
+        reference: (center, amplitude, phase, strokes), as ``evaluate_batch``.
+        action: Normalised stroke rates, shape (N, n).
+        out: The arrays of ``allocate_step``.
+        kernels: ``path_kernels(plant)``, if the caller keeps them (the single env's step saves finding them).
+    """
+    if kernels is None:
+        kernels = path_kernels(plant)
+    if action.shape[0] >= PARALLEL_MIN_BATCH:
+        return kernels.step_parallel(model, plant, observation, state, reference, action, out)
+    return kernels.step_serial(model, plant, *observation, *state, *reference, action, out)

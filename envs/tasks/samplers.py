@@ -1,0 +1,263 @@
+"""Certified tasks drawn in the sampling box (compiled): Reach pairs (with detours) and Track references.
+
+Every draw comes from NumPy generators through ``envs.kernels.setup.random_streams`` and every candidate is
+checked by the certificate (``envs.tasks.certificate``); many pairs with one stream per robot run on every core.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from envs.kernels import constraints, evaluation, layout, linalg, pose, setup, three
+from envs.kernels.cache import drop_stale_caches
+from envs.kernels.constraints import W_A, _inverse_kinematics, _singularity, _work
+from envs.kernels.evaluation import _reference_at
+from envs.kernels.layout import (
+    C_HARD,
+    C_HARD_KIND,
+    C_LMAX,
+    C_LMIN,
+    C_MARGIN,
+    C_N,
+    C_PATH,
+    C_SAFE,
+    C_SHIGH,
+    C_SLOW,
+    C_SPACING,
+)
+from envs.kernels.packing import read_only
+from envs.kernels.pose import _TWO_PI, _difference, _metric
+from envs.kernels.setup import _next_double, jit, jit_inline, jit_parallel
+from envs.tasks import certificate
+from envs.tasks.certificate import _safe, _segment_min_k
+
+__all__ = ["PARALLEL_MIN_SAMPLES", "SAMPLER_TRIES", "WAYPOINT_TRIES", "sample_reach_batch", "sample_track_batch"]
+
+drop_stale_caches(
+    __file__,
+    [
+        certificate.__file__,
+        constraints.__file__,
+        evaluation.__file__,
+        layout.__file__,
+        linalg.__file__,
+        pose.__file__,
+        setup.__file__,
+        three.__file__,
+    ],
+)
+
+
+#: Candidates a sampler may reject before it reports failure.
+SAMPLER_TRIES = 2000
+#: Pairs from which the Reach sampler runs on every core (one generator per robot; each pair costs 10–70 µs).
+PARALLEL_MIN_SAMPLES = 8
+#: Waypoints tried per hard pair to certify a detour.
+WAYPOINT_TRIES = 64
+
+
+@jit
+def _draw_safe(c, fn, st, w, strokes, out):
+    """A pose drawn uniformly in the sampling box until it is safe; False after ``SAMPLER_TRIES`` rejections."""
+    m = int(c[C_N])
+    for _ in range(SAMPLER_TRIES):
+        for j in range(m):
+            lo, hi = c[C_SLOW + j], c[C_SHIGH + j]
+            out[j] = lo + (hi - lo) * _next_double(fn, st)
+        if _safe(c, out, w, strokes):
+            return True
+    return False
+
+
+@jit
+def _draw_band(c, fn, st, w, strokes, low, high, out):
+    """A pose of the sampling box with strokes within the margin and low ≤ k < high; False after the tries."""
+    m = int(c[C_N])
+    lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
+    for _ in range(SAMPLER_TRIES):
+        for j in range(m):
+            out[j] = c[C_SLOW + j] + (c[C_SHIGH + j] - c[C_SLOW + j]) * _next_double(fn, st)
+        _inverse_kinematics(c, out, w, strokes)
+        inside = True
+        for j in range(m):
+            if not (lo <= strokes[j] <= hi):
+                inside = False
+        if inside:
+            k, _ = _singularity(c, strokes, w, W_A)
+            if low <= k < high:
+                return True
+    return False
+
+
+@jit_inline
+def _sample_reach_one(c, fn, st, hard, min_distance, w, strokes, start, target, waypoint, step):
+    """One certified pair from the stream (fn, st) into start, target, waypoint (see ``_sample_reach``); success."""
+    safe = c[C_SAFE]
+    box = np.bool_(True)  # a bool, not the constant True: one compiled _segment_min_k for every caller
+    band = hard and c[C_HARD_KIND] != 0.0
+    floor = 2.0 * c[C_HARD]
+    for _ in range(SAMPLER_TRIES):
+        if not _draw_safe(c, fn, st, w, strokes, start):
+            return False
+        if band:
+            if not _draw_band(c, fn, st, w, strokes, floor, safe, target):
+                return False
+        elif not _draw_safe(c, fn, st, w, strokes, target):
+            return False
+        _difference(c, target, start, step)
+        if not _metric(c, step) >= min_distance:
+            continue
+        if not hard:
+            if _segment_min_k(c, start, target, w, strokes, safe, c[C_SPACING], box) >= safe:
+                return True
+        elif band:
+            if _segment_min_k(c, start, target, w, strokes, floor, c[C_SPACING], box) >= floor:
+                return True
+        elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf, c[C_SPACING], box) < safe:
+            for _ in range(WAYPOINT_TRIES):
+                if not _draw_safe(c, fn, st, w, strokes, waypoint):
+                    return False
+                if (
+                    _segment_min_k(c, start, waypoint, w, strokes, safe, c[C_SPACING], box) >= safe
+                    and _segment_min_k(c, waypoint, target, w, strokes, safe, c[C_SPACING], box) >= safe
+                ):
+                    return True
+    return False
+
+
+@jit_inline
+def _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint):
+    band = hard and c[C_HARD_KIND] != 0.0
+    for j in range(int(c[C_N])):
+        o_start[i, j] = start[j]
+        o_target[i, j] = target[j]
+        o_waypoint[i, j] = waypoint[j] if hard and not band else target[j]
+
+
+@jit
+def _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
+    """Fill o_start, o_target, o_waypoint (M, m) with certified pairs; −1 on success, else the failing pair.
+
+    Standard pair: the geodesic start → target has k ≥ safe_threshold at every checked point. Hard pair
+    (``hard_kind`` "detour"): that geodesic dips below safe_threshold (it stays inside the box and stroke
+    limits), and the two geodesics start → waypoint → target are safe. Hard pair ("ill_conditioned"): a safe
+    start and a target in the ill-conditioned band 2 hard_threshold ≤ k < safe_threshold, joined by a
+    geodesic that keeps k ≥ 2 hard_threshold.
+    """
+    shared = streams.shape[0] == 1
+    w = _work()
+    strokes = np.empty(6)
+    start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+    for i in range(o_start.shape[0]):
+        s = 0 if shared else i
+        if not _sample_reach_one(
+            c, streams[s, 0], streams[s, 1], hard, min_distance, w, strokes, start, target, waypoint, step
+        ):
+            return i
+        _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
+    return -1
+
+
+@jit_parallel
+def _sample_reach_parallel(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
+    """``_sample_reach`` on every core, for one stream per robot (each robot's pair depends on its stream only).
+
+    Every robot draws its pair (the serial kernel stops at the first failure); returns the first failing pair.
+    """
+    n = o_start.shape[0]
+    ok = np.empty(n, dtype=np.bool_)
+    for i in numba.prange(n):
+        w = _work()
+        strokes = np.empty(6)
+        start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+        ok[i] = _sample_reach_one(
+            c, streams[i, 0], streams[i, 1], hard, min_distance, w, strokes, start, target, waypoint, step
+        )
+        if ok[i]:
+            _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
+    for i in range(n):
+        if not ok[i]:
+            return i
+    return -1
+
+
+def sample_reach_batch(c, streams, n, m, hard, min_distance):
+    """Draw n certified start/target pairs (``FamilyReachEnv.sample_tasks``), or None if one could not be found.
+
+    Args:
+        c: Packed constants.
+        streams: ``random_streams`` of one generator (shared) or of n generators, shape (1, 2) or (n, 2).
+        n: Number of pairs.
+        m: Pose coordinates.
+        hard: Whether the straight path must dip below the safe threshold (with a certified detour).
+        min_distance: Smallest ‖(δp, ℓ_c δθ)‖ between start and target [m].
+
+    Returns:
+        (starts (n, m), targets (n, m), waypoints (n, m): the detour's waypoint, or the target), or None.
+    """
+    c = read_only(c)
+    o_start, o_target, o_waypoint = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    parallel = streams.shape[0] > 1 and n >= PARALLEL_MIN_SAMPLES
+    kernel = _sample_reach_parallel if parallel else _sample_reach
+    if kernel(c, streams, hard, min_distance, o_start, o_target, o_waypoint) >= 0:
+        return None
+    return o_start, o_target, o_waypoint
+
+
+@jit
+def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
+    """Fill references (centre, amplitude, phase) whose poses at ``n_check`` times of a period are all safe.
+
+    Sinusoids: a_j uniform in [½, 1] of ``max_amplitude`` and θ_j uniform. A path: a = ``max_amplitude``, θ_0 = 0
+    (the start at the first vertex) and the heading θ_1 = ψ uniform in [0, 2π) (see ``_reference_at``).
+    """
+    m = int(c[C_N])
+    safe = c[C_SAFE]
+    box = np.bool_(True)  # a bool, not the constant True (see ``_sample_reach_one``)
+    path = c[C_PATH] != 0.0
+    shared = streams.shape[0] == 1
+    w = _work()
+    strokes, point, previous, rate = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+    for i in range(o_center.shape[0]):
+        s = 0 if shared else i
+        fn, st = streams[s, 0], streams[s, 1]
+        done = False
+        for _ in range(SAMPLER_TRIES):
+            if not _draw_safe(c, fn, st, w, strokes, o_center[i]):
+                return i
+            for j in range(m):
+                if path:
+                    o_amplitude[i, j] = max_amplitude[j]
+                    o_phase[i, j] = 0.0
+                else:
+                    o_amplitude[i, j] = max_amplitude[j] * (0.5 + 0.5 * _next_double(fn, st))
+                    o_phase[i, j] = _TWO_PI * _next_double(fn, st)
+            if path:
+                o_phase[i, 1] = _TWO_PI * _next_double(fn, st)
+            ok = True
+            for step in range(n_check + 1):
+                _reference_at(c, _TWO_PI * step / n_check, o_center, o_amplitude, o_phase, i, point, rate)
+                if step > 0 and _segment_min_k(c, previous, point, w, strokes, safe, c[C_SPACING], box) < safe:
+                    ok = False
+                    break
+                for j in range(m):
+                    previous[j] = point[j]
+            if ok:
+                done = True
+                break
+        if not done:
+            return i
+    return -1
+
+
+def sample_track_batch(c, streams, n, m, max_amplitude, n_check):
+    """Draw n references whose whole period stays in the safe set (checked between ``n_check`` points), or None."""
+    o_center, o_amplitude, o_phase = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    c = read_only(c)
+    if (
+        _sample_track(c, streams, np.asarray(max_amplitude, dtype=np.float64), n_check, o_center, o_amplitude, o_phase)
+        >= 0
+    ):
+        return None
+    return o_center, o_amplitude, o_phase
