@@ -266,7 +266,7 @@ class FamilyParams:
 
     @functools.cached_property
     def packed(self) -> np.ndarray:
-        """The kernels' float64 constants (``generic.pack_family``), read-only."""
+        """The kernels' float64 constants (``packing.pack_family``), read-only."""
         return fk.pack_family(self)
 
     @functools.cached_property

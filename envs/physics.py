@@ -116,7 +116,7 @@ class FamilyReference(NamedTuple):
         center: c, shape (N, m).
         amplitude: a, shape (N, m).
         phase: θ [rad], shape (N, m).
-        strokes: The actuator coordinates of c (closed-form inverse kinematics, ``generic.strokes_batch``),
+        strokes: The actuator coordinates of c (closed-form inverse kinematics, ``constraints.strokes_batch``),
             shape (N, n), or None: ``initial_state`` fills it. The observation's stroke errors read it while a
             target is fixed, so that a crank's inverse kinematics is solved once per episode, not once per step.
     """

@@ -284,7 +284,7 @@ def _fit_task_box(
     """A derived task box shrunk around the home pose until ``_BOX_SAFE_FRACTION`` of it is safe.
 
     The share is measured on ``_BOX_CHECKS`` fixed random poses of the box with the family's certificate
-    (``envs.kernels.generic.safety_batch``); the box shrinks by ``_BOX_SHRINK`` at most ``_BOX_SHRINKS``
+    (``envs.tasks.certificate.safety_batch``); the box shrinks by ``_BOX_SHRINK`` at most ``_BOX_SHRINKS``
     times, and the safest box tried is returned if none reaches the share (a home pose near a singularity).
     """
     c = fk.pack_certificate(robot, stroke_limits, stroke_margin, safe_threshold, actuator_safe_threshold)
@@ -320,7 +320,7 @@ def certificate_spacing(
     platform rotation on ℓ_c = 5 cm, need about 1 mm; the hexapod and the 3-RPR keep their 1 cm.
 
     Args:
-        certificate: Packed constants of the certificate (``envs.kernels.generic.pack_certificate``).
+        certificate: Packed constants of the certificate (``envs.kernels.packing.pack_certificate``).
         robot: The mechanism (its ``pose_scale`` gives ℓ_c).
         low: Task box lower corner, shape (m,).
         high: Task box upper corner, shape (m,).

@@ -20,7 +20,7 @@ pair at least ``min_distance`` apart, seeded) and sorts them into:
   preset's spacing, inside the box) into ``detour`` (one found) and ``no_detour``; ``detour_env`` counts the
   detours found within the env's ``WAYPOINT_TRIES`` waypoints, the ones its sampler would keep.
 
-Every safety is the env's compiled certificate (``envs.kernels.generic.safety_batch`` and ``segment_batch``
+Every safety is the env's compiled certificate (``envs.tasks.certificate.safety_batch`` and ``segment_batch``
 on the box's packed constants ``FamilyParams.packed``). For every box whose ``detour_env`` share of the pairs
 reaches ``--min-share``, ``resets`` resets of ``ParallelRobotReachHard-v0`` with the box's settings and
 ``hard_kind="detour"`` are timed, and each task is checked to be a detour task. The JSON holds the counts and

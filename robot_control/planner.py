@@ -5,7 +5,7 @@ on hard targets, and it answers how many hard tasks can be done at all. Two plan
 
 - ``SafePlanner``, for any robot of the family (2-D to 6-D pose spaces): OMPL's RRT-Connect in the scaled pose
   coordinates z = (p, ℓ_c θ) within the pose bounds, whose state validity checker and motion validator are the
-  family's compiled certificate (``envs.kernels.generic.safety_batch`` and ``segment_min_safety_batch``: both
+  family's compiled certificate (``envs.tasks.certificate.safety_batch`` and ``segment_min_safety_batch``: both
   singularity types, stroke and joint limits less the margin, safety ≥ k_safe along each segment at
   ``segment_spacing``), then OMPL's path simplification (shortcutting, vertex reduction, B-spline smoothing, each
   step kept only where the certificate still holds). The default planner.
@@ -17,7 +17,7 @@ with the stroke margin and safety ≥ k_safe, in a component the tasks are drawn
 component that are neighbours in the 26-neighbourhood are joined when the straight segment between them is
 *certified*: at points at most ``spacing`` apart in z = (x, y, ℓ_c φ) (ends included), every stroke lies inside
 the limits less the margin and the safety (k; with cranks and sliders also k_I, ``envs.tasks.grid``) is at
-least k_safe; the family's one certificate, ``envs.kernels.generic.segment_min_safety_batch``, decides it, as it
+least k_safe; the family's one certificate, ``envs.tasks.certificate.segment_min_safety_batch``, decides it, as it
 does for the task samplers. An edge costs its length in z times 1 + w (1 − k_e / k_c)₊, where k_e is the
 smallest safety on it and k_c = ``clearance`` · k_safe: among paths of similar length, the one that keeps away
 from the singular zone wins.
@@ -337,7 +337,7 @@ class SafePlanner:
         return np.array([state[j] for j in range(self.m)]) / self.metric
 
     def safety(self, poses: np.ndarray) -> np.ndarray:
-        """Safety (``envs.kernels.generic.safety_batch``) at poses of shape (M, m), shape (M,)."""
+        """Safety (``envs.tasks.certificate.safety_batch``) at poses of shape (M, m), shape (M,)."""
         return fk.safety_batch(self.constants, np.atleast_2d(poses))[0]
 
     def segment_min_k(self, start: np.ndarray, target: np.ndarray) -> np.ndarray:

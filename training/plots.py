@@ -167,7 +167,7 @@ def safety_slice(
         resolution: Grid points per axis, over the pose bounds.
 
     Returns:
-        (x (R,) [m], y (R,) [m], safety (R, R) indexed [x, y]: ``envs.kernels.generic.safety_batch``, k (with
+        (x (R,) [m], y (R,) [m], safety (R, R) indexed [x, y]: ``envs.tasks.certificate.safety_batch``, k (with
         cranks and sliders min(k, k_I · k_safe / k_I,safe)), NaN where an actuator leaves its limits).
     """
     low, high = np.asarray(params.pose_low, dtype=float), np.asarray(params.pose_high, dtype=float)

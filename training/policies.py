@@ -56,7 +56,7 @@ class PlanFreeMlpPolicy(ActorCriticPolicy):
         lr_schedule: SB3's learning-rate schedule.
         raw_mean: The normaliser's mean of each observation column, length D (zeros without normalisation).
         raw_scale: Its scale √(var + ε) of each column, length D, each > 0 (ones without normalisation).
-        k_index: Column of k in the observation (``envs.kernels.generic.observation_layout``'s "k").
+        k_index: Column of k in the observation (``envs.kernels.packing.observation_layout``'s "k").
         damping_threshold: k_d of the damping, in (0, 1] (the env's k_safe for the planner's default); None: no
             damping.
         position_columns: Columns of the position error p* − p [m] (2 planar, 3 spatial and translational).

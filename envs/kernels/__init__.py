@@ -1,9 +1,25 @@
 """Compiled (Numba) kernels of the family: one packed layout, the step over any pose space, and its set-up.
 
-``layout`` holds the offsets of the packed constants; ``generic`` the step, evaluation and certified task
-sampling of any robot over work arrays; ``planar`` and ``three`` the same step in registers for three legs on
-the planar pose space and for three actuators of any kind; ``linalg`` the small dense linear algebra;
-``setup`` the threading layer and NumPy's random streams; ``cache`` keeps Numba's on-disk cache true.
+``layout`` holds the offsets of the packed constants; ``packing`` packs them; ``pose`` the rotations and
+pose-space operations; ``constraints`` Φ, the Jacobians, the kinematics and k over work arrays; ``step`` the
+transition and the fused step of any robot; ``evaluation`` its reference, reward and observation; ``generic``
+gathers the public kernels (with the certificate and the samplers of ``envs.tasks``); ``planar`` and ``three``
+the same step in registers for three legs on the planar pose space and for three actuators of any kind;
+``linalg`` the small dense linear algebra; ``setup`` the threading layer and NumPy's random streams; ``cache``
+keeps Numba's on-disk cache true.
 """
 
-__all__ = ["cache", "generic", "layout", "linalg", "planar", "setup", "three"]
+__all__ = [
+    "cache",
+    "constraints",
+    "evaluation",
+    "generic",
+    "layout",
+    "linalg",
+    "packing",
+    "planar",
+    "pose",
+    "setup",
+    "step",
+    "three",
+]

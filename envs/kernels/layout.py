@@ -1,10 +1,11 @@
-"""Offsets into the packed constants of the distance-constraint family (``envs.kernels.generic.pack_family``).
+"""Offsets into the packed constants of the distance-constraint family (``envs.kernels.packing.pack_family``).
 
 ``LAYOUT`` is the one table: (name, entries, meaning) in order; each name's offset ``C_<name>`` is the sum of the
 entries before it, and ``C_SIZE`` is the total. The ``C_*`` names are module-level integers generated from the
-table, so the compiled kernels read them as constants. Shared by ``envs.kernels.generic`` (any pose space over
-work arrays), ``envs.kernels.planar`` (the planar pose space in scalars), ``envs.kernels.three`` (three actuators
-in registers) and ``envs.tasks.grid_kernels`` (tasks on a certified grid).
+table, so the compiled kernels read them as constants. Shared by ``envs.kernels.packing`` and the kernels over
+work arrays (``constraints``, ``step``, ``evaluation``; the certificate and the samplers of ``envs.tasks``),
+``envs.kernels.planar`` (the planar pose space in scalars), ``envs.kernels.three`` (three actuators in registers)
+and ``envs.tasks.grid_kernels`` (tasks on a certified grid).
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ def offsets(table: tuple[tuple[str, int, str], ...]) -> tuple[dict[str, int], in
 OFFSETS, C_SIZE = offsets(LAYOUT)
 globals().update(OFFSETS)  # C_N, C_SPATIAL, …: the names the kernels import
 
-#: (name, info key) of the rows of the evaluation (``generic.evaluate_batch``) that do not depend on m, in order;
+#: (name, info key) of the rows of the evaluation (``step.evaluate_batch``) that do not depend on m, in order;
 #: row ``E_<name>`` holds the info key's value of every robot. The target, its velocity and the pose follow from
 #: row ``E_FIXED`` (m rows each).
 EVALUATION: tuple[tuple[str, str], ...] = (

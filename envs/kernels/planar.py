@@ -1,10 +1,10 @@
 """The family core on the planar pose space, in scalars: the step of every planar robot of the family.
 
-A planar robot of the distance-constraint family has three legs and the pose (x, y, φ) (``envs.kernels.generic``
-explains the family and its packed constants, ``envs.kernels.layout`` their offsets). Its 3 × 3 algebra fits in
+A planar robot of the distance-constraint family has three legs and the pose (x, y, φ) (``envs.kernels.packing``
+packs the family's constants, ``envs.kernels.layout`` their offsets). Its 3 × 3 algebra fits in
 registers, so here it is written out for one robot in scalars, with closed forms (the adjugate for the systems,
 the trigonometric solution of the cubic for k; ``envs.kernels.linalg``), where the spatial pose space goes
-through 6 × 6 work arrays. ``envs.kernels.generic`` steps every planar leg robot through ``transition_row``, so a
+through 6 × 6 work arrays. ``envs.kernels.step`` steps every planar leg robot through ``transition_row``, so a
 planar robot's dynamics exist once. The math, with d_i = p + R(φ) P_i − B_i (a leg: A_i = B_i, ℓ_i = q_i):
 
     Φ_i = d_iᵀ d_i − q_i²,   J_x = 2 A,   A_i = (d_ix, d_iy, d_iy (R P_i)_x − d_ix (R P_i)_y),
@@ -200,7 +200,7 @@ def termination_reason(c, failed, jump, sign, mode, k, out, k1):
 def transition_row(c, state, action, i, moved):
     """Advance robot i by one control period (predict, correct, measure, terminate); writes its row of ``moved``.
 
-    ``state`` and ``moved`` as the input and the output of ``generic.transition_batch``.
+    ``state`` and ``moved`` as the input and the output of ``step.transition_batch``.
     """
     q, x, _, det_sign, residual = state
     o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump = moved
@@ -326,8 +326,8 @@ def clip32(o_obs, i, j, value, low, high):
 def observation_row(c, observation, q, x, k, target, velocity, i, o_obs):
     """Row i of the observation, clipped to [low, high], float32.
 
-    The planar layout of ``envs.kernels.generic.observation_layout``. ``observation`` is (low, high,
-    with_velocity) (``generic.evaluate_batch``); ``target`` and ``velocity`` are the target's (x, y, φ) and its
+    The planar layout of ``envs.kernels.packing.observation_layout``. ``observation`` is (low, high,
+    with_velocity) (``step.evaluate_batch``); ``target`` and ``velocity`` are the target's (x, y, φ) and its
     rate, tuples of floats.
     """
     low, high, with_velocity = observation

@@ -5,8 +5,8 @@ or p = (x, y, z) (translational, R = I), has 3 × 3 algebra that fits in registe
 writes out the planar robots driven by legs (the 3-RPR: A_i = B_i, ℓ_i = q_i); this module writes out the rest,
 the robots whose anchors move with their actuators (cranks and sliders: the Delta, the 3-RRR, the 3-PRR), with the
 anchor of each leg computed once per value of q (Newton's iterations move x at fixed q). It is the algorithm of
-``envs.kernels.generic._advance_spatial`` and its evaluation of k and k_I, operation for operation (the same
-floating-point results), without the work arrays: ``envs.kernels.generic`` steps every such robot through
+``envs.kernels.step._advance_spatial`` and its evaluation of k and k_I, operation for operation (the same
+floating-point results), without the work arrays: ``envs.kernels.step`` steps every such robot through
 ``transition_row``. The math, with d_i = p + R P_i − A_i(q_i):
 
     Φ_i = d_iᵀ d_i − ℓ_i(q_i)²,   J_x = 2 A,   A_i = (d_ix, d_iy, (R P_i)_x d_iy − (R P_i)_y d_ix) (planar)
@@ -179,7 +179,7 @@ def link_condition3(c, a00, a01, a02, a10, a11, a12, a20, a21, a22, l0, l1, l2):
     """(k, sign(det J_x)) of three legs from the rows a of A = J_x / 2 and the link lengths ℓ_i.
 
     k = σ_min/σ_max of the link Jacobian diag(1/ℓ) A diag(pose_scale) (closed form), sign(det J_x) = sign(det A).
-    The three-leg case of every pose space (``envs.kernels.generic._singularity`` calls it too).
+    The three-leg case of every pose space (``envs.kernels.constraints._singularity`` calls it too).
     """
     i0, i1, i2 = 1.0 / l0, 1.0 / l1, 1.0 / l2
     s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
@@ -214,7 +214,7 @@ def singularity(c, anc, a):
 def transition_row(c, state, action, i, moved):
     """Advance robot i by one control period (predict, correct, measure, terminate); writes its row of ``moved``.
 
-    ``state`` and ``moved`` as the input and the output of ``generic.transition_batch``.
+    ``state`` and ``moved`` as the input and the output of ``step.transition_batch``.
     """
     q, x, _, det_sign, residual = state
     o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump = moved

@@ -1,7 +1,9 @@
-"""Certified tasks on a grid: the safe regions of a robot with three pose coordinates, and sampling in them.
+"""Certified tasks: the family's certificate, tasks drawn in the sampling box, and tasks on a certified grid.
 
-``grid`` certifies the grid and labels its connected safe regions; ``grid_kernels`` draws starts, targets and
-circle references in one region (compiled). The sampling box's tasks are in ``envs.kernels.generic``.
+``certificate`` holds the safe set every task is certified on (compiled); ``samplers`` draws certified Reach pairs
+and Track references in the sampling box (compiled); ``grid`` certifies a grid over the pose bounds of a robot with
+three pose coordinates and labels its connected safe regions; ``grid_kernels`` draws starts, targets and circle
+references in one region (compiled).
 """
 
-__all__ = ["grid", "grid_kernels"]
+__all__ = ["certificate", "grid", "grid_kernels", "samplers"]

@@ -3,7 +3,7 @@
 A pose is *safe* when every actuator coordinate lies inside its limits with a margin and the homogeneous
 inverse condition number k is at least the safe threshold (for cranks and sliders, the actuator condition
 number k_I also at least its own: safety = min(k, k_I · k_safe / k_I,safe) ≥ k_safe): the family's one
-certificate, ``envs.kernels.generic.safety_batch``, which the task samplers and the planner use too. The safe
+certificate, ``envs.tasks.certificate.safety_batch``, which the task samplers and the planner use too. The safe
 set is sampled on a regular grid over the pose bounds (not the sampling box); face-adjacent safe nodes are joined,
 and the connected components of that graph are the regions within which a start and a target may be paired
 (``task_region="grid"`` of the family environments): every component has a single sign of det J_x (one working
@@ -80,7 +80,7 @@ class WorkspaceSpec:
 
     @functools.cached_property
     def constants(self) -> np.ndarray:
-        """The certificate's packed constants (``envs.kernels.generic.pack_certificate``), read-only."""
+        """The certificate's packed constants (``envs.kernels.packing.pack_certificate``), read-only."""
         return fk.pack_certificate(
             self.robot, self.stroke_limits, self.stroke_margin, self.safe_threshold, self.actuator_safe_threshold
         )
@@ -93,7 +93,7 @@ class WorkspaceMap:
     Attributes:
         spec: What it was computed from.
         axes: Grid coordinates along each pose coordinate; shapes (n_x,), (n_y,), (n_φ,).
-        safety: The certificate at every node (``envs.kernels.generic.safety_batch``: k, for cranks and sliders
+        safety: The certificate at every node (``envs.tasks.certificate.safety_batch``: k, for cranks and sliders
             min(k, k_I k_safe / k_I,safe); −1 where a stroke leaves its limits less the margin), shape
             (n_x, n_y, n_φ).
         labels: Component id of every safe node (0 for unsafe ones), shape (n_x, n_y, n_φ).

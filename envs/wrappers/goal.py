@@ -27,7 +27,7 @@ __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]
 def goal_free_index(pose_space: str, n: int) -> np.ndarray:
     """Entries of the flat observation that do not depend on the goal: pose code, normalised strokes and k.
 
-    The layout is ``envs.kernels.generic.observation_layout``, which the 3-RPR's ``core.observation`` shares.
+    The layout is ``envs.kernels.packing.observation_layout``, which the 3-RPR's ``core.observation`` shares.
 
     Args:
         pose_space: "planar", "spatial" or "translational".
