@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -34,11 +35,21 @@ def test_plan_refuses_unknown_names(algos, env_ids, match):
 def local_ray():
     """One local Ray session, started by the sweep's own ``connect_ray``, for every sweep of this module.
 
-    (Under xdist the module's tests run on one worker: ``ONE_WORKER_MODULES`` in ``tests/conftest.py``.)
+    (Under xdist the module's tests run on one worker: ``ONE_WORKER_MODULES`` in ``tests/conftest.py``.) Its
+    workers run at normal priority: Ray starts them at nice 15, which next to the other xdist worker gives a
+    trial a few per cent of a core (a 10 s sweep then took minutes).
     """
     import ray
 
-    assert sweep.connect_ray(None)  # no session was open: started here
+    niceness = os.environ.get("RAY_worker_niceness")
+    os.environ["RAY_worker_niceness"] = "0"
+    try:
+        assert sweep.connect_ray(None)  # no session was open: started here
+    finally:
+        if niceness is None:
+            del os.environ["RAY_worker_niceness"]
+        else:
+            os.environ["RAY_worker_niceness"] = niceness
     yield
     ray.shutdown()
 
