@@ -27,6 +27,29 @@ def pytest_configure(config: pytest.Config) -> None:
         config.issue_config_time_warning(pytest.PytestWarning(f"Numba warm-up failed: {exc!r}"), stacklevel=2)
 
 
+#: Gymnasium's own TimeLimit, which every env of ``gym.make`` is wrapped in.
+_TIME_LIMIT = gym.wrappers.TimeLimit
+
+
+@pytest.fixture(autouse=True)
+def gymnasium_left_unpatched() -> Iterator[None]:
+    """Fail a test that leaves gymnasium's TimeLimit replaced (importing rl_zoo3 does: ``rl_zoo3.gym_patches``).
+
+    The replacement adds "TimeLimit.truncated" to every info for the rest of the worker, so that a later test
+    comparing infos fails far from the cause.
+    """
+    yield
+    from gymnasium.envs import registration
+
+    found = {
+        "gymnasium.wrappers": gym.wrappers.TimeLimit,
+        "gymnasium.wrappers.common": gym.wrappers.common.TimeLimit,
+        "gymnasium.envs.registration": getattr(registration, "TimeLimit", _TIME_LIMIT),
+    }
+    patched = [name for name, cls in found.items() if cls is not _TIME_LIMIT]
+    assert not patched, f"this test left gymnasium's TimeLimit replaced in {patched} (was rl_zoo3 imported?)"
+
+
 #: Test modules whose tests share an expensive module fixture (one local Ray session): run by one worker.
 ONE_WORKER_MODULES = ("tests/training/test_sweep.py",)
 
