@@ -19,10 +19,10 @@ def pytest_configure(config: pytest.Config) -> None:
     """
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
         return
-    from tests.numba_warmup import warm_up_in_parallel
+    from tests.numba_warmup import warm_up
 
     try:
-        warm_up_in_parallel()
+        warm_up()
     except Exception as exc:
         config.issue_config_time_warning(pytest.PytestWarning(f"Numba warm-up failed: {exc!r}"), stacklevel=2)
 

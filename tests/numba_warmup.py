@@ -1,17 +1,14 @@
 """Compile the environments' Numba kernels into their on-disk cache, in one pass over every code path.
 
-With ``pytest -n 2`` the conftest runs ``warm_up_in_parallel`` in the controller before the workers start (its two
-halves in two processes), so on a fresh clone each kernel is compiled once and the workers load it from
-``__pycache__`` instead of compiling it side by side. It only fills the cache: what a test asserts is unchanged,
-and a kernel it misses is compiled on first use as before.
+With ``pytest -n 2`` the conftest runs ``warm_up`` in the controller before the workers start, so on a fresh
+clone each kernel is compiled once and the workers load it from ``__pycache__`` instead of compiling it side
+by side. It only fills the cache: what a test asserts is unchanged, and a kernel it misses is compiled on
+first use as before.
 """
 
 from __future__ import annotations
 
 import pickle
-import subprocess
-import sys
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -32,43 +29,12 @@ IDS = (
 )
 
 
-#: The warm-up in two halves by robot kind, which compile mostly different kernels: the planar robots (with the
-#: family of geometries) and the spatial ones (with the batch kernels). ``warm_up_in_parallel`` runs one per process.
-HALVES = (
-    tuple(env_id for env_id in IDS if env_id.startswith("Planar")),
-    tuple(env_id for env_id in IDS if not env_id.startswith("Planar")),
-)
-
-
-def warm_up_in_parallel() -> None:
-    """Run the two ``HALVES`` of the warm-up at once, each in its own process (Numba compiles on one core).
-
-    Raises:
-        RuntimeError: If a half fails; its message ends with that process's last output.
-    """
-    root = Path(__file__).resolve().parent.parent
-    command = [sys.executable, "-m", "tests.numba_warmup"]
-    runs = [
-        subprocess.Popen([*command, *half], cwd=root, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        for half in HALVES
-    ]
-    outputs = [run.communicate()[0] for run in runs]
-    for half, run, output in zip(HALVES, runs, outputs):
-        if run.returncode != 0:
-            raise RuntimeError(f"the warm-up of {', '.join(half)} exited with {run.returncode}: {output[-2000:]}")
-
-
-def warm_up(ids: tuple[str, ...] = IDS) -> None:
-    """Reset and step each id's env, a pickled copy of it, and its vector env (one robot, and a multi-core batch).
-
-    Args:
-        ids: Some of ``IDS`` (default: all): the hardware paths, the family and the batch kernels are compiled
-            with the first id of their robot among them.
-    """
+def warm_up() -> None:
+    """Reset and step each id's env, a pickled copy of it, and its vector env (one robot, and a multi-core batch)."""
     import envs  # noqa: F401  (registers the ids)
     from envs.kernels.setup import PARALLEL_MIN_BATCH
 
-    for env_id in ids:
+    for env_id in IDS:
         env = gym.make(env_id)
         env.reset(seed=0)
         env.action_space.seed(0)
@@ -88,19 +54,16 @@ def warm_up(ids: tuple[str, ...] = IDS) -> None:
             vec.close()
     # the robot as built and as measured (``envs.hardware``): per-robot constants and the forward kinematics
     hardware = {"observation_source": "encoders", "geometry_tolerance": 0.001}
-    hardware_ids = ("Planar3RPRReach-v0", "StewartGoughReach-v0", "DeltaReach-v0", "Planar3RRRReach-v0")
-    for env_id in (env_id for env_id in hardware_ids if env_id in ids):
+    for env_id in ("Planar3RPRReach-v0", "StewartGoughReach-v0", "DeltaReach-v0", "Planar3RRRReach-v0"):
         for n in (1, PARALLEL_MIN_BATCH + 1):
             vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **hardware)
             vec.reset(seed=0)
             vec.step(np.zeros(vec.action_space.shape, dtype=np.float32))
             vec.close()
-    if "Planar3RPRReach-v0" in ids:
-        family = gym.make("Planar3RPRReachFamily-v0")
-        family.reset(seed=0)
-        family.step(np.zeros(3, dtype=np.float32))
-    if "StewartGoughReach-v0" in ids:
-        _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
+    family = gym.make("Planar3RPRReachFamily-v0")
+    family.reset(seed=0)
+    family.step(np.zeros(3, dtype=np.float32))
+    _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
 
 
 def _batch_kernels(env: gym.Env) -> None:
@@ -119,4 +82,4 @@ def _batch_kernels(env: gym.Env) -> None:
 
 
 if __name__ == "__main__":
-    warm_up(tuple(sys.argv[1:]) or IDS)
+    warm_up()

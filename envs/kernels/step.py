@@ -443,6 +443,12 @@ def _path_kernels(path: int, space: int) -> PathKernels:
             _step_range(path, space, model, plant, observation, state, reference, action, span, out)
         return False
 
+    kernels = (transition, evaluate, step_serial, step_parallel)
+    for kernel in kernels:
+        # Numba's on-disk cache keeps one index file per qualified name, shared by every closure of that name; two
+        # processes compiling two paths at once would then overwrite each other's entries, and a later process could
+        # load one path's machine code for another's. A name per (path, space) gives each its own index.
+        kernel.__qualname__ = kernel.__name__ = f"{kernel.__name__}_path{path}_space{space}"
     return PathKernels(jit(transition), jit(evaluate), jit(step_serial), jit_parallel(step_parallel))
 
 
