@@ -16,7 +16,7 @@ from numba.extending import overload
 
 from envs.kernels import constraints, layout, linalg, packing, planar, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import W_DIFF, W_SEG, W_TGT, W_VEL, _leg_lengths
+from envs.kernels.constraints import W_DIFF, W_SEG, W_TGT, W_VEL, _leg_lengths, _row
 from envs.kernels.layout import (
     C_BONUS,
     C_DT,
@@ -236,7 +236,7 @@ def _encode_pose_of_space(space, x, o_obs, i, start, low, high):
 
 @jit_inline
 def _evaluate_planar_row(c, observation, measured, reference, outcome, i, w, out):
-    """``_evaluate_row`` of a planar leg robot: its terms and observation are ``envs.kernels.planar``'s."""
+    """``_evaluate_rows``' row of a planar leg robot: its terms and observation are ``envs.kernels.planar``'s."""
     q, x, t, k, k1, residual = measured
     center, amplitude, phase, _ = reference
     action, reason = outcome
@@ -269,7 +269,7 @@ def _evaluate_planar_row(c, observation, measured, reference, outcome, i, w, out
 
 @jit_inline
 def _evaluate_general_row(space, c, observation, measured, reference, outcome, i, w, out):
-    """``_evaluate_row`` of any robot over work arrays (any pose space and actuator kind)."""
+    """``_evaluate_rows``' row of any robot over work arrays (any pose space and actuator kind)."""
     low, high, with_velocity = observation
     q, x, t, k, k1, residual = measured
     center, amplitude, phase, center_strokes = reference
@@ -348,27 +348,30 @@ def _evaluate_general_row(space, c, observation, measured, reference, outcome, i
             _clip32(o_obs, i, col + j, vel[j], low, high)
 
 
-def _evaluate_row(path, space, c, observation, measured, reference, outcome, i, w, out):
-    """Target, reward terms, errors, success, cost and observation of robot i (see ``envs.physics.evaluate``).
+def _evaluate_rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+    """Target, reward terms, errors, success, cost and observation of robots start .. stop − 1.
 
-    Args as ``evaluate_batch``; ``out`` is (evaluation, observations); ``path`` is the row path, a compile-time
-    constant, and so is ``space``, the pose space: a planar leg robot's terms and observation are
-    ``envs.kernels.planar``'s, the others' those of their pose space.
+    See ``envs.physics.evaluate``. Robot i has the row of constants ``_row(cs, i)``; the other args as
+    ``evaluate_batch``; ``out`` is (evaluation, observations). ``path`` is the row path and ``space`` the pose
+    space, both compile-time constants: a planar leg robot's terms and observation are ``envs.kernels.planar``'s,
+    the others' those of their pose space. One compiled call per block of robots, the row's code inlined in it.
     """
     raise NotImplementedError("compiled only (see its overload)")
 
 
-@overload(_evaluate_row, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _evaluate_row_of_path(path, space, c, observation, measured, reference, outcome, i, w, out):
+@overload(_evaluate_rows, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _evaluate_rows_of_path(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
     if _literal_path(path) == PLANAR_LEGS:
 
-        def planar_row(path, space, c, observation, measured, reference, outcome, i, w, out):
-            _evaluate_planar_row(c, observation, measured, reference, outcome, i, w, out)
+        def planar_rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+            for i in range(start, stop):
+                _evaluate_planar_row(_row(cs, i), observation, measured, reference, outcome, i, w, out)
 
-        return planar_row
+        return planar_rows
     _literal_space(space)
 
-    def impl(path, space, c, observation, measured, reference, outcome, i, w, out):
-        _evaluate_general_row(space, c, observation, measured, reference, outcome, i, w, out)
+    def rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+        for i in range(start, stop):
+            _evaluate_general_row(space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
 
-    return impl
+    return rows

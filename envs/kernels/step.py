@@ -55,7 +55,7 @@ from envs.kernels.constraints import (
     _twist_rate,
     _work,
 )
-from envs.kernels.evaluation import _evaluate_row
+from envs.kernels.evaluation import _evaluate_rows
 from envs.kernels.layout import (
     C_DT,
     C_HIGH,
@@ -340,7 +340,9 @@ def _step_block(path, space, model, plant, observation, state, reference, action
     measured, outcome = (o_q, o_x, o_t, o_k, o_k1, o_res), (o_a, o_reason)
     for i in range(start, start + count):
         o_t[i] = t[i] + 1
-        _evaluate_row(path, space, _row(model, i), observation, measured, reference, outcome, i, w, (o_eval, o_obs))
+    _evaluate_rows(
+        path, space, model, observation, measured, reference, outcome, start, start + count, w, (o_eval, o_obs)
+    )
 
 
 @jit_inline
@@ -397,8 +399,7 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         n, m = measured[1].shape
         out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
         w = _work()
-        for i in range(n):
-            _evaluate_row(path, space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
+        _evaluate_rows(path, space, cs, observation, measured, reference, outcome, 0, n, w, out)
         return out
 
     def step_serial(
