@@ -1,9 +1,10 @@
-"""Keyword arguments described as data: the checks of their values, their ``Doc`` and the Arguments table.
+"""Keyword arguments described as data: the checks of their values, their ``Parameter`` and the Arguments table.
 
-A dataclass field made by ``documented`` carries a ``Doc`` (type text, one-line description, unit, check, whether
-the robot's preset gives the default) in its metadata; ``parameters`` reads them back as ``Parameter`` records, which
-check a value (``Range``, ``Choice``, ``Vector``: messages naming the argument, the expected and the actual value),
-and ``table`` / ``attributes`` write the docs from them (``envs.params.FamilyParams``, the envs' docstrings).
+A dataclass field made by ``documented`` carries a ``Parameter`` (type text, one-line description, unit, check,
+whether the robot's preset gives the default) in its metadata; ``parameters`` reads them back with the field's name
+and default. Their checks (``Range``, ``Choice``, ``Vector``) give messages naming the argument, the expected and
+the actual value, and ``table`` / ``attributes`` write the docs from them (``envs.params.FamilyParams``, the
+envs' docstrings).
 """
 
 from __future__ import annotations
@@ -24,7 +25,6 @@ __all__ = [
     "POSITIVE",
     "POSITIVE_INT",
     "Choice",
-    "Doc",
     "Parameter",
     "Range",
     "Vector",
@@ -136,10 +136,12 @@ NON_NEGATIVE_INT = Range(0, integer=True)
 CONDITION = Range(0.0, 1.0, low_open=True, high_open=True)
 
 
-class Doc(NamedTuple):
-    """What a keyword argument is, in one place: a dataclass field's ``metadata["doc"]`` (see ``documented``).
+class Parameter(NamedTuple):
+    """A keyword argument described in one place: a dataclass field's ``metadata["doc"]`` (see ``documented``).
 
     Attributes:
+        name: The keyword ("" in a field's metadata: ``parameters`` fills it in from the field).
+        default: Its default (likewise filled in from the field).
         description: One line: what the value means (the Description cell, before the unit and the range).
         unit: SI unit(s) of the value, "" for a pure number.
         check: The simple check of a value (``Range``, ``Choice``, ``Vector``), or None where the relations
@@ -150,17 +152,6 @@ class Doc(NamedTuple):
         type: The Type cell of the Arguments table; "" for the one the check implies ("float", "int", "str",
             "sequence of m floats", "(float, float)", "float or n floats").
     """
-
-    description: str
-    unit: str = ""
-    check: Range | Choice | Vector | None = None
-    per_robot: bool = False
-    note: str = ""
-    type: str = ""
-
-
-class Parameter(NamedTuple):
-    """A keyword argument: its name, its default and its ``Doc`` fields."""
 
     name: str
     default: Any
@@ -195,16 +186,16 @@ class Parameter(NamedTuple):
 
 
 def documented(default: Any, description: str, unit: str = "", check: Any = None, **more: Any) -> Any:
-    """A dataclass field with its ``default`` and its ``Doc(description, unit, check, **more)`` as metadata."""
-    return field(default=default, metadata={"doc": Doc(description, unit, check, **more)})
+    """A dataclass field with its ``default`` and, as metadata, its ``Parameter`` (description, unit, check, more)."""
+    return field(default=default, metadata={"doc": Parameter("", default, description, unit, check, **more)})
 
 
 def parameters(cls: type, skip: Sequence[str] = ()) -> tuple[Parameter, ...]:
     """The ``Parameter`` of every field of the dataclass ``cls`` (but those named in ``skip``), in field order."""
     undocumented = [f.name for f in fields(cls) if "doc" not in f.metadata]
     if undocumented:
-        raise TypeError(f"fields {undocumented} of {cls.__name__} have no Doc: declare them with documented()")
-    return tuple(Parameter(f.name, f.default, *f.metadata["doc"]) for f in fields(cls) if f.name not in skip)
+        raise TypeError(f"fields {undocumented} of {cls.__name__} have no Parameter: declare them with documented()")
+    return tuple(f.metadata["doc"]._replace(name=f.name, default=f.default) for f in fields(cls) if f.name not in skip)
 
 
 def _default_cell(parameter: Parameter) -> str:
@@ -228,7 +219,7 @@ def table(rows: Sequence[Parameter], indent: str = "    ") -> str:
 
 
 def attributes(cls: type, indent: str = "        ") -> str:
-    """The entries of a Google-style Attributes section, one per field of the dataclass ``cls`` from its ``Doc``."""
+    """The entries of a Google-style Attributes section, one per field of the dataclass ``cls``, from its metadata."""
     entries = []
     for p in parameters(cls):
         text = p.describe()

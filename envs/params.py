@@ -1,9 +1,9 @@
 """The constants of an environment: one frozen dataclass for every robot and task (``FamilyParams``).
 
 Every keyword argument of the envs is described once, here: each field of ``FamilyParams`` carries its
-``envs.arguments.Doc`` (type text, description, unit, the check of its values, whether the robot's preset gives its
-default), which validates it (``check_fields``), writes ``FamilyParams``' Attributes and the envs' Arguments table
-(``arguments_table``). The per-robot values themselves are data: ``envs.presets.ROBOT_PRESETS``.
+``envs.arguments.Parameter`` (type text, description, unit, the check of its values, whether the robot's preset
+gives its default), which validates it (``check_fields``), writes ``FamilyParams``' Attributes and the envs'
+Arguments table (``arguments_table``). The per-robot values themselves are data: ``envs.presets.ROBOT_PRESETS``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ from envs.arguments import (
     POSITIVE,
     POSITIVE_INT,
     Choice,
-    Doc,
     Parameter,
     Range,
     Vector,
@@ -90,8 +89,8 @@ K = CONDITION
 class FamilyParams:
     """Every constant of a family environment (see ``FamilyReachEnv`` for the tasks, the reward and the ends).
 
-    Each field's ``metadata["doc"]`` (``envs.arguments.Doc``) documents and checks it. Its default is the hexapod's
-    (``StewartGough()``); where marked †, a robot's preset (``envs.presets.ROBOT_PRESETS``) or its size
+    Each field's ``metadata["doc"]`` (``envs.arguments.Parameter``) documents and checks it. Its default is the
+    hexapod's (``StewartGough()``); where marked †, a robot's preset (``envs.presets.ROBOT_PRESETS``) or its size
     (``derived_defaults``) gives its own.
 
     Attributes:
@@ -99,7 +98,8 @@ class FamilyParams:
     """
 
     robot: DistanceConstraintMechanism = field(
-        default_factory=StewartGough, metadata={"doc": Doc("the mechanism (pose space, legs, geometry, ℓ_c)")}
+        default_factory=StewartGough,
+        metadata={"doc": Parameter("", None, "the mechanism (pose space, legs, geometry, ℓ_c)")},
     )
     stroke_limits: tuple[float, float] = documented(
         (0.45, 0.75),
@@ -362,7 +362,7 @@ def field_parameters() -> tuple[Parameter, ...]:
 
 
 def check_fields(args: dict[str, Any], sizes: dict[str, int]) -> dict[str, Any]:
-    """Every field of ``args`` (all but ``robot``) checked by its ``Doc.check``; those without one passed on.
+    """Every field of ``args`` (all but ``robot``) checked by its ``Parameter.check``; those without one passed on.
 
     Args:
         args: A value for every field of ``FamilyParams`` but ``robot``.

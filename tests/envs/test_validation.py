@@ -149,7 +149,7 @@ def _outside(check: Range | Choice | Vector) -> tuple[object, str]:
 
 @pytest.mark.parametrize("parameter", [p for p in field_parameters() if p.check is not None], ids=lambda p: p.name)
 def test_every_checked_field_refuses_a_value_outside_its_metadata(parameter):
-    """Each field's Doc.check is what validates it: a value outside gives a message naming it, the range, the value."""
+    """Each field's Parameter.check validates it: a value outside gives a message naming it, the range, the value."""
     value, pattern = _outside(parameter.check)
     with pytest.raises(ValueError, match=rf"^{parameter.name} {pattern}$"):
         FamilyReachEnv(**{parameter.name: value})
