@@ -35,7 +35,7 @@ CORE = [
     "envs/kernels/constraints.py",
     "envs/kernels/step.py",
     "envs/kernels/evaluation.py",
-    "envs/kernels/planar.py",
+    "envs/kernels/paths.py",
     "envs/kernels/three.py",
     "envs/kernels/linalg.py",
     "envs/arguments.py",

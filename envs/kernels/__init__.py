@@ -3,8 +3,9 @@
 ``layout`` holds the offsets of the packed constants; ``packing`` packs them; ``pose`` the rotations and
 pose-space operations; ``constraints`` Φ, the Jacobians, the kinematics and k over work arrays; ``step`` the
 transition and the fused step of any robot; ``evaluation`` its reference, reward and observation; ``generic``
-gathers the public kernels (with the certificate and the samplers of ``envs.tasks``); ``planar`` and ``three``
-the same step in registers for three legs on the planar pose space and for three actuators of any kind;
+gathers the public kernels (with the certificate and the samplers of ``envs.tasks``); ``paths`` the step's
+operations on each row path (vectors in registers or in work arrays); ``three`` the algebra of three actuators
+in registers;
 ``linalg`` the small dense linear algebra; ``setup`` the threading layer and NumPy's random streams; ``cache``
 keeps Numba's on-disk cache true.
 """
@@ -17,7 +18,7 @@ __all__ = [
     "layout",
     "linalg",
     "packing",
-    "planar",
+    "paths",
     "pose",
     "setup",
     "step",

@@ -23,13 +23,10 @@ from envs.kernels.layout import (
     C_A,
     C_B,
     C_BRANCH,
-    C_DT,
     C_E,
     C_ELL,
     C_LAM,
     C_LEGS,
-    C_MAX_SUBSTEP,
-    C_MAX_SUBSTEPS,
     C_N,
     C_NEWTON_TOL,
     C_P,
@@ -40,7 +37,7 @@ from envs.kernels.layout import (
     C_V,
 )
 from envs.kernels.linalg import inverse_condition6, solve3, solve6
-from envs.kernels.pose import _all_finite, _frame, _metric, _retract, _wrap
+from envs.kernels.pose import _all_finite, _frame, _retract, _wrap
 from envs.kernels.setup import jit, jit_inline
 
 __all__ = ["W_A", "W_SIZE", "forward_batch", "initial_batch", "singularity_batch", "strokes_batch"]
@@ -68,7 +65,8 @@ W_PRED = 33  # predicted pose
 W_Y = 34  # Newton's pose
 W_T = 35  # strokes of a substep
 W_QM = 36  # intermediate strokes
-W_SPARE = 37  # (unused rows 37..42)
+W_ACT = 37  # applied action
+W_SPARE = 38  # (unused rows 38..42)
 W_TGT = 43  # target pose
 W_VEL = 44  # target velocity
 W_DIFF = 45  # a pose difference
@@ -364,23 +362,6 @@ def _newton(c, q, guess, w, out, tolerance, max_iterations):
         _rows(c, q, out, w)
         residual = _residual(c, q, w)
     return residual
-
-
-@jit
-def _substeps(c, v):
-    """Substeps so that each predicts at most ``max_substep`` of motion ‖(δp, ℓ_c δθ)‖ [m]."""
-    count = np.ceil(_metric(c, v) * c[C_DT] / c[C_MAX_SUBSTEP])
-    cap = c[C_MAX_SUBSTEPS]
-    if not math.isfinite(count):
-        return int(cap)
-    return int(min(max(count, 1.0), cap))
-
-
-@jit
-def _rate_at(c, q, x, rate, w, out):
-    """Out = J_f(q, x) q̇ at an arbitrary (q, x) (computes the rows of A there)."""
-    _rows(c, q, x, w)
-    _twist_rate(c, q, rate, w, W_A, out)
 
 
 @jit_inline

@@ -2,9 +2,10 @@
 
 The evaluation reads a few records (tuples of arrays, built by ``envs.physics``): ``observation`` = (low, high,
 with_velocity), the observation's bounds; ``measured`` = (q, x, t, k, k_I, residual); ``reference`` = (center,
-amplitude, phase, strokes); ``outcome`` = (action, reason). A planar leg robot's terms and observation are
-``envs.kernels.planar``'s; the others' are those of their pose space, a compile-time constant by which
-overloads (``numba.extending.overload``) choose the code, so a robot compiles its own pose space only.
+amplitude, phase, strokes); ``outcome`` = (action, reason). Every robot's terms and observation are computed by
+one row function; where they depend on the pose space (the pose error, the pose's code in the observation), a
+compile-time constant selects the code through overloads (``numba.extending.overload``), so a robot compiles its
+own pose space only.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import math
 import numpy as np
 from numba.extending import overload
 
-from envs.kernels import constraints, layout, linalg, packing, planar, pose, setup, three
+from envs.kernels import constraints, layout, linalg, packing, pose, setup
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import W_DIFF, W_SEG, W_TGT, W_VEL, _leg_lengths, _row
 from envs.kernels.layout import (
@@ -55,7 +56,7 @@ from envs.kernels.layout import (
     E_TERMINATION,
     E_TRACKING,
 )
-from envs.kernels.packing import _OVERLOAD_OPTIONS, PLANAR_LEGS, _literal_path, _literal_space
+from envs.kernels.packing import _OVERLOAD_OPTIONS, _literal_space
 from envs.kernels.pose import _TWO_PI, _quat_from_rotvec, _relative_rotvec, _wrap
 from envs.kernels.setup import jit, jit_inline
 
@@ -68,10 +69,8 @@ drop_stale_caches(
         layout.__file__,
         linalg.__file__,
         packing.__file__,
-        planar.__file__,
         pose.__file__,
         setup.__file__,
-        three.__file__,
     ],
 )
 
@@ -235,41 +234,8 @@ def _encode_pose_of_space(space, x, o_obs, i, start, low, high):
 
 
 @jit_inline
-def _evaluate_planar_row(c, observation, measured, reference, outcome, i, w, out):
-    """``_evaluate_rows``' row of a planar leg robot: its terms and observation are ``envs.kernels.planar``'s."""
-    q, x, t, k, k1, residual = measured
-    center, amplitude, phase, _ = reference
-    action, reason = outcome
-    o_eval, o_obs = out
-    g, vel = w[W_TGT], w[W_VEL]
-    _reference(c, t[i], center, amplitude, phase, i, g, vel)
-    xi = x[i]
-    pose, target = (xi[0], xi[1], xi[2]), (g[0], g[1], g[2])
-    applied = (action[i, 0], action[i, 1], action[i, 2])
-    tr, si, ac, te, ep, eo = planar.reward_terms(c, pose, target, k[i], applied, reason[i])
-    success = reason[i] == 0 and planar.is_success(c, ep, eo)
-    bonus = c[C_BONUS] if success else 0.0
-    o_eval[E_TRACKING, i], o_eval[E_SINGULARITY, i], o_eval[E_ACTION, i], o_eval[E_TERMINATION, i] = tr, si, ac, te
-    o_eval[E_BONUS, i] = bonus
-    o_eval[E_REWARD, i] = tr + si + ac + te + bonus
-    o_eval[E_ACTUATOR, i] = 0.0  # legs: no Type I singularity
-    o_eval[E_K1, i] = k1[i]
-    o_eval[E_COST1, i] = 0.0
-    o_eval[E_POSITION_ERROR, i], o_eval[E_ORIENTATION_ERROR, i] = ep, eo
-    o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
-    o_eval[E_COST, i] = 1.0 if k[i] < c[C_SAFE] else 0.0
-    o_eval[E_K, i] = k[i]
-    o_eval[E_RESIDUAL, i] = residual[i]
-    for j in range(3):
-        o_eval[E_FIXED + j, i] = g[j]
-        o_eval[E_FIXED + 3 + j, i] = vel[j]
-        o_eval[E_FIXED + 6 + j, i] = xi[j]
-    planar.observation_row(c, observation, q, x, k, target, (vel[0], vel[1], vel[2]), i, o_obs)
-
-
-@jit_inline
-def _evaluate_general_row(space, c, observation, measured, reference, outcome, i, w, out):
-    """``_evaluate_rows``' row of any robot over work arrays (any pose space and actuator kind)."""
+def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out):
+    """``_evaluate_rows``' row i: the target, the reward terms, the errors, success, the cost and the observation."""
     low, high, with_velocity = observation
     q, x, t, k, k1, residual = measured
     center, amplitude, phase, center_strokes = reference
@@ -348,30 +314,23 @@ def _evaluate_general_row(space, c, observation, measured, reference, outcome, i
             _clip32(o_obs, i, col + j, vel[j], low, high)
 
 
-def _evaluate_rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+def _evaluate_rows(space, cs, observation, measured, reference, outcome, start, stop, w, out):
     """Target, reward terms, errors, success, cost and observation of robots start .. stop − 1.
 
     See ``envs.physics.evaluate``. Robot i has the row of constants ``_row(cs, i)``; the other args as
-    ``evaluate_batch``; ``out`` is (evaluation, observations). ``path`` is the row path and ``space`` the pose
-    space, both compile-time constants: a planar leg robot's terms and observation are ``envs.kernels.planar``'s,
-    the others' those of their pose space. One compiled call per block of robots, the row's code inlined in it.
+    ``evaluate_batch``; ``out`` is (evaluation, observations). ``space`` is the pose space, a compile-time
+    constant: the overloads of its comparison and its pose code compile that space's code only. One compiled call
+    per block of robots, the row's code inlined in it.
     """
     raise NotImplementedError("compiled only (see its overload)")
 
 
 @overload(_evaluate_rows, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _evaluate_rows_of_path(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
-    if _literal_path(path) == PLANAR_LEGS:
-
-        def planar_rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
-            for i in range(start, stop):
-                _evaluate_planar_row(_row(cs, i), observation, measured, reference, outcome, i, w, out)
-
-        return planar_rows
+def _evaluate_rows_of_space(space, cs, observation, measured, reference, outcome, start, stop, w, out):
     _literal_space(space)
 
-    def rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+    def rows(space, cs, observation, measured, reference, outcome, start, stop, w, out):
         for i in range(start, stop):
-            _evaluate_general_row(space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
+            _evaluate_row(space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
 
     return rows

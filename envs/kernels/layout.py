@@ -4,8 +4,8 @@
 entries before it, and ``C_SIZE`` is the total. The ``C_*`` names are module-level integers generated from the
 table, so the compiled kernels read them as constants. Shared by ``envs.kernels.packing`` and the kernels over
 work arrays (``constraints``, ``step``, ``evaluation``; the certificate and the samplers of ``envs.tasks``),
-``envs.kernels.planar`` (the planar pose space in scalars), ``envs.kernels.three`` (three actuators in registers)
-and ``envs.tasks.grid_kernels`` (tasks on a certified grid).
+``envs.kernels.three`` (three actuators in registers) and ``envs.tasks.grid_kernels`` (tasks on a certified
+grid).
 """
 
 from __future__ import annotations

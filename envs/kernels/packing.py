@@ -237,9 +237,10 @@ def observation_layout(pose_space: str, n: int, with_velocity: bool) -> dict[str
     return out
 
 
-#: Row paths of the step: planar legs in scalars (``envs.kernels.planar``), three actuators of any kind in
-#: scalars (``envs.kernels.three``), any pose space over work arrays (here). The path is a compile-time constant
-#: of the entry kernels (``_path_kernels``): a robot compiles its own path only.
+#: Row paths of the step (``envs.kernels.paths``): three legs on the planar pose space in registers, three
+#: actuators of any kind on the planar or translational pose space in registers, any pose space over work
+#: arrays. The path is a compile-time constant of the entry kernels (``_path_kernels``): a robot compiles its own
+#: path only.
 PLANAR_LEGS, THREE, WORK_ARRAYS = 0, 1, 2
 ROW_PATHS = (PLANAR_LEGS, THREE, WORK_ARRAYS)
 

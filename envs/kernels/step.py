@@ -26,11 +26,11 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload
 
-from envs.kernels import constraints, evaluation, layout, linalg, packing, planar, pose, setup, three
+from envs.kernels import constraints, evaluation, layout, linalg, packing, paths, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import (
     W_A,
-    W_DIFF,
+    W_ACT,
     W_K1,
     W_K2,
     W_K3,
@@ -43,35 +43,36 @@ from envs.kernels.constraints import (
     W_T,
     W_V,
     W_XM,
-    W_Y,
     _actuator_condition,
     _homogeneous_lane,
-    _newton,
-    _rate_at,
     _row,
-    _rows,
-    _singularity,
-    _substeps,
-    _twist_rate,
     _work,
 )
 from envs.kernels.evaluation import _evaluate_rows
 from envs.kernels.layout import (
+    _ACTUATOR_SINGULAR,
+    _ASSEMBLY_MODE_CHANGE,
+    _NEWTON_FAILED,
+    _OUT_OF_BOUNDS,
+    _SINGULAR,
+    _SINGULARITY_CROSSED,
     C_DT,
+    C_HARD,
+    C_HARD1,
     C_HIGH,
-    C_LMAX,
-    C_LMIN,
+    C_JUMP,
     C_LOW,
+    C_MAX_SUBSTEP,
+    C_MAX_SUBSTEPS,
     C_N,
     C_NEWTON_IT,
     C_NEWTON_TOL,
-    C_RATE,
     C_RK4,
     E_FIXED,
 )
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
-from envs.kernels.pose import _all_finite, _difference, _metric, _retract
+from envs.kernels.pose import _all_finite
 from envs.kernels.setup import PARALLEL_MIN_BATCH, jit, jit_inline, jit_parallel
 
 __all__ = ["allocate_step", "evaluate_batch", "path_kernels", "step_batch", "transition_batch"]
@@ -84,7 +85,7 @@ drop_stale_caches(
         layout.__file__,
         linalg.__file__,
         packing.__file__,
-        planar.__file__,
+        paths.__file__,
         pose.__file__,
         setup.__file__,
         three.__file__,
@@ -105,182 +106,217 @@ def allocate_lanes():
     return np.empty((6, 6, LANES)), np.empty((6, LANES))
 
 
-@jit
-def _advance_spatial(c, state, action, i, w, moved):
-    """Move robot i through one control period (predict, correct): its rows of ``moved`` but k, k_I, the reason.
+@jit_inline
+def termination_reason(c, failed, jump, sign, mode, k, out, k1):
+    """The step's termination reason code (0: none), first match in the order of ``TERMINATION_REASONS``.
 
-    Returns (whether the correction failed, whether the pose left its bounds); the rows of A at the new pose
-    are left in w.
+    Args:
+        c: Packed constants of the robot.
+        failed: Whether the correction onto Φ = 0 failed.
+        jump: Largest correction of the step [m].
+        sign: sign(det J_x) at the new pose.
+        mode: The episode's sign(det J_x) (its working mode).
+        k: Inverse condition number at the new pose (Type II measure).
+        out: Whether the pose left its bounds.
+        k1: Actuator condition number at the new pose (Type I measure; 1 for legs).
     """
-    q, x, _, _, residual = state
-    o_q, o_x, _, _, o_res, o_a, o_qr, _, o_jump = moved
-    m = int(c[C_N])
+    if failed:
+        return _NEWTON_FAILED
+    if jump > c[C_JUMP]:
+        return _ASSEMBLY_MODE_CHANGE
+    if sign != mode:
+        return _SINGULARITY_CROSSED
+    if k < c[C_HARD]:
+        return _SINGULAR
+    if out:
+        return _OUT_OF_BOUNDS
+    if k1 < c[C_HARD1]:
+        return _ACTUATOR_SINGULAR
+    return 0
+
+
+@jit_inline
+def _substeps(c, motion):
+    """Substeps of a period whose predicted motion is ``motion`` [m]: each moves at most ``max_substep``."""
+    count = np.ceil(motion * c[C_DT] / c[C_MAX_SUBSTEP])
+    cap = c[C_MAX_SUBSTEPS]
+    if not math.isfinite(count):
+        return int(cap)
+    return int(min(max(count, 1.0), cap))
+
+
+@jit_inline
+def _advance(path, c, q0, x0, action, residual, w):
+    """Predict and correct: move one robot through one control period (``envs.physics.transition``).
+
+    The strokes move at the commanded rates; each of the substeps predicts the pose by Euler or RK4 on
+    ẋ = J_f q̇ and corrects it onto Φ = 0 by Newton's method at the substep's strokes. If a prediction is not
+    finite or a correction fails, the robot stays where it was.
+
+    Args:
+        path: The row path, a compile-time constant (``envs.kernels.paths``).
+        c: The robot's packed constants.
+        q0: Its strokes (n,), a vector of the path.
+        x0: Its pose (m,), a vector of the path.
+        action: Its normalised stroke rates (n,).
+        residual: The constraint residual at (q0, x0) [m²].
+        w: Its work array (``constraints._work``).
+
+    Returns:
+        (q, x, anchors, rows, applied action, stroke rates, residual, jump [m], failed): the strokes and the pose
+        at the end of the period and the anchors and rows there (``envs.kernels.paths``).
+    """
     dt = c[C_DT]
-    lo, hi = c[C_LMIN], c[C_LMAX]
-    stroke = c[C_RATE] * dt
-    q0, x0 = q[i], x[i]
-    nq, qr, kq, kx = w[W_NQ], w[W_QR], w[W_KQ], w[W_KX]
-    v, pred, y, t = w[W_V], w[W_PRED], w[W_Y], w[W_T]
-    for j in range(m):
-        a = min(max(action[i, j], -1.0), 1.0)
-        o_a[i, j] = a
-        nq[j] = min(max(q0[j] + a * stroke, lo), hi)
-        qr[j] = (nq[j] - q0[j]) / dt
-        kq[j] = q0[j]
-        kx[j] = x0[j]
-    _rows(c, kq, kx, w)
-    _twist_rate(c, kq, qr, w, W_A, v)
-    count = _substeps(c, v)
+    a, nq, qr = paths.commanded(path, c, q0, action, w, W_ACT, W_NQ, W_QR)
+    kq = paths.keep(path, q0, w, W_KQ)
+    kx = paths.keep(path, x0, w, W_KX)
+    start_anchors = paths.anchors_at(path, c, kq)
+    start_rows = paths.rows_at(path, c, kq, start_anchors, kx, w)
+    anchors, rows = start_anchors, start_rows
+    v = paths.pose_rate(path, c, kq, rows, qr, w, W_V)
+    count = _substeps(c, paths.metric(path, c, v))
     h = dt / count
     rk4 = c[C_RK4] != 0.0
     tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])
-    res = residual[i]
+    res = residual
     jump = 0.0
     failed = False
     for s in range(count):
-        frac = (s + 1) / count
-        for j in range(m):
-            t[j] = q0[j] + frac * (nq[j] - q0[j])
-        if s > 0:  # at the pose Newton's method just returned, whose rows are in w
-            _twist_rate(c, kq, qr, w, W_A, v)
+        if s > 0:  # at the pose Newton's method just returned, whose rows it left
+            v = paths.pose_rate(path, c, kq, rows, qr, w, W_V)
         if rk4:
-            k1, k2, k3, xm, qm = w[W_K1], w[W_K2], w[W_K3], w[W_XM], w[W_QM]
-            for j in range(m):
-                qm[j] = kq[j] + 0.5 * h * qr[j]
-            _retract(c, kx, v, 0.5 * h, xm)
-            _rate_at(c, qm, xm, qr, w, k1)
-            _retract(c, kx, k1, 0.5 * h, xm)
-            _rate_at(c, qm, xm, qr, w, k2)
-            for j in range(m):
-                qm[j] = kq[j] + h * qr[j]
-            _retract(c, kx, k2, h, xm)
-            _rate_at(c, qm, xm, qr, w, k3)
-            for j in range(m):
-                k3[j] = (v[j] + 2.0 * k1[j] + 2.0 * k2[j] + k3[j]) / 6.0
-            _retract(c, kx, k3, h, pred)
+            qm = paths.axpy(path, kq, 0.5 * h, qr, w, W_QM)
+            mid = paths.anchors_at(path, c, qm)
+            xm = paths.retract(path, c, kx, v, 0.5 * h, w, W_XM)
+            k1 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, mid, xm, w), qr, w, W_K1)
+            xm = paths.retract(path, c, kx, k1, 0.5 * h, w, W_XM)
+            k2 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, mid, xm, w), qr, w, W_K2)
+            qm = paths.axpy(path, kq, h, qr, w, W_QM)
+            end = paths.anchors_at(path, c, qm)
+            xm = paths.retract(path, c, kx, k2, h, w, W_XM)
+            k3 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, end, xm, w), qr, w, W_K3)
+            pred = paths.retract(path, c, kx, paths.rk4_mean(path, v, k1, k2, k3, w, W_K3), h, w, W_PRED)
         else:
-            _retract(c, kx, v, h, pred)
-        if not _all_finite(pred, m):
+            pred = paths.retract(path, c, kx, v, h, w, W_PRED)
+        if not _all_finite(pred, len(pred)):
             failed = True
             break
-        fres = _newton(c, t, pred, w, y, tolerance, iterations)
+        t = paths.lerp(path, q0, nq, (s + 1) / count, w, W_T)
+        anchors = paths.anchors_at(path, c, t)
+        y, fres, rows = paths.newton(path, c, t, anchors, pred, w, tolerance, iterations)
         if not fres <= tolerance:
             failed = True
             break
-        _difference(c, y, pred, w[W_DIFF])
-        jump = max(jump, _metric(c, w[W_DIFF]))
-        for j in range(m):
-            kq[j] = t[j]
-            kx[j] = y[j]
+        jump = max(jump, paths.jump(path, c, y, pred, w))
+        kq = paths.keep(path, t, w, W_KQ)
+        kx = paths.keep(path, y, w, W_KX)
         res = fres
-    if failed:
-        for j in range(m):
-            kq[j] = q0[j]
-            kx[j] = x0[j]
-        res = residual[i]
-        _rows(c, kq, kx, w)  # back at the start pose (rare: only when the correction failed)
+    if failed:  # back at the start (rare)
+        kq = paths.keep(path, q0, w, W_KQ)
+        kx = paths.keep(path, x0, w, W_KX)
+        res = residual
+        anchors = start_anchors  # the strokes are q0 again
+        rows = paths.rows_at(path, c, kq, anchors, kx, w)
+    return kq, kx, anchors, rows, a, qr, res, jump, failed
+
+
+@jit_inline
+def _outside(c, x):
+    """Whether the pose x (m,) left its bounds."""
     out = False
-    for j in range(m):
-        if kx[j] < c[C_LOW + j] or kx[j] > c[C_HIGH + j]:
+    for j in range(len(x)):
+        if x[j] < c[C_LOW + j] or x[j] > c[C_HIGH + j]:
             out = True
-    for j in range(m):
+    return out
+
+
+@jit_inline
+def _store(i, kq, kx, a, qr, res, jump, moved):
+    """Write robot i's strokes, pose, applied action, stroke rates, residual and jump into ``moved``."""
+    o_q, o_x, _, _, o_res, o_a, o_qr, _, o_jump = moved
+    for j in range(len(kx)):
         o_q[i, j] = kq[j]
         o_x[i, j] = kx[j]
+        o_a[i, j] = a[j]
         o_qr[i, j] = qr[j]
     o_res[i] = res
     o_jump[i] = jump
-    return failed, out
 
 
 @jit_inline
-def _planar_block(cs, state, action, start, count, w, lanes, moved):
-    """``_transition_block`` of planar leg robots: each row in scalars (``planar.transition_row``)."""
-    for i in range(start, start + count):
-        planar.transition_row(_row(cs, i), state, action, i, moved)
-
-
-@jit_inline
-def _three_block(cs, state, action, start, count, w, lanes, moved):
-    """``_transition_block`` of three cranks or sliders: each row in scalars (``three.transition_row``)."""
-    for i in range(start, start + count):
-        three.transition_row(_row(cs, i), state, action, i, moved)
-
-
-@jit_inline
-def _work_rows(cs, state, action, start, count, w, moved):
-    """``_transition_block`` of any pose space over work arrays, robot by robot."""
-    det_sign = state[3]
-    o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
+def _transition_rows(path, cs, state, action, start, count, w, moved):
+    """Transition of robots start .. start + count − 1, one at a time: advance, measure, terminate."""
+    q, x, _, det_sign, residual = state
+    _, _, o_k, o_k1, _, _, _, o_reason, _ = moved
     for i in range(start, start + count):
         c = _row(cs, i)
-        failed, out = _advance_spatial(c, state, action, i, w, moved)
-        k, sign = _singularity(c, o_q[i], w, W_A)
-        k1 = _actuator_condition(c, w)
-        o_k[i] = k
-        o_k1[i] = k1
-        o_reason[i] = planar.termination_reason(c, failed, o_jump[i], sign, det_sign[i], k, out, k1)
+        q0, x0 = paths.vector(path, q[i]), paths.vector(path, x[i])
+        kq, kx, anchors, rows, a, qr, res, jump, failed = _advance(path, c, q0, x0, action[i], residual[i], w)
+        k, sign, k1 = paths.measure(path, c, kq, anchors, rows, w)
+        _store(i, kq, kx, a, qr, res, jump, moved)
+        o_k[i], o_k1[i] = k, k1
+        o_reason[i] = termination_reason(c, failed, jump, sign, det_sign[i], k, _outside(c, kx), k1)
 
 
 @jit_inline
-def _work_block(cs, state, action, start, count, w, lanes, moved):
-    """``_transition_block`` of any pose space over work arrays, spatial robots with m = 6 in SIMD lanes."""
-    if count == 1 or cs[0][C_N] != 6.0:  # one robot (the plain Jacobi is cheaper) or m = 3
-        _work_rows(cs, state, action, start, count, w, moved)
-        return
-    det_sign = state[3]
-    o_q, _, o_k, o_k1, _, _, _, o_reason, o_jump = moved
+def _transition_lanes(cs, state, action, start, count, w, lanes, moved):
+    """``_transition_rows`` of spatial robots (m = 6) in SIMD lanes: each robot advanced, then their k at once.
+
+    The k of all of them comes from one ``inverse_condition6_lanes`` call over the block (vectorised across
+    robots, each robot's k bit for bit what it would be alone).
+    """
+    q, x, _, det_sign, residual = state
+    _, _, o_k, o_k1, _, _, _, o_reason, _ = moved
     H, lane = lanes
     for r in range(count):
         i = start + r
         c = _row(cs, i)
-        failed, out = _advance_spatial(c, state, action, i, w, moved)
-        lane[L_SIGN, r] = _homogeneous_lane(c, o_q[i], w, W_A, H, r)
-        lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if out else 0.0)
+        kq, kx, _, _, a, qr, res, jump, failed = _advance(WORK_ARRAYS, c, q[i], x[i], action[i], residual[i], w)
+        _store(i, kq, kx, a, qr, res, jump, moved)
+        lane[L_SIGN, r] = _homogeneous_lane(c, kq, w, W_A, H, r)
+        lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if _outside(c, kx) else 0.0)
         lane[L_K1, r] = _actuator_condition(c, w)
     inverse_condition6_lanes(H, count, lane[L_K], lane[L_WORST], lane[L_ACTIVE])
     for r in range(count):
         i = start + r
         flags = lane[L_FLAGS, r]
-        failed = flags == 1.0 or flags == 3.0
-        out = flags >= 2.0
         k = lane[L_K, r]
-        o_k[i] = k
-        o_k1[i] = lane[L_K1, r]
-        o_reason[i] = planar.termination_reason(
-            _row(cs, i), failed, o_jump[i], lane[L_SIGN, r], det_sign[i], k, out, lane[L_K1, r]
-        )
+        o_k[i], o_k1[i] = k, lane[L_K1, r]
+        o_reason[i] = termination_reason(
+            _row(cs, i), flags == 1.0 or flags == 3.0, moved[8][i], lane[L_SIGN, r], det_sign[i], k, flags >= 2.0,
+            lane[L_K1, r],
+        )  # fmt: skip
 
 
 def _transition_block(path, cs, state, action, start, count, w, lanes, moved):
     """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
 
-    Every path runs the algorithm of ``envs.physics.transition`` in its order: predict, correct (the row path),
-    measure (k and k_I at the new pose), terminate (``planar.termination_reason``). ``path`` is the row path, a
-    compile-time constant: the overload below compiles that path's block only. Args as ``transition_batch``;
-    ``moved`` holds its outputs. With work arrays for SIMD lanes (``allocate_lanes``; None: robot by robot),
-    spatial robots in blocks are moved one by one, then the k of all of them comes from one
-    ``inverse_condition6_lanes`` call over the block (vectorised across robots, each robot's k bit for bit what
-    it would be alone), then their termination reasons. ``cs`` holds one row of constants per robot or
-    one row for all (the robots of one batch share their pose space and actuator kinds, not their geometry).
+    The algorithm of ``envs.physics.transition``: predict and correct (``_advance``), measure (k and k_I at the
+    new pose), terminate (``termination_reason``). ``path`` is the row path, a compile-time constant: the
+    overload below compiles that path's block only. Args as ``transition_batch``; ``moved`` holds its outputs.
+    With work arrays for SIMD lanes (``allocate_lanes``; None: robot by robot), spatial robots (m = 6) in blocks
+    of more than one are measured together (``_transition_lanes``). ``cs`` holds one row of constants per robot
+    or one row for all (the robots of one batch share their pose space and actuator kinds, not their geometry).
     """
     raise NotImplementedError("compiled only (see its overload)")
 
 
 @overload(_transition_block, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, moved):
-    chosen = _literal_path(path)
-    if chosen == WORK_ARRAYS and isinstance(lanes, types.NoneType):  # no lanes: robot by robot
+    if _literal_path(path) != WORK_ARRAYS or isinstance(lanes, types.NoneType):
 
         def rows(path, cs, state, action, start, count, w, lanes, moved):
-            _work_rows(cs, state, action, start, count, w, moved)
+            _transition_rows(path, cs, state, action, start, count, w, moved)
 
         return rows
-    block = (_planar_block, _three_block, _work_block)[chosen]
 
-    def impl(path, cs, state, action, start, count, w, lanes, moved):
-        block(cs, state, action, start, count, w, lanes, moved)
+    def block(path, cs, state, action, start, count, w, lanes, moved):
+        if count == 1 or cs[0][C_N] != 6.0:  # one robot (the plain Jacobi is cheaper) or m = 3
+            _transition_rows(path, cs, state, action, start, count, w, moved)
+        else:
+            _transition_lanes(cs, state, action, start, count, w, lanes, moved)
 
-    return impl
+    return block
 
 
 @jit_inline
@@ -340,9 +376,7 @@ def _step_block(path, space, model, plant, observation, state, reference, action
     measured, outcome = (o_q, o_x, o_t, o_k, o_k1, o_res), (o_a, o_reason)
     for i in range(start, start + count):
         o_t[i] = t[i] + 1
-    _evaluate_rows(
-        path, space, model, observation, measured, reference, outcome, start, start + count, w, (o_eval, o_obs)
-    )
+    _evaluate_rows(space, model, observation, measured, reference, outcome, start, start + count, w, (o_eval, o_obs))
 
 
 @jit_inline
@@ -399,7 +433,7 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         n, m = measured[1].shape
         out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
         w = _work()
-        _evaluate_rows(path, space, cs, observation, measured, reference, outcome, 0, n, w, out)
+        _evaluate_rows(space, cs, observation, measured, reference, outcome, 0, n, w, out)
         return out
 
     def step_serial(

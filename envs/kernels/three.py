@@ -1,13 +1,12 @@
-"""The family core for three actuators of any kind on a planar or translational pose space, in scalars.
+"""Three actuators of any kind on the planar or translational pose space, in scalars: the register path's algebra.
 
 A robot of the distance-constraint family with three actuators and a three-coordinate pose, (x, y, φ) (planar)
-or p = (x, y, z) (translational, R = I), has 3 × 3 algebra that fits in registers. ``envs.kernels.planar``
-writes out the planar robots driven by legs (the 3-RPR: A_i = B_i, ℓ_i = q_i); this module writes out the rest,
-the robots whose anchors move with their actuators (cranks and sliders: the Delta, the 3-RRR, the 3-PRR), with the
-anchor of each leg computed once per value of q (Newton's iterations move x at fixed q). It is the algorithm of
-``envs.kernels.step._advance_spatial`` and its evaluation of k and k_I, operation for operation (the same
-floating-point results), without the work arrays: ``envs.kernels.step`` steps every such robot through
-``transition_row``. The math, with d_i = p + R P_i − A_i(q_i):
+or p = (x, y, z) (translational, R = I), has 3 × 3 algebra that fits in registers: here it is written out for
+one robot in scalars, with closed forms (the adjugate for the systems, the trigonometric solution of the cubic for
+k; ``envs.kernels.linalg``), where other robots go through 6 × 6 work arrays (``envs.kernels.constraints``). The
+step (``envs.kernels.step``) runs on these through ``envs.kernels.paths``. The anchor of each leg is computed once
+per value of q (Newton's iterations move x at fixed q); a leg's is fixed (``leg_anchors``). The math, with
+d_i = p + R P_i − A_i(q_i):
 
     Φ_i = d_iᵀ d_i − ℓ_i(q_i)²,   J_x = 2 A,   A_i = (d_ix, d_iy, (R P_i)_x d_iy − (R P_i)_y d_ix) (planar)
                                                  or d_iᵀ (translational),
@@ -23,28 +22,17 @@ import math
 
 import numpy as np
 
-from envs.kernels import layout, linalg, planar, setup
+from envs.kernels import layout, linalg, setup
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.layout import (
     C_A,
     C_B,
-    C_DT,
     C_E,
     C_ELL,
-    C_HIGH,
     C_LAM,
     C_LC,
     C_LEGS,
-    C_LMAX,
-    C_LMIN,
-    C_LOW,
-    C_MAX_SUBSTEP,
-    C_MAX_SUBSTEPS,
-    C_NEWTON_IT,
-    C_NEWTON_TOL,
     C_P,
-    C_RATE,
-    C_RK4,
     C_SCALE,
     C_TRANSLATIONAL,
     C_U,
@@ -53,9 +41,9 @@ from envs.kernels.layout import (
 from envs.kernels.linalg import singular_value_ratio3, solve3
 from envs.kernels.setup import jit, jit_inline
 
-__all__ = ["anchor", "anchors", "link_condition3", "rows", "transition_row"]
+__all__ = ["anchor", "anchors", "leg_anchors", "link_condition3", "rows", "singularity"]
 
-drop_stale_caches(__file__, [layout.__file__, planar.__file__, linalg.__file__, setup.__file__])
+drop_stale_caches(__file__, [layout.__file__, linalg.__file__, setup.__file__])
 
 
 @jit
@@ -76,6 +64,16 @@ def anchor(c, i, qi):
     D2 = a * (cs * v2 - sn * u2) + e2
     speed = math.sqrt(D0 * D0 + D1 * D1 + D2 * D2 + lam)
     return A0, A1, A2, D0, D1, D2, lam * qi + c[C_ELL + i], speed
+
+
+@jit_inline
+def leg_anchors(c, q0, q1, q2):
+    """``anchors`` of three extensible legs: A_i = B_i (fixed), A_i′ = 0, ℓ_i = q_i, ‖(A_i′, ℓ_i′)‖ = 1."""
+    return (
+        (c[C_B], c[C_B + 1], c[C_B + 2], 0.0, 0.0, 0.0, q0, 1.0),
+        (c[C_B + 3], c[C_B + 4], c[C_B + 5], 0.0, 0.0, 0.0, q1, 1.0),
+        (c[C_B + 6], c[C_B + 7], c[C_B + 8], 0.0, 0.0, 0.0, q2, 1.0),
+    )
 
 
 @jit_inline
@@ -208,85 +206,3 @@ def singularity(c, anc, a):
             return k, sign, np.nan
         k1 = min(k1, v)
     return k, sign, k1
-
-
-@jit
-def transition_row(c, state, action, i, moved):
-    """Advance robot i by one control period (predict, correct, measure, terminate); writes its row of ``moved``.
-
-    ``state`` and ``moved`` as the input and the output of ``step.transition_batch``.
-    """
-    q, x, _, det_sign, residual = state
-    o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump = moved
-    translational = c[C_TRANSLATIONAL] != 0.0
-    dt = c[C_DT]
-    lo, hi = c[C_LMIN], c[C_LMAX]
-    stroke = c[C_RATE] * dt
-    q0, q1, q2 = q[i, 0], q[i, 1], q[i, 2]
-    x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
-    a0 = min(max(action[i, 0], -1.0), 1.0)
-    a1 = min(max(action[i, 1], -1.0), 1.0)
-    a2 = min(max(action[i, 2], -1.0), 1.0)
-    n0 = min(max(q0 + a0 * stroke, lo), hi)
-    n1 = min(max(q1 + a1 * stroke, lo), hi)
-    n2 = min(max(q2 + a2 * stroke, lo), hi)
-    r0, r1, r2 = (n0 - q0) / dt, (n1 - q1) / dt, (n2 - q2) / dt
-    start_anc = anchors(c, q0, q1, q2)
-    start_rows = rows(c, start_anc, x0, x1, x2)
-    anc, a = start_anc, start_rows
-    v0, v1, v2 = _rate(a, r0, r1, r2)
-    steps = np.ceil(_metric(c, translational, v0, v1, v2) * dt / c[C_MAX_SUBSTEP])
-    cap = c[C_MAX_SUBSTEPS]
-    count = int(cap) if not math.isfinite(steps) else int(min(max(steps, 1.0), cap))
-    h = dt / count
-    rk4 = c[C_RK4] != 0.0
-    tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])
-    kq0, kq1, kq2, kx0, kx1, kx2 = q0, q1, q2, x0, x1, x2
-    res = residual[i]
-    jump = 0.0
-    failed = False
-    for s in range(count):
-        frac = (s + 1) / count
-        t0, t1, t2 = q0 + frac * (n0 - q0), q1 + frac * (n1 - q1), q2 + frac * (n2 - q2)
-        if s > 0:  # at the pose Newton's method just returned, whose rows it computed
-            v0, v1, v2 = _rate(a, r0, r1, r2)
-        if rk4:
-            hh = 0.5 * h
-            mid = anchors(c, kq0 + hh * r0, kq1 + hh * r1, kq2 + hh * r2)
-            b0, b1, b2 = _rate(rows(c, mid, kx0 + hh * v0, kx1 + hh * v1, kx2 + hh * v2), r0, r1, r2)
-            e0, e1, e2 = _rate(rows(c, mid, kx0 + hh * b0, kx1 + hh * b1, kx2 + hh * b2), r0, r1, r2)
-            end = anchors(c, kq0 + h * r0, kq1 + h * r1, kq2 + h * r2)
-            f0, f1, f2 = _rate(rows(c, end, kx0 + h * e0, kx1 + h * e1, kx2 + h * e2), r0, r1, r2)
-            g0 = (v0 + 2.0 * b0 + 2.0 * e0 + f0) / 6.0
-            g1 = (v1 + 2.0 * b1 + 2.0 * e1 + f1) / 6.0
-            g2 = (v2 + 2.0 * b2 + 2.0 * e2 + f2) / 6.0
-            p0, p1, p2 = kx0 + h * g0, kx1 + h * g1, kx2 + h * g2
-        else:
-            p0, p1, p2 = kx0 + h * v0, kx1 + h * v1, kx2 + h * v2
-        if not (math.isfinite(p0) and math.isfinite(p1) and math.isfinite(p2)):
-            failed = True
-            break
-        anc = anchors(c, t0, t1, t2)
-        y0, y1, y2, fres, a = _newton(c, anc, p0, p1, p2, tolerance, iterations)
-        if not fres <= tolerance:
-            failed = True
-            break
-        jump = max(jump, _metric(c, translational, y0 - p0, y1 - p1, y2 - p2))
-        kq0, kq1, kq2, kx0, kx1, kx2, res = t0, t1, t2, y0, y1, y2, fres
-    if failed:
-        kq0, kq1, kq2, kx0, kx1, kx2, res = q0, q1, q2, x0, x1, x2, residual[i]
-        anc, a = start_anc, start_rows
-    k_new, sign, k1 = singularity(c, anc, a)
-    out = False
-    for j, value in enumerate((kx0, kx1, kx2)):
-        if value < c[C_LOW + j] or value > c[C_HIGH + j]:
-            out = True
-    o_q[i, 0], o_q[i, 1], o_q[i, 2] = kq0, kq1, kq2
-    o_x[i, 0], o_x[i, 1], o_x[i, 2] = kx0, kx1, kx2
-    o_k[i] = k_new
-    o_k1[i] = k1
-    o_res[i] = res
-    o_a[i, 0], o_a[i, 1], o_a[i, 2] = a0, a1, a2
-    o_qr[i, 0], o_qr[i, 1], o_qr[i, 2] = r0, r1, r2
-    o_reason[i] = planar.termination_reason(c, failed, jump, sign, det_sign[i], k_new, out, k1)
-    o_jump[i] = jump

@@ -10,8 +10,8 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 from envs import physics, presets
-from envs.kernels import constraints
 from envs.kernels import generic as fk
+from envs.kernels import packing
 from envs.kernels import step as step_kernels
 from envs.tasks import samplers
 from envs.wrappers.shield import SingularityShield
@@ -132,40 +132,31 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
 
 
 @pytest.mark.parametrize("integrator", ["euler", "rk4"])
-@pytest.mark.parametrize("env_id", ["DeltaReach-v0", "Planar3RRRReach-v0", "Planar3PRRReach-v0"])
-def test_scalar_transition_equals_the_work_array_algorithm_bit_for_bit(env_id, integrator):
-    """``envs.kernels.three`` (3 × 3 in registers) gives exactly what the general work-array kernels give.
+@pytest.mark.parametrize("env_id", ["DeltaReach-v0", "Planar3RRRReach-v0", "Planar3PRRReach-v0", "Planar3RPRReach-v0"])
+def test_register_path_equals_the_work_array_path_bit_for_bit(env_id, integrator):
+    """The step's register path (3 × 3 in scalars) gives exactly what its work-array path gives.
 
-    The general path (``_advance_spatial``, ``_singularity``, ``_actuator_condition``) is what any pose space
-    runs; the scalar path replaces it for three cranks or sliders. Full-speed random actions, so some robots
-    leave their bounds or meet a singularity and the failure branches are compared too.
+    One step body (``envs.kernels.step._advance``) runs on both: the work-array path is what any pose space runs,
+    the register path replaces it for three actuators (legs: the 3-RPR; cranks or sliders: the others).
+    Full-speed random actions, so some robots leave their bounds or meet a singularity and the failure branches
+    are compared too.
     """
     env = gym.make(env_id, integrator=integrator).unwrapped
     params = env.params
     n = 300
     start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(n)], {})
     state = physics.initial_state(params, start, reference)
-    c = params.packed
+    cs = params.packed_rows
+    assert packing.row_path(cs) in (packing.PLANAR_LEGS, packing.THREE)
+    work = step_kernels._PATH_KERNELS[packing.WORK_ARRAYS, packing.pose_space_code(cs)]
     rng = np.random.default_rng(7)
     q, x, residual = state.q, state.x, state.residual
     reasons = []
     for _ in range(40):
         action = rng.uniform(-1.5, 1.5, size=(n, 3))
         motion = (q, x, state.t, state.det_sign, residual)
-        new = fk.transition_batch(params.packed_rows, motion, action)
-        ref = [np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)]
-        o_q, o_x, o_res, o_a, o_qr, o_jump = ref
-        w = constraints._work()
-        k, k1 = np.empty(n), np.empty(n)
-        moved = (o_q, o_x, np.empty(n), np.empty(n), o_res, o_a, o_qr, np.empty(n, dtype=np.int64), o_jump)
-        for i in range(n):
-            step_kernels._advance_spatial(c, motion, action, i, w, moved)
-            k[i] = constraints._singularity(c, o_q[i], w, constraints.W_A)[0]
-            k1[i] = constraints._actuator_condition(c, w)
-        for got, want in zip(
-            (new[0], new[1], new[2], new[3], new[4], new[5], new[6], new[8]),
-            (o_q, o_x, k, k1, o_res, o_a, o_qr, o_jump),
-        ):
+        new = fk.transition_batch(cs, motion, action)
+        for got, want in zip(new, work.transition(cs, motion, action)):
             np.testing.assert_array_equal(got, want)
         reasons.append(new[7])
         q, x, residual = new[0], new[1], new[4]

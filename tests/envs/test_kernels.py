@@ -1,7 +1,7 @@
 """The compiled family kernels on the 3-RPR preset against NumPy oracles built on the kinematics library.
 
 ``envs.physics`` runs the dynamics, reward and observation of every robot through Numba kernels (a planar robot
-with legs on scalars, ``envs.kernels.planar``). Here, with ``ROBOT_PRESETS["planar_3rpr"]``, they are checked
+with legs in registers, ``envs.kernels.paths``). Here, with ``ROBOT_PRESETS["planar_3rpr"]``, they are checked
 against straightforward NumPy versions of the same algorithm that call ``kinematics.Planar3RPR`` (itself checked
 against the lesson, SymPy and finite differences) and LAPACK.
 """
