@@ -35,6 +35,22 @@ from envs.kernels.layout import (
     C_TRANSLATIONAL,
     C_U,
     C_V,
+    W_A,
+    W_CA,
+    W_CD,
+    W_CELL,
+    W_CQ,
+    W_CSPEED,
+    W_DQ,
+    W_ELL,
+    W_H,
+    W_LU,
+    W_RHS,
+    W_SIZE,
+    W_SOL,
+    W_SPEED,
+    W_SQ,
+    W_XM,
 )
 from envs.kernels.linalg import inverse_condition6, solve3, solve6
 from envs.kernels.pose import _all_finite, _frame, _retract, _wrap
@@ -43,43 +59,6 @@ from envs.kernels.setup import jit, jit_inline
 __all__ = ["W_A", "W_SIZE", "forward_batch", "initial_batch", "singularity_batch", "strokes_batch"]
 
 drop_stale_caches(__file__, [layout.__file__, linalg.__file__, pose.__file__, setup.__file__, three.__file__])
-
-
-# Rows of the work array of one robot (each row holds up to 6 numbers).
-W_A = 0  # A = J_x / 2, n × m (rows 0..5)
-W_LU = 6  # elimination copy of A (rows 6..11)
-W_H = 12  # homogeneous J_i, for the SVD (rows 12..17)
-W_ELL = 18  # link lengths ℓ_i(q_i) [m] (for legs q_i; read only off the legs' fast path)
-W_DQ = 19  # d_iᵀ A_i′ + ℓ_i ℓ_i′ = −(J_q)_ii / 2
-W_SPEED = 20  # ‖(A_i′, ℓ_i′)‖
-W_SQ = 21  # squared leg lengths d_iᵀ d_i
-W_RHS = 22
-W_SOL = 23
-W_V = 24  # twist rate
-W_K1, W_K2, W_K3 = 25, 26, 27  # RK4 stages
-W_XM = 28  # an intermediate pose
-W_KQ, W_KX = 29, 30  # strokes and pose of the current substep
-W_NQ = 31  # strokes at the end of the step
-W_QR = 32  # achieved stroke rates
-W_PRED = 33  # predicted pose
-W_Y = 34  # Newton's pose
-W_T = 35  # strokes of a substep
-W_QM = 36  # intermediate strokes
-W_ACT = 37  # applied action
-W_SPARE = 38  # (unused rows 38..42)
-W_TGT = 43  # target pose
-W_VEL = 44  # target velocity
-W_DIFF = 45  # a pose difference
-W_SEG = 46  # a point of a segment
-W_SEG_D = 47  # a segment's direction
-# The anchors of cranks and sliders depend on q alone: cached per leg for the q they were computed at (Newton's
-# iterations and the substep's checks move x at fixed q). ``_work`` marks the cache empty (NaN).
-W_CQ = 48  # the q_i the cached values belong to
-W_CA = 49  # A_i(q_i), rows 49..51
-W_CD = 52  # A_i′(q_i), rows 52..54
-W_CELL = 55  # ℓ_i(q_i)
-W_CSPEED = 56  # ‖(A_i′, ℓ_i′)‖
-W_SIZE = 57
 
 
 @jit

@@ -1,8 +1,8 @@
 """The evaluation of a step in compiled code: the reference, the errors, the reward terms and the observation.
 
-The evaluation reads a few records (tuples of arrays, built by ``envs.physics``): ``observation`` = (low, high,
-with_velocity), the observation's bounds; ``measured`` = (q, x, t, k, k_I, residual); ``reference`` = (center,
-amplitude, phase, strokes); ``outcome`` = (action, reason). Every robot's terms and observation are computed by
+The evaluation reads the records of ``envs.kernels.records``: ``Observation`` (the observation's bounds),
+``Measured`` (the state it evaluates), ``Reference`` (the targets) and ``Outcome`` (the applied actions and the
+termination reasons). Every robot's terms and observation are computed by
 one row function; where they depend on the pose space (the pose error, the pose's code in the observation), a
 compile-time constant selects the code through overloads (``numba.extending.overload``), so a robot compiles its
 own pose space only.
@@ -17,7 +17,7 @@ from numba.extending import overload
 
 from envs.kernels import constraints, layout, linalg, packing, pose, setup
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import W_DIFF, W_SEG, W_TGT, W_VEL, _leg_lengths, _row
+from envs.kernels.constraints import _leg_lengths, _row
 from envs.kernels.layout import (
     C_BONUS,
     C_DT,
@@ -55,6 +55,10 @@ from envs.kernels.layout import (
     E_SUCCESS,
     E_TERMINATION,
     E_TRACKING,
+    W_DIFF,
+    W_SEG,
+    W_TGT,
+    W_VEL,
 )
 from envs.kernels.packing import _OVERLOAD_OPTIONS, _literal_space
 from envs.kernels.pose import _TWO_PI, _quat_from_rotvec, _relative_rotvec, _wrap
@@ -236,14 +240,13 @@ def _encode_pose_of_space(space, x, o_obs, i, start, low, high):
 @jit_inline
 def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out):
     """``_evaluate_rows``' row i: the target, the reward terms, the errors, success, the cost and the observation."""
-    low, high, with_velocity = observation
-    q, x, t, k, k1, residual = measured
-    center, amplitude, phase, center_strokes = reference
-    action, reason = outcome
+    low, high = observation.low, observation.high
+    q, x, k, k1 = measured.q, measured.x, measured.k, measured.k1
+    amplitude, action = reference.amplitude, outcome.action
     o_eval, o_obs = out
     m = int(c[C_N])
     g, vel, diff = w[W_TGT], w[W_VEL], w[W_DIFF]
-    _reference(c, t[i], center, amplitude, phase, i, g, vel)
+    _reference(c, measured.t[i], reference.center, amplitude, reference.phase, i, g, vel)
     xi = x[i]
     position_error, orientation_error = _errors(space, xi, g, diff)
     ki = k[i]
@@ -256,7 +259,7 @@ def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out
     a2 = 0.0
     for j in range(m):
         a2 += action[i, j] * action[i, j]
-    terminated = reason[i] != 0
+    terminated = outcome.reason[i] != 0
     termination = -c[C_PENALTY] if terminated else 0.0
     k1i = k1[i]
     safe1 = c[C_SAFE1]
@@ -280,7 +283,7 @@ def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out
     o_eval[E_COST, i] = 1.0 if ki < safe or k1i < safe1 else 0.0
     o_eval[E_COST1, i] = 1.0 if k1i < safe1 else 0.0
     o_eval[E_K, i] = ki
-    o_eval[E_RESIDUAL, i] = residual[i]
+    o_eval[E_RESIDUAL, i] = measured.residual[i]
     for j in range(m):
         o_eval[E_FIXED + j, i] = g[j]
         o_eval[E_FIXED + m + j, i] = vel[j]
@@ -300,7 +303,7 @@ def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out
         if amplitude[i, j] != 0.0:
             fixed = False
     if fixed:  # the target is the reference's centre, whose actuator coordinates are kept with it
-        target_q = center_strokes[i]
+        target_q = reference.strokes[i]
     else:
         target_q = w[W_SEG]
         _leg_lengths(c, g, target_q)
@@ -309,7 +312,7 @@ def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out
     col += m
     _clip32(o_obs, i, col, ki, low, high)
     col += 1
-    if with_velocity:
+    if observation.with_velocity:
         for j in range(m):
             _clip32(o_obs, i, col + j, vel[j], low, high)
 

@@ -70,17 +70,72 @@ LAYOUT: tuple[tuple[str, int, str], ...] = (
 )
 
 
-def offsets(table: tuple[tuple[str, int, str], ...]) -> tuple[dict[str, int], int]:
-    """({"C_<name>": offset}, total size) of a layout table: each offset is the sum of the entries before it."""
+def offsets(table: tuple[tuple[str, int, str], ...], prefix: str = "C_") -> tuple[dict[str, int], int]:
+    """({prefix + name: offset}, total size) of a layout table: each offset is the sum of the entries before it."""
     out, start = {}, 0
     for name, size, _ in table:
-        out["C_" + name] = start
+        out[prefix + name] = start
         start += size
     return out, start
 
 
 OFFSETS, C_SIZE = offsets(LAYOUT)
 globals().update(OFFSETS)  # C_N, C_SPATIAL, …: the names the kernels import
+
+#: (name, rows, meaning) of the work array of one robot (``envs.kernels.constraints._work``), in order: row
+#: ``W_<name>`` is the first of the name's rows; each row holds up to 6 numbers.
+WORK: tuple[tuple[str, int, str], ...] = (
+    ("A", 6, "A = J_x / 2, n × m"),
+    ("LU", 6, "elimination copy of A"),
+    ("H", 6, "homogeneous J_i, for the SVD"),
+    ("ELL", 1, "link lengths ℓ_i(q_i) [m] (for legs q_i)"),
+    ("DQ", 1, "d_iᵀ A_i′ + ℓ_i ℓ_i′ = −(J_q)_ii / 2"),
+    ("SPEED", 1, "‖(A_i′, ℓ_i′)‖"),
+    ("SQ", 1, "squared leg lengths d_iᵀ d_i"),
+    ("RHS", 1, "right-hand side of a system"),
+    ("SOL", 1, "solution of a system"),
+    ("V", 1, "twist rate"),
+    ("K1", 1, "RK4 stage"),
+    ("K2", 1, "RK4 stage"),
+    ("K3", 1, "RK4 stage"),
+    ("XM", 1, "an intermediate pose"),
+    ("KQ", 1, "strokes of the current substep"),
+    ("KX", 1, "pose of the current substep"),
+    ("NQ", 1, "strokes at the end of the step"),
+    ("QR", 1, "achieved stroke rates"),
+    ("PRED", 1, "predicted pose"),
+    ("Y", 1, "Newton's pose"),
+    ("T", 1, "strokes of a substep"),
+    ("QM", 1, "intermediate strokes"),
+    ("ACT", 1, "applied action"),
+    ("TGT", 1, "target pose"),
+    ("VEL", 1, "target velocity"),
+    ("DIFF", 1, "a pose difference"),
+    ("SEG", 1, "a point of a segment"),
+    ("SEG_D", 1, "a segment's direction"),
+    # The anchors of cranks and sliders depend on q alone: cached per leg for the q they were computed at (Newton's
+    # iterations and the substep's checks move x at fixed q). ``_work`` marks the cache empty (NaN).
+    ("CQ", 1, "the q_i the cached anchor values belong to"),
+    ("CA", 3, "A_i(q_i), one row per coordinate"),
+    ("CD", 3, "A_i′(q_i), one row per coordinate"),
+    ("CELL", 1, "ℓ_i(q_i)"),
+    ("CSPEED", 1, "‖(A_i′, ℓ_i′)‖"),
+)
+WORK_ROWS, W_SIZE = offsets(WORK, "W_")
+globals().update(WORK_ROWS)  # W_A, W_LU, …: the names the kernels import
+
+
+#: (name, meaning) of the rows of the lane array of a block of spatial robots (``envs.kernels.step.allocate_lanes``),
+#: in order: row ``L_<name>`` holds the name's value of every robot of the block.
+LANES_ROWS: tuple[tuple[str, str], ...] = (
+    ("K", "inverse condition number k"),
+    ("WORST", "the Jacobi SVD's work: the largest cos² between two columns in a sweep"),
+    ("ACTIVE", "whether the Jacobi SVD still rotates the robot's matrix"),
+    ("SIGN", "sign(det J_x)"),
+    ("FLAGS", "1: the correction failed; + 2: the pose left its bounds"),
+    ("K1", "actuator condition number k_I"),
+)
+globals().update({"L_" + name: row for row, (name, _) in enumerate(LANES_ROWS)})  # L_K, …
 
 #: (name, info key) of the rows of the evaluation (``step.evaluate_batch``) that do not depend on m, in order;
 #: row ``E_<name>`` holds the info key's value of every robot. The target, its velocity and the pose follow from

@@ -24,8 +24,8 @@ from numba.extending import overload
 
 from envs.kernels import constraints, layout, packing, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import W_A, W_DIFF, W_Y, _actuator_condition, _newton, _rows, _singularity, _twist_rate
-from envs.kernels.layout import C_DT, C_LMAX, C_LMIN, C_RATE, C_TRANSLATIONAL
+from envs.kernels.constraints import _actuator_condition, _newton, _rows, _singularity, _twist_rate
+from envs.kernels.layout import C_DT, C_LMAX, C_LMIN, C_RATE, C_TRANSLATIONAL, W_A, W_DIFF, W_Y
 from envs.kernels.packing import _OVERLOAD_OPTIONS, PLANAR_LEGS, WORK_ARRAYS, _literal_path
 
 __all__ = [

@@ -1,10 +1,11 @@
 """The compiled step of the family: transition (predict, correct, measure, terminate), then evaluation.
 
-The kernels take their arrays in a few records (tuples of arrays, built by ``envs.physics``): ``c``, the robot's
-constants (``envs.kernels.packing``); ``state`` = (q, x, t, det_sign, residual); ``moved`` = (q, x, k, k_I,
-residual, action, q_rate, reason, jump), what the transition writes; the evaluation's records are
-``envs.kernels.evaluation``'s. The step's row paths (``row_path``: planar legs, three actuators, work arrays)
-share one order, predict, correct, measure, terminate.
+The kernels take their arrays in the records of ``envs.kernels.records`` (named tuples, built by
+``envs.physics``) and ``c``, the robot's packed constants (``envs.kernels.packing``): the transition reads a
+``Motion`` and writes a ``Moved``; the evaluation reads an ``Observation``, a ``Measured``, a ``Reference`` and
+an ``Outcome``; the fused step writes a ``StepArrays``. One body steps every robot: ``_advance`` (predict,
+correct), then ``_transition_rows`` (measure, terminate), on the vectors of the robot's row path
+(``envs.kernels.paths``: registers for three actuators, work arrays otherwise).
 
 Compile time: the row path and the pose space are compile-time constants of the entry kernels (closures over
 them, ``path_kernels``), and overloads (``numba.extending.overload``) choose each path's and space's code by
@@ -26,28 +27,9 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload
 
-from envs.kernels import constraints, evaluation, layout, linalg, packing, paths, pose, setup, three
+from envs.kernels import constraints, evaluation, layout, linalg, packing, paths, pose, records, setup, three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import (
-    W_A,
-    W_ACT,
-    W_K1,
-    W_K2,
-    W_K3,
-    W_KQ,
-    W_KX,
-    W_NQ,
-    W_PRED,
-    W_QM,
-    W_QR,
-    W_T,
-    W_V,
-    W_XM,
-    _actuator_condition,
-    _homogeneous_lane,
-    _row,
-    _work,
-)
+from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
 from envs.kernels.evaluation import _evaluate_rows
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
@@ -69,10 +51,32 @@ from envs.kernels.layout import (
     C_NEWTON_TOL,
     C_RK4,
     E_FIXED,
+    L_ACTIVE,
+    L_FLAGS,
+    L_K,
+    L_K1,
+    L_SIGN,
+    L_WORST,
+    LANES_ROWS,
+    W_A,
+    W_ACT,
+    W_K1,
+    W_K2,
+    W_K3,
+    W_KQ,
+    W_KX,
+    W_NQ,
+    W_PRED,
+    W_QM,
+    W_QR,
+    W_T,
+    W_V,
+    W_XM,
 )
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
 from envs.kernels.pose import _all_finite
+from envs.kernels.records import Measured, Motion, Moved, Observation, Outcome, Reference, StepArrays
 from envs.kernels.setup import PARALLEL_MIN_BATCH, jit, jit_inline, jit_parallel
 
 __all__ = ["allocate_step", "evaluate_batch", "path_kernels", "step_batch", "transition_batch"]
@@ -87,23 +91,23 @@ drop_stale_caches(
         packing.__file__,
         paths.__file__,
         pose.__file__,
+        records.__file__,
         setup.__file__,
         three.__file__,
     ],
 )
 
 
+N_LANE_ROWS = len(LANES_ROWS)
+
 #: Robots per chunk of a batch: each chunk allocates its work arrays once (a multiple of ``LANES``).
 CHUNK = 64
 
 
-L_K, L_WORST, L_ACTIVE, L_SIGN, L_FLAGS, L_K1 = 0, 1, 2, 3, 4, 5
-
-
 @jit
 def allocate_lanes():
-    """Work arrays of one block of up to ``LANES`` spatial robots: (H (6, 6, LANES), lane rows (6, LANES))."""
-    return np.empty((6, 6, LANES)), np.empty((6, LANES))
+    """Work arrays of one block of up to ``LANES`` spatial robots: (H (6, 6, LANES), lane rows (``LANES_ROWS``))."""
+    return np.empty((6, 6, LANES)), np.empty((N_LANE_ROWS, LANES))
 
 
 @jit_inline
@@ -232,30 +236,27 @@ def _outside(c, x):
 
 @jit_inline
 def _store(i, kq, kx, a, qr, res, jump, moved):
-    """Write robot i's strokes, pose, applied action, stroke rates, residual and jump into ``moved``."""
-    o_q, o_x, _, _, o_res, o_a, o_qr, _, o_jump = moved
+    """Write robot i's strokes, pose, applied action, stroke rates, residual and jump into ``moved`` (``Moved``)."""
     for j in range(len(kx)):
-        o_q[i, j] = kq[j]
-        o_x[i, j] = kx[j]
-        o_a[i, j] = a[j]
-        o_qr[i, j] = qr[j]
-    o_res[i] = res
-    o_jump[i] = jump
+        moved.q[i, j] = kq[j]
+        moved.x[i, j] = kx[j]
+        moved.action[i, j] = a[j]
+        moved.q_rate[i, j] = qr[j]
+    moved.residual[i] = res
+    moved.jump[i] = jump
 
 
 @jit_inline
 def _transition_rows(path, cs, state, action, start, count, w, moved):
     """Transition of robots start .. start + count − 1, one at a time: advance, measure, terminate."""
-    q, x, _, det_sign, residual = state
-    _, _, o_k, o_k1, _, _, _, o_reason, _ = moved
     for i in range(start, start + count):
         c = _row(cs, i)
-        q0, x0 = paths.vector(path, q[i]), paths.vector(path, x[i])
-        kq, kx, anchors, rows, a, qr, res, jump, failed = _advance(path, c, q0, x0, action[i], residual[i], w)
+        q0, x0 = paths.vector(path, state.q[i]), paths.vector(path, state.x[i])
+        kq, kx, anchors, rows, a, qr, res, jump, failed = _advance(path, c, q0, x0, action[i], state.residual[i], w)
         k, sign, k1 = paths.measure(path, c, kq, anchors, rows, w)
         _store(i, kq, kx, a, qr, res, jump, moved)
-        o_k[i], o_k1[i] = k, k1
-        o_reason[i] = termination_reason(c, failed, jump, sign, det_sign[i], k, _outside(c, kx), k1)
+        moved.k[i], moved.k1[i] = k, k1
+        moved.reason[i] = termination_reason(c, failed, jump, sign, state.det_sign[i], k, _outside(c, kx), k1)
 
 
 @jit_inline
@@ -265,13 +266,12 @@ def _transition_lanes(cs, state, action, start, count, w, lanes, moved):
     The k of all of them comes from one ``inverse_condition6_lanes`` call over the block (vectorised across
     robots, each robot's k bit for bit what it would be alone).
     """
-    q, x, _, det_sign, residual = state
-    _, _, o_k, o_k1, _, _, _, o_reason, _ = moved
     H, lane = lanes
     for r in range(count):
         i = start + r
         c = _row(cs, i)
-        kq, kx, _, _, a, qr, res, jump, failed = _advance(WORK_ARRAYS, c, q[i], x[i], action[i], residual[i], w)
+        q0, x0, residual = state.q[i], state.x[i], state.residual[i]
+        kq, kx, _, _, a, qr, res, jump, failed = _advance(WORK_ARRAYS, c, q0, x0, action[i], residual, w)
         _store(i, kq, kx, a, qr, res, jump, moved)
         lane[L_SIGN, r] = _homogeneous_lane(c, kq, w, W_A, H, r)
         lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if _outside(c, kx) else 0.0)
@@ -281,11 +281,11 @@ def _transition_lanes(cs, state, action, start, count, w, lanes, moved):
         i = start + r
         flags = lane[L_FLAGS, r]
         k = lane[L_K, r]
-        o_k[i], o_k1[i] = k, lane[L_K1, r]
-        o_reason[i] = termination_reason(
-            _row(cs, i), flags == 1.0 or flags == 3.0, moved[8][i], lane[L_SIGN, r], det_sign[i], k, flags >= 2.0,
-            lane[L_K1, r],
-        )  # fmt: skip
+        moved.k[i], moved.k1[i] = k, lane[L_K1, r]
+        failed, out = flags == 1.0 or flags == 3.0, flags >= 2.0
+        moved.reason[i] = termination_reason(
+            _row(cs, i), failed, moved.jump[i], lane[L_SIGN, r], state.det_sign[i], k, out, lane[L_K1, r]
+        )
 
 
 def _transition_block(path, cs, state, action, start, count, w, lanes, moved):
@@ -324,7 +324,7 @@ def _allocate_moved(n, m):
     """The outputs of ``transition_batch`` for n robots with m pose coordinates (see its Returns)."""
     q, x, action, q_rate = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
     k, k1, residual, jump = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    return q, x, k, k1, residual, action, q_rate, np.empty(n, dtype=np.int64), jump
+    return Moved(q, x, k, k1, residual, action, q_rate, np.empty(n, dtype=np.int64), jump)
 
 
 def transition_batch(cs, state, action):
@@ -340,7 +340,7 @@ def transition_batch(cs, state, action):
     Returns:
         (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
     """
-    return path_kernels(cs).transition(cs, state, action)
+    return path_kernels(cs).transition(cs, Motion(*state), action)
 
 
 def evaluate_batch(cs, observation, measured, reference, outcome):
@@ -362,21 +362,20 @@ def evaluate_batch(cs, observation, measured, reference, outcome):
     Returns:
         (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
     """
-    return path_kernels(cs).evaluate(cs, observation, measured, reference, outcome)
+    records = Observation(*observation), Measured(*measured), Reference(*reference), Outcome(*outcome)
+    return path_kernels(cs).evaluate(cs, *records)
 
 
 @jit_inline
 def _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out):
     """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``)."""
-    o_q, o_x, o_t, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump, o_eval, o_obs = out
-    _transition_block(
-        path, plant, state, action, start, count, w, lanes, (o_q, o_x, o_k, o_k1, o_res, o_a, o_qr, o_reason, o_jump)
-    )
-    t = state[2]
-    measured, outcome = (o_q, o_x, o_t, o_k, o_k1, o_res), (o_a, o_reason)
+    moved = Moved(out.q, out.x, out.k, out.k1, out.residual, out.action, out.q_rate, out.reason, out.jump)
+    _transition_block(path, plant, state, action, start, count, w, lanes, moved)
     for i in range(start, start + count):
-        o_t[i] = t[i] + 1
-    _evaluate_rows(space, model, observation, measured, reference, outcome, start, start + count, w, (o_eval, o_obs))
+        out.t[i] = state.t[i] + 1
+    measured = Measured(out.q, out.x, out.t, out.k, out.k1, out.residual)
+    outcome, written = Outcome(out.action, out.reason), (out.evaluation, out.observations)
+    _evaluate_rows(space, model, observation, measured, reference, outcome, start, start + count, w, written)
 
 
 @jit_inline
@@ -430,8 +429,8 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         return moved
 
     def evaluate(cs, observation, measured, reference, outcome):
-        n, m = measured[1].shape
-        out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation[0].shape[0]), dtype=np.float32))
+        n, m = measured.x.shape
+        out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation.low.shape[0]), dtype=np.float32))
         w = _work()
         _evaluate_rows(space, cs, observation, measured, reference, outcome, 0, n, w, out)
         return out
@@ -458,8 +457,8 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         # argument slower than a bare one (about 0.2 µs per array per call).
         if not _finite_actions(action):
             return True
-        observation = (low, high, with_velocity)
-        state, reference = (q, x, t, det_sign, residual), (center, amplitude, phase, strokes)
+        observation = Observation(low, high, with_velocity)
+        state, reference = Motion(q, x, t, det_sign, residual), Reference(center, amplitude, phase, strokes)
         w = _work()
         lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
         n = q.shape[0]
@@ -497,8 +496,9 @@ def _step_serial(model, plant, *args):
 
 
 def _step_parallel(model, plant, observation, state, reference, action, out):
-    """The multi-core step of ``step_batch``."""
-    return path_kernels(plant).step_parallel(model, plant, observation, state, reference, action, out)
+    """The multi-core step of ``step_batch`` (records as tuples or ``envs.kernels.records``)."""
+    records = Observation(*observation), Motion(*state), Reference(*reference)
+    return path_kernels(plant).step_parallel(model, plant, *records, action, out)
 
 
 def allocate_step(n, m, obs_dim):
@@ -510,7 +510,7 @@ def allocate_step(n, m, obs_dim):
     k, k1, residual, jump = (np.empty(n) for _ in range(4))
     reason, t = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
     evaluation, observations = np.empty((E_FIXED + 3 * m, n)), np.empty((n, obs_dim), dtype=np.float32)
-    return q, x, t, k, k1, residual, action, q_rate, reason, jump, evaluation, observations
+    return StepArrays(q, x, t, k, k1, residual, action, q_rate, reason, jump, evaluation, observations)
 
 
 def path_kernels(cs) -> PathKernels:
@@ -530,11 +530,11 @@ def step_batch(model, plant, observation, state, reference, action, out, kernels
         state: (q, x, t, det_sign, residual), as ``transition_batch``.
         reference: (center, amplitude, phase, strokes), as ``evaluate_batch``.
         action: Normalised stroke rates, shape (N, n).
-        out: The arrays of ``allocate_step``.
+        out: The arrays of ``allocate_step`` (a ``StepArrays``).
         kernels: ``path_kernels(plant)``, if the caller keeps them (the single env's step saves finding them).
     """
     if kernels is None:
         kernels = path_kernels(plant)
     if action.shape[0] >= PARALLEL_MIN_BATCH:
-        return kernels.step_parallel(model, plant, observation, state, reference, action, out)
+        return _step_parallel(model, plant, observation, state, reference, action, out)
     return kernels.step_serial(model, plant, *observation, *state, *reference, action, out)

@@ -14,18 +14,7 @@ import numpy as np
 
 from envs.kernels import constraints, layout, linalg, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import (
-    W_A,
-    W_RHS,
-    W_SEG,
-    W_SEG_D,
-    W_SOL,
-    _actuator_condition,
-    _inverse_kinematics,
-    _singularity,
-    _solve,
-    _work,
-)
+from envs.kernels.constraints import _actuator_condition, _inverse_kinematics, _singularity, _solve, _work
 from envs.kernels.layout import (
     C_LEGS,
     C_LMAX,
@@ -37,6 +26,11 @@ from envs.kernels.layout import (
     C_SHIGH,
     C_SLOW,
     C_SPACING,
+    W_A,
+    W_RHS,
+    W_SEG,
+    W_SEG_D,
+    W_SOL,
 )
 from envs.kernels.pose import _difference, _metric, _retract
 from envs.kernels.setup import jit

@@ -21,8 +21,8 @@ import numpy as np
 
 from envs.kernels import constraints, layout, linalg, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import W_A, _inverse_kinematics, _singularity, _work
-from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL
+from envs.kernels.constraints import _inverse_kinematics, _singularity, _work
+from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL, W_A
 from envs.kernels.setup import _next_double, jit
 from envs.tasks import certificate
 from envs.tasks.certificate import _safe

@@ -11,7 +11,7 @@ import numpy as np
 
 from envs.kernels import constraints, evaluation, layout, linalg, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import W_A, _inverse_kinematics, _singularity, _work
+from envs.kernels.constraints import _inverse_kinematics, _singularity, _work
 from envs.kernels.evaluation import _reference_at
 from envs.kernels.layout import (
     C_HARD,
@@ -25,6 +25,7 @@ from envs.kernels.layout import (
     C_SHIGH,
     C_SLOW,
     C_SPACING,
+    W_A,
 )
 from envs.kernels.packing import read_only
 from envs.kernels.pose import _TWO_PI, _difference, _metric

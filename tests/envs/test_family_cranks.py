@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 import envs
 from envs import physics, presets
 from envs.kernels import generic as fk
-from envs.kernels import packing
+from envs.kernels import packing, records
 from envs.kernels import step as step_kernels
 from envs.tasks import samplers
 from envs.wrappers.shield import SingularityShield
@@ -154,7 +154,7 @@ def test_register_path_equals_the_work_array_path_bit_for_bit(env_id, integrator
     reasons = []
     for _ in range(40):
         action = rng.uniform(-1.5, 1.5, size=(n, 3))
-        motion = (q, x, state.t, state.det_sign, residual)
+        motion = records.Motion(q, x, state.t, state.det_sign, residual)
         new = fk.transition_batch(cs, motion, action)
         for got, want in zip(new, work.transition(cs, motion, action)):
             np.testing.assert_array_equal(got, want)

@@ -1,0 +1,91 @@
+"""The records the compiled step takes and returns: named tuples of arrays, one row (or one entry) per robot.
+
+Numba compiles ``typing.NamedTuple`` classes, so the kernels read these fields by name (``state.q``,
+``moved.reason``) instead of unpacking tuples by position. N robots, n actuators, m pose coordinates; strokes are
+leg lengths [m], crank angles [rad] or slider positions [m]; poses are (x, y, φ) (planar), (p, rotation vector)
+(spatial) or p (translational) of {P} in {B}.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["Measured", "Motion", "Moved", "Observation", "Outcome", "Reference", "StepArrays"]
+
+
+class Motion(NamedTuple):
+    """What the transition reads of N robots."""
+
+    q: np.ndarray  #: strokes, (N, n)
+    x: np.ndarray  #: poses, (N, m)
+    t: np.ndarray  #: steps, (N,) int64 (not read by the transition)
+    det_sign: np.ndarray  #: the working mode sign(det J_x) of each episode, (N,)
+    residual: np.ndarray  #: the constraint residual max_i |Φ_i| at (q, x) [m²], (N,)
+
+
+class Moved(NamedTuple):
+    """What the transition writes for N robots."""
+
+    q: np.ndarray  #: strokes after the period, (N, n)
+    x: np.ndarray  #: poses after the period, (N, m)
+    k: np.ndarray  #: inverse condition numbers (Type II measure), (N,)
+    k1: np.ndarray  #: actuator condition numbers (Type I measure; 1 for legs), (N,)
+    residual: np.ndarray  #: constraint residuals [m²], (N,)
+    action: np.ndarray  #: applied actions (clipped to [−1, 1]), (N, n)
+    q_rate: np.ndarray  #: achieved stroke rates [/s], (N, n)
+    reason: np.ndarray  #: termination reason codes (0: none), (N,) int64
+    jump: np.ndarray  #: largest Newton correction of the period [m], (N,)
+
+
+class Observation(NamedTuple):
+    """The observation's bounds and layout."""
+
+    low: np.ndarray  #: lower bounds, (D,) float32
+    high: np.ndarray  #: upper bounds, (D,) float32
+    with_velocity: bool  #: whether the observation ends with the target velocity
+
+
+class Measured(NamedTuple):
+    """The state the evaluation reads of N robots (true or as the encoders measure it)."""
+
+    q: np.ndarray  #: strokes, (N, n)
+    x: np.ndarray  #: poses, (N, m)
+    t: np.ndarray  #: step indices, (N,) int64
+    k: np.ndarray  #: inverse condition numbers, (N,)
+    k1: np.ndarray  #: actuator condition numbers, (N,)
+    residual: np.ndarray  #: constraint residuals [m²], (N,)
+
+
+class Reference(NamedTuple):
+    """The targets of N robots (``envs.physics.FamilyReference`` without its optional field)."""
+
+    center: np.ndarray  #: centres c, (N, m)
+    amplitude: np.ndarray  #: amplitudes a, (N, m)
+    phase: np.ndarray  #: phases θ [rad], (N, m)
+    strokes: np.ndarray  #: the actuator coordinates of the centres, (N, n)
+
+
+class Outcome(NamedTuple):
+    """What the evaluation reads of a transition's outcome."""
+
+    action: np.ndarray  #: applied actions, (N, n)
+    reason: np.ndarray  #: termination reason codes, (N,) int64
+
+
+class StepArrays(NamedTuple):
+    """The outputs of the fused step of N robots (``envs.kernels.step.allocate_step``)."""
+
+    q: np.ndarray  #: strokes, (N, n)
+    x: np.ndarray  #: poses, (N, m)
+    t: np.ndarray  #: step indices, (N,) int64
+    k: np.ndarray  #: inverse condition numbers, (N,)
+    k1: np.ndarray  #: actuator condition numbers, (N,)
+    residual: np.ndarray  #: constraint residuals [m²], (N,)
+    action: np.ndarray  #: applied actions, (N, n)
+    q_rate: np.ndarray  #: achieved stroke rates [/s], (N, n)
+    reason: np.ndarray  #: termination reason codes, (N,) int64
+    jump: np.ndarray  #: largest Newton corrections [m], (N,)
+    evaluation: np.ndarray  #: evaluation rows (``packing.evaluation_rows``), (E_FIXED + 3m, N)
+    observations: np.ndarray  #: observations, (N, D) float32
