@@ -2,30 +2,72 @@
 
 Numba keys a cached function by the source file that defines it, so a kernel that inlines or calls a jitted
 function of *another* module keeps its compiled code after that module changes, and runs the old version.
-``drop_stale_caches`` closes that gap: a module that calls into others names them, and its cache files are
-removed whenever their sources differ from those its cache was built with.
+``drop_stale_caches`` closes that gap: it finds the modules a module calls into (the project's modules its
+namespace refers to, and theirs in turn), and removes the module's cache files whenever their sources differ from
+those its cache was built with.
 """
 
 from __future__ import annotations
 
+import ast
 import hashlib
+import sys
 from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["drop_stale_caches"]
+__all__ = ["dependencies", "drop_stale_caches"]
+
+#: The package whose modules are followed (the kernels call into no other package's jitted code).
+_PACKAGE = "envs."
 
 
-def drop_stale_caches(module_file: str | Path, dependencies: Iterable[str | Path]) -> bool:
-    """Remove the Numba cache of ``module_file`` if a file it depends on changed since the cache was built.
+def _imported_modules(path: Path) -> set[str]:
+    """Names of the package's modules (not packages) that the source file ``path`` imports at any level."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module)
+            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+        elif isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+    return {
+        name
+        for name in names
+        if name.startswith(_PACKAGE)
+        and name in sys.modules
+        and not str(getattr(sys.modules[name], "__file__", "__init__.py")).endswith("__init__.py")
+    }
 
-    The sources of ``module_file``'s dependencies are hashed into ``__pycache__/<module>.deps``; where the hash
+
+def dependencies(module_file: str | Path) -> list[Path]:
+    """Source files of every module of the package that ``module_file`` imports, and those they import in turn.
+
+    Constants count (the kernels read the packed offsets as compile-time constants), so every import does.
+
+    Args:
+        module_file: A module's ``__file__``; its imports must have run (call this after them).
+    """
+    here = Path(module_file).resolve()
+    seen: set[str] = set()
+    todo = _imported_modules(here)
+    while todo:
+        name = todo.pop()
+        seen.add(name)
+        todo |= _imported_modules(Path(sys.modules[name].__file__)) - seen
+    return sorted(p for p in (Path(sys.modules[name].__file__).resolve() for name in seen) if p != here)
+
+
+def drop_stale_caches(module_file: str | Path, sources: Iterable[str | Path] | None = None) -> bool:
+    """Remove the Numba cache of a module if a module it depends on changed since the cache was built.
+
+    The sources of the module's ``dependencies`` are hashed into ``__pycache__/<module>.deps``; where the hash
     differs (or is missing), the module's ``<module>.*.nbi`` / ``.nbc`` files are deleted, so Numba compiles
-    afresh on first use. Call it at import time, before any of the module's functions is compiled. A cache
-    folder that cannot be written (a read-only install) is left alone.
+    afresh on first use. Call it at import time, after the module's imports and before any of its functions is
+    compiled. A cache folder that cannot be written (a read-only install) is left alone.
 
     Args:
         module_file: The module's ``__file__``.
-        dependencies: Source files of the modules whose jitted functions it calls.
+        sources: The files it depends on (default: its ``dependencies``).
 
     Returns:
         True if a stale cache was dropped (or there was no record of one).
@@ -33,7 +75,7 @@ def drop_stale_caches(module_file: str | Path, dependencies: Iterable[str | Path
     here = Path(module_file)
     cache = here.parent / "__pycache__"
     digest = hashlib.sha256()
-    for path in sorted(Path(p) for p in dependencies):
+    for path in dependencies(module_file) if sources is None else sorted(Path(p) for p in sources):
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     stamp = cache / f"{here.stem}.deps"
     try:

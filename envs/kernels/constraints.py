@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from envs.kernels import layout, linalg, pose, setup, three
+from envs.kernels import three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.layout import (
     C_A,
@@ -58,7 +58,7 @@ from envs.kernels.setup import jit, jit_inline
 
 __all__ = ["W_A", "W_SIZE", "forward_batch", "initial_batch", "singularity_batch", "strokes_batch"]
 
-drop_stale_caches(__file__, [layout.__file__, linalg.__file__, pose.__file__, setup.__file__, three.__file__])
+drop_stale_caches(__file__)
 
 
 @jit

@@ -15,7 +15,6 @@ import math
 import numpy as np
 from numba.extending import overload
 
-from envs.kernels import constraints, layout, linalg, packing, pose, setup
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _leg_lengths, _row
 from envs.kernels.layout import (
@@ -66,17 +65,7 @@ from envs.kernels.setup import jit, jit_inline
 
 __all__ = ["reference_batch"]
 
-drop_stale_caches(
-    __file__,
-    [
-        constraints.__file__,
-        layout.__file__,
-        linalg.__file__,
-        packing.__file__,
-        pose.__file__,
-        setup.__file__,
-    ],
-)
+drop_stale_caches(__file__)
 
 
 @jit

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from numba.extending import overload
 
-from envs.kernels import constraints, layout, packing, pose, setup, three
+from envs.kernels import pose, three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _newton, _rows, _singularity, _twist_rate
 from envs.kernels.layout import C_DT, C_LMAX, C_LMIN, C_RATE, C_TRANSLATIONAL, W_A, W_DIFF, W_Y
@@ -45,9 +45,7 @@ __all__ = [
     "vector",
 ]
 
-drop_stale_caches(
-    __file__, [constraints.__file__, layout.__file__, packing.__file__, pose.__file__, setup.__file__, three.__file__]
-)
+drop_stale_caches(__file__)
 
 
 def _compiled_only(*args):

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 
-from envs.kernels import layout, setup
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.layout import (
     C_LC,
@@ -22,7 +21,7 @@ from envs.kernels.setup import jit
 
 __all__ = []
 
-drop_stale_caches(__file__, [layout.__file__, setup.__file__])
+drop_stale_caches(__file__)
 
 
 _TWO_PI = 2.0 * math.pi

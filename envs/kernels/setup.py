@@ -23,7 +23,7 @@ __all__ = [
     "uniform_batch",
 ]
 
-drop_stale_caches(__file__, [])
+drop_stale_caches(__file__)
 
 
 def jit(fn):

@@ -27,7 +27,7 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload
 
-from envs.kernels import constraints, evaluation, layout, linalg, packing, paths, pose, records, setup, three
+from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
 from envs.kernels.evaluation import _evaluate_rows
@@ -81,21 +81,7 @@ from envs.kernels.setup import PARALLEL_MIN_BATCH, jit, jit_inline, jit_parallel
 
 __all__ = ["allocate_step", "evaluate_batch", "path_kernels", "step_batch", "transition_batch"]
 
-drop_stale_caches(
-    __file__,
-    [
-        constraints.__file__,
-        evaluation.__file__,
-        layout.__file__,
-        linalg.__file__,
-        packing.__file__,
-        paths.__file__,
-        pose.__file__,
-        records.__file__,
-        setup.__file__,
-        three.__file__,
-    ],
-)
+drop_stale_caches(__file__)
 
 
 N_LANE_ROWS = len(LANES_ROWS)

@@ -22,7 +22,6 @@ import math
 
 import numpy as np
 
-from envs.kernels import layout, linalg, setup
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.layout import (
     C_A,
@@ -43,7 +42,7 @@ from envs.kernels.setup import jit, jit_inline
 
 __all__ = ["anchor", "anchors", "leg_anchors", "link_condition3", "rows", "singularity"]
 
-drop_stale_caches(__file__, [layout.__file__, linalg.__file__, setup.__file__])
+drop_stale_caches(__file__)
 
 
 @jit

@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 
-from envs.kernels import constraints, layout, linalg, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _inverse_kinematics, _singularity, _solve, _work
 from envs.kernels.layout import (
@@ -37,9 +36,7 @@ from envs.kernels.setup import jit
 
 __all__ = ["SEGMENT_MAX_POINTS", "safe_batch", "safety_batch", "segment_batch", "segment_min_safety_batch"]
 
-drop_stale_caches(
-    __file__, [constraints.__file__, layout.__file__, linalg.__file__, pose.__file__, setup.__file__, three.__file__]
-)
+drop_stale_caches(__file__)
 
 
 #: Most points checked along one segment.

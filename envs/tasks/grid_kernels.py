@@ -18,12 +18,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from envs.kernels import constraints, layout, linalg, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _inverse_kinematics, _singularity, _work
 from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL, W_A
 from envs.kernels.setup import _next_double, jit
-from envs.tasks import certificate
 from envs.tasks.certificate import _safe
 
 __all__ = [
@@ -35,18 +33,7 @@ __all__ = [
     "sample_reach_batch",
 ]
 
-drop_stale_caches(
-    __file__,
-    [
-        certificate.__file__,
-        constraints.__file__,
-        layout.__file__,
-        linalg.__file__,
-        pose.__file__,
-        setup.__file__,
-        three.__file__,
-    ],
-)
+drop_stale_caches(__file__)
 
 #: Candidates a sampler may reject (per pose or pair) before it reports failure.
 SAMPLER_TRIES = 6400

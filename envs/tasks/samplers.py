@@ -9,7 +9,6 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from envs.kernels import constraints, evaluation, layout, linalg, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _inverse_kinematics, _singularity, _work
 from envs.kernels.evaluation import _reference_at
@@ -30,24 +29,11 @@ from envs.kernels.layout import (
 from envs.kernels.packing import read_only
 from envs.kernels.pose import _TWO_PI, _difference, _metric
 from envs.kernels.setup import _next_double, jit, jit_inline, jit_parallel
-from envs.tasks import certificate
 from envs.tasks.certificate import _safe, _segment_min_k
 
 __all__ = ["PARALLEL_MIN_SAMPLES", "SAMPLER_TRIES", "WAYPOINT_TRIES", "sample_reach_batch", "sample_track_batch"]
 
-drop_stale_caches(
-    __file__,
-    [
-        certificate.__file__,
-        constraints.__file__,
-        evaluation.__file__,
-        layout.__file__,
-        linalg.__file__,
-        pose.__file__,
-        setup.__file__,
-        three.__file__,
-    ],
-)
+drop_stale_caches(__file__)
 
 
 #: Candidates a sampler may reject before it reports failure.

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
-from envs.kernels.cache import drop_stale_caches
+import re
+import sys
+from pathlib import Path
+
+from envs.kernels import step
+from envs.kernels.cache import dependencies, drop_stale_caches
 
 
 def test_a_changed_dependency_drops_the_cache_and_an_unchanged_one_keeps_it(tmp_path):
@@ -25,6 +30,28 @@ def test_a_changed_dependency_drops_the_cache_and_an_unchanged_one_keeps_it(tmp_
     dependency.write_text("def f(): return 2\n")
     assert drop_stale_caches(module, [dependency])  # changed: dropped
     assert not any(p.exists() for p in mine) and other.exists()
+
+
+def _direct_imports(path: Path) -> set[str]:
+    """File names of the project modules a source file imports, read with a regular expression (not ``ast``)."""
+    names = set()
+    text = path.read_text(encoding="utf-8")
+    for package, imported in re.findall(r"^from (envs[.\w]*) import \(?([^)\n]*(?:\n[^)]*)*?)\)?$", text, re.M):
+        for name in re.findall(r"\w+", imported):
+            if f"{package}.{name}" in sys.modules:
+                names.add(f"{package}.{name}")
+        if package in sys.modules and not sys.modules[package].__file__.endswith("__init__.py"):
+            names.add(package)
+    return {Path(sys.modules[name].__file__).name for name in names}
+
+
+def test_a_kernel_module_depends_on_every_module_it_imports_and_theirs_in_turn():
+    """``dependencies`` of the step holds what it imports, what those import, and so on (the closure)."""
+    found = {path.name: path for path in dependencies(step.__file__)}
+    assert {"layout.py", "paths.py", "three.py", "linalg.py", "constraints.py", "evaluation.py"} <= set(found)
+    for path in [Path(step.__file__), *found.values()]:
+        missing = _direct_imports(path) - set(found) - {"step.py"}
+        assert not missing, f"{path.name} imports {missing}, which step's dependencies leave out"
 
 
 #: Run in a subprocess: the first step of an id, then the number of kernels Numba compiled (not loaded from its
