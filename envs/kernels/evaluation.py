@@ -277,7 +277,7 @@ def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out
         o_eval[E_FIXED + j, i] = g[j]
         o_eval[E_FIXED + m + j, i] = vel[j]
         o_eval[E_FIXED + 2 * m + j, i] = xi[j]
-    col = _encode_pose(space, xi, o_obs, i, 0, low, high)
+    col = _encode_pose(space, xi, o_obs, i, np.int64(0), low, high)  # int64, not a constant: one compiled call
     col = _encode_pose(space, g, o_obs, i, col, low, high)
     for j in range(m):
         _clip32(o_obs, i, col + j, diff[j], low, high)

@@ -15,7 +15,7 @@ Values that the operations pass between them: ``vector`` (a tuple of three float
 caller), ``anchors`` (the anchors at some q: ``three.anchors``' tuple on the register paths, an unused 0 on the
 work path, whose anchors are cached in the work array) and ``rows`` (A = J_x / 2 and its companions at some
 (q, x): ``three.rows``' tuple, or 0 on the work path, whose rows are in the work array). An operation that returns
-a vector is given the work row ``slot`` to write it to on the work path.
+a vector is given ``out``, the work row it writes the vector to on the work path (the register paths ignore it).
 """
 
 from __future__ import annotations
@@ -67,81 +67,81 @@ def _vector(path, row):
     return lambda path, row: (row[0], row[1], row[2])
 
 
-def keep(path, v, w, slot):
-    """The vector v, kept: on the work path copied into row ``slot`` of w (which later operations do not write)."""
+def keep(path, v, out):
+    """The vector v, kept: on the work path copied into ``out`` (a work row that later operations do not write)."""
     return _compiled_only()
 
 
 @overload(keep, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _keep(path, v, w, slot):
+def _keep(path, v, out):
     if _literal_path(path) == WORK_ARRAYS:
 
-        def copy(path, v, w, slot):
-            out = w[slot, : v.shape[0]]
+        def copy(path, v, out):
+            out = out[: v.shape[0]]
             for j in range(v.shape[0]):
                 out[j] = v[j]
             return out
 
         return copy
-    return lambda path, v, w, slot: v
+    return lambda path, v, out: v
 
 
-def lerp(path, a, b, f, w, slot):
+def lerp(path, a, b, f, out):
     """A + f (b − a), element by element (the strokes of a substep)."""
     return _compiled_only()
 
 
 @overload(lerp, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _lerp(path, a, b, f, w, slot):
+def _lerp(path, a, b, f, out):
     if _literal_path(path) == WORK_ARRAYS:
 
-        def rows(path, a, b, f, w, slot):
-            out = w[slot, : a.shape[0]]
+        def rows(path, a, b, f, out):
+            out = out[: a.shape[0]]
             for j in range(a.shape[0]):
                 out[j] = a[j] + f * (b[j] - a[j])
             return out
 
         return rows
-    return lambda path, a, b, f, w, slot: (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2]))
+    return lambda path, a, b, f, out: (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2]))
 
 
-def axpy(path, a, s, b, w, slot):
+def axpy(path, a, s, b, out):
     """A + s b, element by element."""
     return _compiled_only()
 
 
 @overload(axpy, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _axpy(path, a, s, b, w, slot):
+def _axpy(path, a, s, b, out):
     if _literal_path(path) == WORK_ARRAYS:
 
-        def rows(path, a, s, b, w, slot):
-            out = w[slot, : a.shape[0]]
+        def rows(path, a, s, b, out):
+            out = out[: a.shape[0]]
             for j in range(a.shape[0]):
                 out[j] = a[j] + s * b[j]
             return out
 
         return rows
-    return lambda path, a, s, b, w, slot: (a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2])
+    return lambda path, a, s, b, out: (a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2])
 
 
-def rk4_mean(path, v, k1, k2, k3, w, slot):
+def rk4_mean(path, v, k1, k2, k3, out):
     """(v + 2 k1 + 2 k2 + k3) / 6: the mean rate of a classical Runge–Kutta step from its four stage rates."""
     return _compiled_only()
 
 
 @overload(rk4_mean, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _rk4_mean(path, v, k1, k2, k3, w, slot):
+def _rk4_mean(path, v, k1, k2, k3, out):
     if _literal_path(path) == WORK_ARRAYS:
 
-        def rows(path, v, k1, k2, k3, w, slot):
-            out = w[slot, : v.shape[0]]
+        def rows(path, v, k1, k2, k3, out):
+            out = out[: v.shape[0]]
             for j in range(v.shape[0]):
                 out[j] = (v[j] + 2.0 * k1[j] + 2.0 * k2[j] + k3[j]) / 6.0
             return out
 
         return rows
 
-    def registers(path, v, k1, k2, k3, w, slot):
+    def registers(path, v, k1, k2, k3, out):
         return (
             (v[0] + 2.0 * k1[0] + 2.0 * k2[0] + k3[0]) / 6.0,
             (v[1] + 2.0 * k1[1] + 2.0 * k2[1] + k3[1]) / 6.0,
@@ -151,7 +151,7 @@ def _rk4_mean(path, v, k1, k2, k3, w, slot):
     return registers
 
 
-def commanded(path, c, q, action, w, slot_action, slot_strokes, slot_rates):
+def commanded(path, c, q, action, a_out, nq_out, qr_out):
     """(applied action, strokes at the end of the period, achieved stroke rates [/s]) of an action row.
 
     The action is clipped to [−1, 1], the strokes q + a · rate · dt to the stroke limits.
@@ -160,15 +160,15 @@ def commanded(path, c, q, action, w, slot_action, slot_strokes, slot_rates):
 
 
 @overload(commanded, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _commanded(path, c, q, action, w, slot_action, slot_strokes, slot_rates):
+def _commanded(path, c, q, action, a_out, nq_out, qr_out):
     if _literal_path(path) == WORK_ARRAYS:
 
-        def rows(path, c, q, action, w, slot_action, slot_strokes, slot_rates):
+        def rows(path, c, q, action, a_out, nq_out, qr_out):
             dt = c[C_DT]
             lo, hi = c[C_LMIN], c[C_LMAX]
             stroke = c[C_RATE] * dt
             m = q.shape[0]
-            a, nq, qr = w[slot_action, :m], w[slot_strokes, :m], w[slot_rates, :m]
+            a, nq, qr = a_out[:m], nq_out[:m], qr_out[:m]
             for j in range(m):
                 a[j] = min(max(action[j], -1.0), 1.0)
                 nq[j] = min(max(q[j] + a[j] * stroke, lo), hi)
@@ -177,7 +177,7 @@ def _commanded(path, c, q, action, w, slot_action, slot_strokes, slot_rates):
 
         return rows
 
-    def registers(path, c, q, action, w, slot_action, slot_strokes, slot_rates):
+    def registers(path, c, q, action, a_out, nq_out, qr_out):
         dt = c[C_DT]
         lo, hi = c[C_LMIN], c[C_LMAX]
         stroke = c[C_RATE] * dt
@@ -195,22 +195,22 @@ def _commanded(path, c, q, action, w, slot_action, slot_strokes, slot_rates):
 # -- the pose space: retraction, metric --------------------------------------------------------------------
 
 
-def retract(path, c, x, v, h, w, slot):
+def retract(path, c, x, v, h, out):
     """X ⊕ h v: p + h δp and R ← exp([h δθ]×) R (``pose._retract``; planar and translational: x + h v)."""
     return _compiled_only()
 
 
 @overload(retract, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _retract(path, c, x, v, h, w, slot):
+def _retract(path, c, x, v, h, out):
     if _literal_path(path) == WORK_ARRAYS:
 
-        def rows(path, c, x, v, h, w, slot):
-            out = w[slot, : x.shape[0]]
+        def rows(path, c, x, v, h, out):
+            out = out[: x.shape[0]]
             pose._retract(c, x, v, h, out)
             return out
 
         return rows
-    return lambda path, c, x, v, h, w, slot: (x[0] + h * v[0], x[1] + h * v[1], x[2] + h * v[2])
+    return lambda path, c, x, v, h, out: (x[0] + h * v[0], x[1] + h * v[1], x[2] + h * v[2])
 
 
 def metric(path, c, v):
@@ -278,22 +278,22 @@ def _rows_at(path, c, q, anchors, x, w):
     return lambda path, c, q, anchors, x, w: three.rows(c, anchors, x[0], x[1], x[2])
 
 
-def pose_rate(path, c, q, rows, rate, w, slot):
+def pose_rate(path, c, q, rows, rate, w, out):
     """ẋ = J_f q̇ = A⁻¹ ((−J_q / 2) q̇) from the ``rows`` at (q, x); NaN where J_x is exactly singular."""
     return _compiled_only()
 
 
 @overload(pose_rate, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _pose_rate(path, c, q, rows, rate, w, slot):
+def _pose_rate(path, c, q, rows, rate, w, out):
     if _literal_path(path) == WORK_ARRAYS:
 
-        def work(path, c, q, rows, rate, w, slot):
-            out = w[slot, : rate.shape[0]]
+        def work(path, c, q, rows, rate, w, out):
+            out = out[: rate.shape[0]]
             _twist_rate(c, q, rate, w, W_A, out)
             return out
 
         return work
-    return lambda path, c, q, rows, rate, w, slot: three._rate(rows, rate[0], rate[1], rate[2])
+    return lambda path, c, q, rows, rate, w, out: three._rate(rows, rate[0], rate[1], rate[2])
 
 
 def newton(path, c, q, anchors, guess, w, tolerance, max_iterations):

@@ -157,13 +157,13 @@ def _advance(path, c, q0, x0, action, residual, w):
         at the end of the period and the anchors and rows there (``envs.kernels.paths``).
     """
     dt = c[C_DT]
-    a, nq, qr = paths.commanded(path, c, q0, action, w, W_ACT, W_NQ, W_QR)
-    kq = paths.keep(path, q0, w, W_KQ)
-    kx = paths.keep(path, x0, w, W_KX)
+    a, nq, qr = paths.commanded(path, c, q0, action, w[W_ACT], w[W_NQ], w[W_QR])
+    kq = paths.keep(path, q0, w[W_KQ])
+    kx = paths.keep(path, x0, w[W_KX])
     start_anchors = paths.anchors_at(path, c, kq)
     start_rows = paths.rows_at(path, c, kq, start_anchors, kx, w)
     anchors, rows = start_anchors, start_rows
-    v = paths.pose_rate(path, c, kq, rows, qr, w, W_V)
+    v = paths.pose_rate(path, c, kq, rows, qr, w, w[W_V])
     count = _substeps(c, paths.metric(path, c, v))
     h = dt / count
     rk4 = c[C_RK4] != 0.0
@@ -173,37 +173,37 @@ def _advance(path, c, q0, x0, action, residual, w):
     failed = False
     for s in range(count):
         if s > 0:  # at the pose Newton's method just returned, whose rows it left
-            v = paths.pose_rate(path, c, kq, rows, qr, w, W_V)
+            v = paths.pose_rate(path, c, kq, rows, qr, w, w[W_V])
         if rk4:
-            qm = paths.axpy(path, kq, 0.5 * h, qr, w, W_QM)
+            qm = paths.axpy(path, kq, 0.5 * h, qr, w[W_QM])
             mid = paths.anchors_at(path, c, qm)
-            xm = paths.retract(path, c, kx, v, 0.5 * h, w, W_XM)
-            k1 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, mid, xm, w), qr, w, W_K1)
-            xm = paths.retract(path, c, kx, k1, 0.5 * h, w, W_XM)
-            k2 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, mid, xm, w), qr, w, W_K2)
-            qm = paths.axpy(path, kq, h, qr, w, W_QM)
+            xm = paths.retract(path, c, kx, v, 0.5 * h, w[W_XM])
+            k1 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, mid, xm, w), qr, w, w[W_K1])
+            xm = paths.retract(path, c, kx, k1, 0.5 * h, w[W_XM])
+            k2 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, mid, xm, w), qr, w, w[W_K2])
+            qm = paths.axpy(path, kq, h, qr, w[W_QM])
             end = paths.anchors_at(path, c, qm)
-            xm = paths.retract(path, c, kx, k2, h, w, W_XM)
-            k3 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, end, xm, w), qr, w, W_K3)
-            pred = paths.retract(path, c, kx, paths.rk4_mean(path, v, k1, k2, k3, w, W_K3), h, w, W_PRED)
+            xm = paths.retract(path, c, kx, k2, h, w[W_XM])
+            k3 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, end, xm, w), qr, w, w[W_K3])
+            pred = paths.retract(path, c, kx, paths.rk4_mean(path, v, k1, k2, k3, w[W_K3]), h, w[W_PRED])
         else:
-            pred = paths.retract(path, c, kx, v, h, w, W_PRED)
+            pred = paths.retract(path, c, kx, v, h, w[W_PRED])
         if not _all_finite(pred, len(pred)):
             failed = True
             break
-        t = paths.lerp(path, q0, nq, (s + 1) / count, w, W_T)
+        t = paths.lerp(path, q0, nq, (s + 1) / count, w[W_T])
         anchors = paths.anchors_at(path, c, t)
         y, fres, rows = paths.newton(path, c, t, anchors, pred, w, tolerance, iterations)
         if not fres <= tolerance:
             failed = True
             break
         jump = max(jump, paths.jump(path, c, y, pred, w))
-        kq = paths.keep(path, t, w, W_KQ)
-        kx = paths.keep(path, y, w, W_KX)
+        kq = paths.keep(path, t, w[W_KQ])
+        kx = paths.keep(path, y, w[W_KX])
         res = fres
     if failed:  # back at the start (rare)
-        kq = paths.keep(path, q0, w, W_KQ)
-        kx = paths.keep(path, x0, w, W_KX)
+        kq = paths.keep(path, q0, w[W_KQ])
+        kx = paths.keep(path, x0, w[W_KX])
         res = residual
         anchors = start_anchors  # the strokes are q0 again
         rows = paths.rows_at(path, c, kq, anchors, kx, w)
@@ -418,7 +418,8 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         n, m = measured.x.shape
         out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation.low.shape[0]), dtype=np.float32))
         w = _work()
-        _evaluate_rows(space, cs, observation, measured, reference, outcome, 0, n, w, out)
+        for start in range(0, n, LANES):  # the step's blocks: one compiled _evaluate_rows for both
+            _evaluate_rows(space, cs, observation, measured, reference, outcome, start, min(start + LANES, n), w, out)
         return out
 
     def step_serial(
