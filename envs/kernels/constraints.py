@@ -20,11 +20,7 @@ import numpy as np
 from envs.kernels import three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.layout import (
-    C_A,
     C_B,
-    C_BRANCH,
-    C_E,
-    C_ELL,
     C_LAM,
     C_LEGS,
     C_N,
@@ -33,8 +29,6 @@ from envs.kernels.layout import (
     C_SCALE,
     C_SPATIAL,
     C_TRANSLATIONAL,
-    C_U,
-    C_V,
     W_A,
     W_CA,
     W_CD,
@@ -53,10 +47,10 @@ from envs.kernels.layout import (
     W_XM,
 )
 from envs.kernels.linalg import inverse_condition6, solve3, solve6
-from envs.kernels.pose import _all_finite, _frame, _retract, _wrap
+from envs.kernels.pose import _all_finite, _frame, _retract
 from envs.kernels.setup import jit, jit_inline
 
-__all__ = ["W_A", "W_SIZE", "forward_batch", "initial_batch", "singularity_batch", "strokes_batch"]
+__all__ = ["W_A", "W_SIZE", "forward_batch", "singularity_batch"]
 
 drop_stale_caches(__file__)
 
@@ -161,32 +155,6 @@ def _link_length(c, q, w, i):
 
 
 @jit
-def _ik_leg(c, i, w0, w1, w2):
-    """Closed-form q_i of leg i whose platform point is at B_i + w (NaN where a crank or slider cannot reach)."""
-    ww = w0 * w0 + w1 * w1 + w2 * w2
-    if c[C_LAM + i] != 0.0:
-        return math.sqrt(ww)
-    ell = c[C_ELL + i]
-    branch = c[C_BRANCH + i]
-    a = c[C_A + i]
-    if a == 0.0:  # slider: ‖w − q e‖² = l²
-        we = w0 * c[C_E + 3 * i] + w1 * c[C_E + 3 * i + 1] + w2 * c[C_E + 3 * i + 2]
-        disc = we * we - ww + ell * ell
-        if disc < 0.0:
-            if disc < -1e-12 * (ww + ell * ell):
-                return np.nan
-            disc = 0.0
-        return we + branch * math.sqrt(disc)
-    wu = w0 * c[C_U + 3 * i] + w1 * c[C_U + 3 * i + 1] + w2 * c[C_U + 3 * i + 2]
-    wv = w0 * c[C_V + 3 * i] + w1 * c[C_V + 3 * i + 1] + w2 * c[C_V + 3 * i + 2]
-    ratio = (ww + a * a - ell * ell) / (2.0 * a * math.hypot(wu, wv))
-    if not abs(ratio) <= 1.0 + 1e-12:
-        return np.nan
-    ratio = min(max(ratio, -1.0), 1.0)
-    return _wrap(math.atan2(wv, wu) + branch * math.acos(ratio))
-
-
-@jit
 def _leg_lengths(c, x, out):
     """Actuator coordinates of the pose x (the closed-form inverse kinematics) into out (n,), without rows.
 
@@ -200,7 +168,7 @@ def _leg_lengths(c, x, out):
         d0 = p0 + r00 * P0 + r01 * P1 + r02 * P2 - c[C_B + 3 * i]
         d1 = p1 + r10 * P0 + r11 * P1 + r12 * P2 - c[C_B + 3 * i + 1]
         d2 = p2 + r20 * P0 + r21 * P1 + r22 * P2 - c[C_B + 3 * i + 2]
-        out[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) if legs else _ik_leg(c, i, d0, d1, d2)
+        out[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) if legs else three.ik_leg(c, i, d0, d1, d2)
 
 
 @jit
@@ -350,19 +318,6 @@ def _row(cs, i):
 
 
 @jit
-def strokes_batch(c, x):
-    """Actuator coordinates of N poses x (N, m) by the closed-form inverse kinematics (NaN where out of reach).
-
-    Leg lengths [m], crank angles [rad] or slider positions [m] on each actuator's chosen branch, shape (N, n): what
-    the observation's stroke errors compare q with (``FamilyReference.strokes`` keeps those of a fixed target).
-    """
-    out = np.empty(x.shape)
-    for i in range(x.shape[0]):
-        _leg_lengths(c, x[i], out[i])
-    return out
-
-
-@jit
 def singularity_batch(c, q, x):
     """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) of N configurations, each shape (N,)."""
     o_k, o_sign = np.empty(q.shape[0]), np.empty(q.shape[0])
@@ -371,20 +326,6 @@ def singularity_batch(c, q, x):
         _rows(c, q[i], x[i], w)
         o_k[i], o_sign[i] = _singularity(c, q[i], w, W_A)
     return o_k, o_sign
-
-
-@jit
-def initial_batch(c, x):
-    """Strokes (inverse kinematics), k, k_I, sign(det J_x) and residual of N robots at rest at poses x (N, m)."""
-    n, m = x.shape
-    o_q, o_k, o_k1, o_sign, o_res = np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    w = _work()
-    for i in range(n):
-        _inverse_kinematics(c, x[i], w, o_q[i])
-        o_k[i], o_sign[i] = _singularity(c, o_q[i], w, W_A)
-        o_k1[i] = _actuator_condition(c, w)
-        o_res[i] = _residual(c, o_q[i], w)
-    return o_q, o_k, o_k1, o_sign, o_res
 
 
 @jit

@@ -15,8 +15,9 @@ import math
 import numpy as np
 from numba.extending import overload
 
+from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import _leg_lengths, _row
+from envs.kernels.constraints import _row
 from envs.kernels.layout import (
     C_BONUS,
     C_DT,
@@ -59,7 +60,7 @@ from envs.kernels.layout import (
     W_TGT,
     W_VEL,
 )
-from envs.kernels.packing import _OVERLOAD_OPTIONS, _literal_space
+from envs.kernels.packing import _OVERLOAD_OPTIONS, _literal_path, _literal_space
 from envs.kernels.pose import _TWO_PI, _quat_from_rotvec, _relative_rotvec, _wrap
 from envs.kernels.setup import jit, jit_inline
 
@@ -227,7 +228,14 @@ def _encode_pose_of_space(space, x, o_obs, i, start, low, high):
 
 
 @jit_inline
-def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out):
+def _stroke_errors(target_q, q, m, span, o_obs, i, col, low, high):
+    """Observation columns col .. col + m − 1 of row i: (q*_j − q_j) / stroke span, clipped."""
+    for j in range(m):
+        _clip32(o_obs, i, col + j, (target_q[j] - q[j]) / span, low, high)
+
+
+@jit_inline
+def _evaluate_row(path, space, c, observation, measured, reference, outcome, i, w, out):
     """``_evaluate_rows``' row i: the target, the reward terms, the errors, success, the cost and the observation."""
     low, high = observation.low, observation.high
     q, x, k, k1 = measured.q, measured.x, measured.k, measured.k1
@@ -292,12 +300,10 @@ def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out
         if amplitude[i, j] != 0.0:
             fixed = False
     if fixed:  # the target is the reference's centre, whose actuator coordinates are kept with it
-        target_q = reference.strokes[i]
+        _stroke_errors(reference.strokes[i], q[i], m, span, o_obs, i, col, low, high)
     else:
-        target_q = w[W_SEG]
-        _leg_lengths(c, g, target_q)
-    for j in range(m):
-        _clip32(o_obs, i, col + j, (target_q[j] - q[i, j]) / span, low, high)
+        target_q = paths.inverse_kinematics(path, c, paths.vector(path, g), w[W_SEG])
+        _stroke_errors(target_q, q[i], m, span, o_obs, i, col, low, high)
     col += m
     _clip32(o_obs, i, col, ki, low, high)
     col += 1
@@ -306,23 +312,24 @@ def _evaluate_row(space, c, observation, measured, reference, outcome, i, w, out
             _clip32(o_obs, i, col + j, vel[j], low, high)
 
 
-def _evaluate_rows(space, cs, observation, measured, reference, outcome, start, stop, w, out):
+def _evaluate_rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
     """Target, reward terms, errors, success, cost and observation of robots start .. stop − 1.
 
     See ``envs.physics.evaluate``. Robot i has the row of constants ``_row(cs, i)``; the other args as
-    ``evaluate_batch``; ``out`` is (evaluation, observations). ``space`` is the pose space, a compile-time
-    constant: the overloads of its comparison and its pose code compile that space's code only. One compiled call
+    ``evaluate_batch``; ``out`` is (evaluation, observations). ``path`` is the row path and ``space`` the pose
+    space, compile-time constants: the overloads of the target's inverse kinematics, the pose comparison and the
+    pose code compile that path's and that space's code only. One compiled call
     per block of robots, the row's code inlined in it.
     """
     raise NotImplementedError("compiled only (see its overload)")
 
 
 @overload(_evaluate_rows, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _evaluate_rows_of_space(space, cs, observation, measured, reference, outcome, start, stop, w, out):
-    _literal_space(space)
+def _evaluate_rows_of_space(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+    _literal_path(path), _literal_space(space)
 
-    def rows(space, cs, observation, measured, reference, outcome, start, stop, w, out):
+    def rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
         for i in range(start, stop):
-            _evaluate_row(space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
+            _evaluate_row(path, space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
 
     return rows

@@ -9,7 +9,7 @@ reward and observation), ``envs.tasks.certificate`` (the safe set) and ``envs.ta
 
 from __future__ import annotations
 
-from envs.kernels.constraints import forward_batch, initial_batch, singularity_batch, strokes_batch
+from envs.kernels.constraints import forward_batch, singularity_batch
 from envs.kernels.evaluation import reference_batch
 from envs.kernels.layout import C_SIZE, E_COST1, E_FIXED, PATH_VERTICES
 from envs.kernels.packing import (
@@ -21,7 +21,15 @@ from envs.kernels.packing import (
     row_path,
 )
 from envs.kernels.setup import PARALLEL_MIN_BATCH, random_streams
-from envs.kernels.step import allocate_step, evaluate_batch, path_kernels, step_batch, transition_batch
+from envs.kernels.step import (
+    allocate_step,
+    evaluate_batch,
+    initial_batch,
+    path_kernels,
+    step_batch,
+    strokes_batch,
+    transition_batch,
+)
 from envs.tasks.certificate import (
     SEGMENT_MAX_POINTS,
     safe_batch,

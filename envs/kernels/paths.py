@@ -24,7 +24,15 @@ from numba.extending import overload
 
 from envs.kernels import pose, three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import _actuator_condition, _newton, _rows, _singularity, _twist_rate
+from envs.kernels.constraints import (
+    _actuator_condition,
+    _leg_lengths,
+    _newton,
+    _residual,
+    _rows,
+    _singularity,
+    _twist_rate,
+)
 from envs.kernels.layout import C_DT, C_LMAX, C_LMIN, C_RATE, C_TRANSLATIONAL, W_A, W_DIFF, W_Y
 from envs.kernels.packing import _OVERLOAD_OPTIONS, PLANAR_LEGS, WORK_ARRAYS, _literal_path
 
@@ -32,6 +40,7 @@ __all__ = [
     "anchors_at",
     "axpy",
     "commanded",
+    "inverse_kinematics",
     "jump",
     "keep",
     "lerp",
@@ -39,6 +48,7 @@ __all__ = [
     "metric",
     "newton",
     "pose_rate",
+    "residual",
     "retract",
     "rk4_mean",
     "rows_at",
@@ -341,3 +351,33 @@ def _measure(path, c, q, anchors, rows, w):
 
         return work
     return lambda path, c, q, anchors, rows, w: three.singularity(c, anchors, rows)
+
+
+def inverse_kinematics(path, c, x, out):
+    """The actuator coordinates of the pose x in closed form, on each actuator's branch (NaN where out of reach)."""
+    return _compiled_only()
+
+
+@overload(inverse_kinematics, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _inverse_kinematics(path, c, x, out):
+    if _literal_path(path) == WORK_ARRAYS:
+
+        def work(path, c, x, out):
+            out = out[: x.shape[0]]
+            _leg_lengths(c, x, out)
+            return out
+
+        return work
+    return lambda path, c, x, out: three.inverse_kinematics(c, x[0], x[1], x[2])
+
+
+def residual(path, c, q, anchors, rows, w):
+    """max_i |Φ_i| = max_i |d_iᵀ d_i − ℓ_i²| [m²] from the ``rows`` at (q, x) (NaN if one is NaN)."""
+    return _compiled_only()
+
+
+@overload(residual, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _residual_of(path, c, q, anchors, rows, w):
+    if _literal_path(path) == WORK_ARRAYS:
+        return lambda path, c, q, anchors, rows, w: _residual(c, q, w)
+    return lambda path, c, q, anchors, rows, w: three._residual(anchors, rows)

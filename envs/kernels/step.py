@@ -79,7 +79,15 @@ from envs.kernels.pose import _all_finite
 from envs.kernels.records import Measured, Motion, Moved, Observation, Outcome, Reference, StepArrays
 from envs.kernels.setup import PARALLEL_MIN_BATCH, jit, jit_inline, jit_parallel
 
-__all__ = ["allocate_step", "evaluate_batch", "path_kernels", "step_batch", "transition_batch"]
+__all__ = [
+    "allocate_step",
+    "evaluate_batch",
+    "initial_batch",
+    "path_kernels",
+    "step_batch",
+    "strokes_batch",
+    "transition_batch",
+]
 
 drop_stale_caches(__file__)
 
@@ -361,7 +369,7 @@ def _step_block(path, space, model, plant, observation, state, reference, action
         out.t[i] = state.t[i] + 1
     measured = Measured(out.q, out.x, out.t, out.k, out.k1, out.residual)
     outcome, written = Outcome(out.action, out.reason), (out.evaluation, out.observations)
-    _evaluate_rows(space, model, observation, measured, reference, outcome, start, start + count, w, written)
+    _evaluate_rows(path, space, model, observation, measured, reference, outcome, start, start + count, w, written)
 
 
 @jit_inline
@@ -395,6 +403,8 @@ class PathKernels(NamedTuple):
     evaluate: Any
     step_serial: Any
     step_parallel: Any
+    initial: Any
+    strokes: Any
 
 
 def _path_kernels(path: int, space: int) -> PathKernels:
@@ -419,7 +429,9 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation.low.shape[0]), dtype=np.float32))
         w = _work()
         for start in range(0, n, LANES):  # the step's blocks: one compiled _evaluate_rows for both
-            _evaluate_rows(space, cs, observation, measured, reference, outcome, start, min(start + LANES, n), w, out)
+            _evaluate_rows(
+                path, space, cs, observation, measured, reference, outcome, start, min(start + LANES, n), w, out
+            )
         return out
 
     def step_serial(
@@ -464,13 +476,38 @@ def _path_kernels(path: int, space: int) -> PathKernels:
             _step_range(path, space, model, plant, observation, state, reference, action, span, out)
         return False
 
-    kernels = (transition, evaluate, step_serial, step_parallel)
+    def initial(c, x):
+        n, m = x.shape
+        o_q, o_k, o_k1, o_sign, o_res = np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+        w = _work()
+        for i in range(n):
+            x0 = paths.vector(path, x[i])
+            q = paths.inverse_kinematics(path, c, x0, w[W_KQ])
+            anchors = paths.anchors_at(path, c, q)
+            rows = paths.rows_at(path, c, q, anchors, x0, w)
+            o_k[i], o_sign[i], o_k1[i] = paths.measure(path, c, q, anchors, rows, w)
+            o_res[i] = paths.residual(path, c, q, anchors, rows, w)
+            for j in range(m):
+                o_q[i, j] = q[j]
+        return o_q, o_k, o_k1, o_sign, o_res
+
+    def strokes(c, x):
+        out = np.empty(x.shape)
+        w = _work()
+        for i in range(x.shape[0]):
+            q = paths.inverse_kinematics(path, c, paths.vector(path, x[i]), w[W_KQ])
+            for j in range(x.shape[1]):
+                out[i, j] = q[j]
+        return out
+
+    kernels = (transition, evaluate, step_serial, step_parallel, initial, strokes)
     for kernel in kernels:
         # Numba's on-disk cache keeps one index file per qualified name, shared by every closure of that name; two
         # processes compiling two paths at once would then overwrite each other's entries, and a later process could
         # load one path's machine code for another's. A name per (path, space) gives each its own index.
         kernel.__qualname__ = kernel.__name__ = f"{kernel.__name__}_path{path}_space{space}"
-    return PathKernels(jit(transition), jit(evaluate), jit(step_serial), jit_parallel(step_parallel))
+    compiled = jit(transition), jit(evaluate), jit(step_serial), jit_parallel(step_parallel), jit(initial), jit(strokes)
+    return PathKernels(*compiled)
 
 
 #: The entry kernels of each row path and pose space, by (path, space).
@@ -486,6 +523,29 @@ def _step_parallel(model, plant, observation, state, reference, action, out):
     """The multi-core step of ``step_batch`` (records as tuples or ``envs.kernels.records``)."""
     records = Observation(*observation), Motion(*state), Reference(*reference)
     return path_kernels(plant).step_parallel(model, plant, *records, action, out)
+
+
+def initial_batch(c, x):
+    """Strokes (inverse kinematics), k, k_I, sign(det J_x) and residual of N robots at rest at poses x.
+
+    Args:
+        c: Packed constants of one geometry, shape (C_SIZE,).
+        x: Poses, shape (N, m).
+
+    Returns:
+        (strokes (N, n), k (N,), k_I (N,), sign(det J_x) (N,), residual max_i |Φ_i| [m²] (N,)).
+    """
+    return path_kernels(c).initial(c, x)
+
+
+def strokes_batch(c, x):
+    """Actuator coordinates of N poses x (N, m) by the closed-form inverse kinematics (NaN where out of reach).
+
+    Leg lengths [m], crank angles [rad] or slider positions [m] on each actuator's chosen branch, shape (N, n): what
+    the observation's stroke errors compare q with (``FamilyReference.strokes`` keeps those of a fixed target).
+    ``c``: packed constants of one geometry, shape (C_SIZE,).
+    """
+    return path_kernels(c).strokes(c, x)
 
 
 def allocate_step(n, m, obs_dim):

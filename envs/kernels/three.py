@@ -26,6 +26,7 @@ from envs.kernels.cache import drop_stale_caches
 from envs.kernels.layout import (
     C_A,
     C_B,
+    C_BRANCH,
     C_E,
     C_ELL,
     C_LAM,
@@ -38,11 +39,38 @@ from envs.kernels.layout import (
     C_V,
 )
 from envs.kernels.linalg import singular_value_ratio3, solve3
+from envs.kernels.pose import _wrap
 from envs.kernels.setup import jit, jit_inline
 
-__all__ = ["anchor", "anchors", "leg_anchors", "link_condition3", "rows", "singularity"]
+__all__ = ["anchor", "anchors", "ik_leg", "inverse_kinematics", "leg_anchors", "link_condition3", "rows", "singularity"]
 
 drop_stale_caches(__file__)
+
+
+@jit
+def ik_leg(c, i, w0, w1, w2):
+    """Closed-form q_i of leg i whose platform point is at B_i + w (NaN where a crank or slider cannot reach)."""
+    ww = w0 * w0 + w1 * w1 + w2 * w2
+    if c[C_LAM + i] != 0.0:
+        return math.sqrt(ww)
+    ell = c[C_ELL + i]
+    branch = c[C_BRANCH + i]
+    a = c[C_A + i]
+    if a == 0.0:  # slider: ‖w − q e‖² = l²
+        we = w0 * c[C_E + 3 * i] + w1 * c[C_E + 3 * i + 1] + w2 * c[C_E + 3 * i + 2]
+        disc = we * we - ww + ell * ell
+        if disc < 0.0:
+            if disc < -1e-12 * (ww + ell * ell):
+                return np.nan
+            disc = 0.0
+        return we + branch * math.sqrt(disc)
+    wu = w0 * c[C_U + 3 * i] + w1 * c[C_U + 3 * i + 1] + w2 * c[C_U + 3 * i + 2]
+    wv = w0 * c[C_V + 3 * i] + w1 * c[C_V + 3 * i + 1] + w2 * c[C_V + 3 * i + 2]
+    ratio = (ww + a * a - ell * ell) / (2.0 * a * math.hypot(wu, wv))
+    if not abs(ratio) <= 1.0 + 1e-12:
+        return np.nan
+    ratio = min(max(ratio, -1.0), 1.0)
+    return _wrap(math.atan2(wv, wu) + branch * math.acos(ratio))
 
 
 @jit
@@ -205,3 +233,29 @@ def singularity(c, anc, a):
             return k, sign, np.nan
         k1 = min(k1, v)
     return k, sign, k1
+
+
+@jit_inline
+def _ik_one(c, i, cs, sn, x0, x1, z):
+    """``ik_leg`` of actuator i at the pose with rotation (cos φ, sin φ) and height z (planar: 0)."""
+    P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
+    w0 = x0 + cs * P0 - sn * P1 - c[C_B + 3 * i]
+    w1 = x1 + sn * P0 + cs * P1 - c[C_B + 3 * i + 1]
+    return ik_leg(c, i, w0, w1, z + P2 - c[C_B + 3 * i + 2])
+
+
+@jit
+def inverse_kinematics(c, x0, x1, x2):
+    """The actuator coordinates (q_0, q_1, q_2) of the pose x, in closed form on each actuator's branch.
+
+    Leg lengths ‖p + R P_i − B_i‖, crank angles or slider positions (``ik_leg``; NaN where one cannot reach).
+    """
+    translational = c[C_TRANSLATIONAL] != 0.0
+    cs, sn = (1.0, 0.0) if translational else (math.cos(x2), math.sin(x2))
+    z = x2 if translational else 0.0
+    # The indices as int64, not as constants: Numba would compile ``ik_leg`` once per constant index.
+    return (
+        _ik_one(c, np.int64(0), cs, sn, x0, x1, z),
+        _ik_one(c, np.int64(1), cs, sn, x0, x1, z),
+        _ik_one(c, np.int64(2), cs, sn, x0, x1, z),
+    )

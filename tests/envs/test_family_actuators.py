@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from envs import physics, presets
-from envs.kernels.constraints import initial_batch
+from envs.kernels.step import initial_batch
 from envs.physics import TERMINATION_REASONS
 from kinematics import Delta, Planar3PRR, Planar3RRR
 
