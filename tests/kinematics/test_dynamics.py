@@ -305,6 +305,26 @@ def test_total_energy_is_conserved_under_gravity(name, dt, rng):
     assert np.abs(E - E[0]).max() <= 1e-6 * T.max()
 
 
+def test_integrator_has_order_four_on_the_rotation_group(rng):
+    """Hexapod, no gravity, turning at ~1 rad/s: halving dt divides the error after 0.2 s by about 2⁴."""
+    robot, _ = make("hexapod")
+    dyn = RobotDynamics(robot, default_inertia(robot).replace(gravity=np.zeros(3)))
+    x0 = random_poses(robot, "hexapod", rng, 1)
+    v0 = np.concatenate([0.05 * rng.uniform(-1.0, 1.0, (1, 3)), rng.uniform(-1.0, 1.0, (1, 3))], axis=-1)
+    tau = np.zeros((1, 6))
+
+    def run(steps: int) -> tuple[np.ndarray, np.ndarray]:
+        state = dyn.step(x0, v0, tau, 0.2, substeps=steps)
+        return state.x, state.xdot
+
+    x_ref, v_ref = run(64)
+    errors = []
+    for steps in (8, 16):
+        x, v = run(steps)
+        errors.append(np.abs(robot.pose_difference(x, x_ref)).max() + np.abs(v - v_ref).max())
+    assert errors[0] / errors[1] > 12.0
+
+
 # -- the data --------------------------------------------------------------------------------------------
 
 
