@@ -34,10 +34,16 @@ Singularities (Gosselin & Angeles 1990)
     Type II (parallel): J_x singular, the platform gains a motion with the actuators locked and small
                         actuator rates give huge platform motion.
 
+Dynamics
+    ``RobotDynamics(mechanism, InertialParameters)`` gives M(x) ẍ + c(x, ẋ) + G(x) = J_iᵀ τ with ẋ the
+    platform velocity above (the twist (v, ω) in {B} for spatial poses) and an integrator on the pose space
+    (see ``kinematics.dynamics``).
+
 Every function accepts leading batch dimensions and broadcasts ``q`` against ``x``.
 """
 
 from kinematics.delta import Delta
+from kinematics.dynamics import InertialParameters, RobotDynamics, default_inertia
 from kinematics.family import ACTUATOR_KINDS, POSE_SPACES, DistanceConstraintMechanism, PoseSpace, load_mechanism
 from kinematics.mechanism import (
     ForwardKinematicsResult,
@@ -54,12 +60,15 @@ __all__ = [
     "Delta",
     "DistanceConstraintMechanism",
     "ForwardKinematicsResult",
+    "InertialParameters",
     "ParallelMechanism",
     "Planar3PRR",
     "Planar3RPR",
     "Planar3RRR",
     "PoseSpace",
+    "RobotDynamics",
     "SingularConfigurationError",
     "StewartGough",
+    "default_inertia",
     "load_mechanism",
 ]
