@@ -407,6 +407,10 @@ class PathKernels(NamedTuple):
     strokes: Any
 
 
+#: The entry kernels that run on every core (``numba.prange``).
+_PARALLEL = ("step_parallel",)
+
+
 def _path_kernels(path: int, space: int) -> PathKernels:
     """The entry kernels of the row path ``path`` and the pose space ``space``, both compile-time constants.
 
@@ -500,13 +504,15 @@ def _path_kernels(path: int, space: int) -> PathKernels:
                 out[i, j] = q[j]
         return out
 
-    kernels = (transition, evaluate, step_serial, step_parallel, initial, strokes)
-    for kernel in kernels:
+    closures = locals()
+    compiled = []
+    for name in PathKernels._fields:
+        kernel = closures[name]
         # Numba's on-disk cache keeps one index file per qualified name, shared by every closure of that name; two
         # processes compiling two paths at once would then overwrite each other's entries, and a later process could
         # load one path's machine code for another's. A name per (path, space) gives each its own index.
-        kernel.__qualname__ = kernel.__name__ = f"{kernel.__name__}_path{path}_space{space}"
-    compiled = jit(transition), jit(evaluate), jit(step_serial), jit_parallel(step_parallel), jit(initial), jit(strokes)
+        kernel.__qualname__ = kernel.__name__ = f"{name}_path{path}_space{space}"
+        compiled.append((jit_parallel if name in _PARALLEL else jit)(kernel))
     return PathKernels(*compiled)
 
 
