@@ -19,10 +19,11 @@ import math
 
 import numpy as np
 
-from envs.kernels import constraints, layout, linalg, pose, setup, three
+from envs.kernels import constraints, layout, linalg, packing, pose, setup, three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import W_A, _inverse_kinematics, _singularity, _work
 from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL
+from envs.kernels.packing import THREE
 from envs.kernels.setup import _next_double, jit
 from envs.tasks import certificate
 from envs.tasks.certificate import _safe
@@ -36,6 +37,7 @@ drop_stale_caches(
         constraints.__file__,
         layout.__file__,
         linalg.__file__,
+        packing.__file__,
         pose.__file__,
         setup.__file__,
         three.__file__,
@@ -87,8 +89,8 @@ def _label(ws, x):
 
 @jit
 def _grid_safe(c, ws, x, w, strokes):
-    """Whether x is safe (the family's ``_safe``) and its node lies in a sampled region."""
-    if not _safe(c, x, w, strokes):
+    """Whether x is safe (the family's ``_safe``, in scalars) and its node lies in a sampled region."""
+    if not _safe(THREE, c, x, w, strokes):
         return False
     return ws[2][_label(ws, x)]
 
