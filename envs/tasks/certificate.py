@@ -94,6 +94,16 @@ def _stroke_three(c, i, x0, x1, p2, r00, r01, r10, r11):
     return _ik_leg(c, i, d0, d1, d2)
 
 
+@jit_inline
+def _leg_anchors(b, q0, q1, q2):
+    """``three.anchors`` of three legs at q: A_i = B_i (the 9 numbers b), A_i′ = 0, ℓ_i = q_i, ‖(A_i′, ℓ_i′)‖ = 1."""
+    return (
+        (b[0], b[1], b[2], 0.0, 0.0, 0.0, q0, 1.0),
+        (b[3], b[4], b[5], 0.0, 0.0, 0.0, q1, 1.0),
+        (b[6], b[7], b[8], 0.0, 0.0, 0.0, q2, 1.0),
+    )
+
+
 @jit
 def _measures_three(c, x0, x1, x2, always):
     """(inside, k, sign(det J_x), k_I) of the pose (x0, x1, x2) of a robot with three actuators, in scalars.
@@ -110,33 +120,30 @@ def _measures_three(c, x0, x1, x2, always):
         p2, r00, r01, r10, r11 = 0.0, cs, -sn, sn, cs
     lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
     if c[C_LEGS] != 0.0:  # the anchors are the B_i, and q_i = ‖d_i‖ from the rows (``_inverse_kinematics``)
-        fixed = (
-            (c[C_B], c[C_B + 1], c[C_B + 2], 0.0, 0.0, 0.0, 0.0, 1.0),
-            (c[C_B + 3], c[C_B + 4], c[C_B + 5], 0.0, 0.0, 0.0, 0.0, 1.0),
-            (c[C_B + 6], c[C_B + 7], c[C_B + 8], 0.0, 0.0, 0.0, 0.0, 1.0),
-        )
-        a = three.rows(c, fixed, x0, x1, x2)
+        b = c[C_B : C_B + 9]
+        a = three.rows(c, _leg_anchors(b, 0.0, 0.0, 0.0), x0, x1, x2)  # ℓ_i enters −J_q / 2 only, unused for legs
         q0, q1, q2 = math.sqrt(a[9]), math.sqrt(a[10]), math.sqrt(a[11])
         inside = lo <= q0 <= hi and lo <= q1 <= hi and lo <= q2 <= hi
         if not (inside or always):
             return False, np.nan, 0.0, np.nan
-        k, sign = three.link_condition3(c, a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], q0, q1, q2)
-        return inside, k, sign, 1.0
-    # The indices as int64, not as constants (one compiled ``_ik_leg``, as ``three.anchors``).
-    q0 = _stroke_three(c, np.int64(0), x0, x1, p2, r00, r01, r10, r11)
-    inside = lo <= q0 <= hi
-    if not (inside or always):
-        return False, np.nan, 0.0, np.nan
-    q1 = _stroke_three(c, np.int64(1), x0, x1, p2, r00, r01, r10, r11)
-    inside = inside and lo <= q1 <= hi
-    if not (inside or always):
-        return False, np.nan, 0.0, np.nan
-    q2 = _stroke_three(c, np.int64(2), x0, x1, p2, r00, r01, r10, r11)
-    inside = inside and lo <= q2 <= hi
-    if not (inside or always):
-        return False, np.nan, 0.0, np.nan
-    anc = three.anchors(c, q0, q1, q2)
-    k, sign, k1 = three.singularity(c, anc, three.rows(c, anc, x0, x1, x2))
+        anc = _leg_anchors(b, q0, q1, q2)
+    else:
+        # The indices as int64, not as constants (one compiled ``_ik_leg``, as ``three.anchors``).
+        q0 = _stroke_three(c, np.int64(0), x0, x1, p2, r00, r01, r10, r11)
+        inside = lo <= q0 <= hi
+        if not (inside or always):
+            return False, np.nan, 0.0, np.nan
+        q1 = _stroke_three(c, np.int64(1), x0, x1, p2, r00, r01, r10, r11)
+        inside = inside and lo <= q1 <= hi
+        if not (inside or always):
+            return False, np.nan, 0.0, np.nan
+        q2 = _stroke_three(c, np.int64(2), x0, x1, p2, r00, r01, r10, r11)
+        inside = inside and lo <= q2 <= hi
+        if not (inside or always):
+            return False, np.nan, 0.0, np.nan
+        anc = three.anchors(c, q0, q1, q2)
+        a = three.rows(c, anc, x0, x1, x2)
+    k, sign, k1 = three.singularity(c, anc, a)
     return inside, k, sign, k1
 
 
@@ -202,7 +209,9 @@ def _pose_safety(path, c, x, w, strokes):
     Every safety decision (the task samplers, the certified grid, the planner's edges) goes through here. The
     sampling box is not checked.
     """
-    inside, k, sign, k1 = _measures(path, c, x, w, strokes, False)
+    # ``always`` a bool, not the constant False: one compiled ``_measures`` for every caller (a literal bool would
+    # be a second specialisation of it).
+    inside, k, sign, k1 = _measures(path, c, x, w, strokes, np.bool_(False))
     return _safety(c, inside, k, k1), sign
 
 
@@ -299,7 +308,7 @@ def _certificate_kernels(path: int) -> CertificateKernels:
         w = _work()
         strokes = np.empty(6)
         for i in range(x.shape[0]):
-            inside, k, o_sign[i], k1 = _measures(path, c, x[i], w, strokes, True)
+            inside, k, o_sign[i], k1 = _measures(path, c, x[i], w, strokes, np.bool_(True))
             o_safety[i] = _safety(c, inside, k, k1)
 
     kernels = (safe, segment, safety)
