@@ -4,16 +4,25 @@ Every safety decision (the task samplers, the certified grid, the planner's edge
 ``_pose_safety``: k, or with cranks and sliders min(k, k_I · k_safe / k_I,safe), or −1 where an actuator leaves
 its limits less the margin. Segments are checked at points a spacing apart along the geodesic
 (``_segment_min_k``); a change of sign(det J_x) between two of them counts as safety 0.
+
+The measures at a pose (``_measures``) are chosen at compile time by the row path (``envs.kernels.packing``): a
+robot with three actuators and three pose coordinates (planar or translational; legs, cranks or sliders) computes
+its inverse kinematics, k, k_I and sign(det J_x) in scalars with ``envs.kernels.three``'s primitives, every other
+robot over the work arrays of ``envs.kernels.constraints``; both give the same floating-point results. The entry
+kernels are compiled per path (``certificate_kernels``), so a planar robot never compiles the 6 × 6 algebra.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
+from numba.extending import overload
 
+from envs.kernels import three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import _actuator_condition, _inverse_kinematics, _singularity, _solve, _work
+from envs.kernels.constraints import _actuator_condition, _inverse_kinematics, _singularity, _work
 from envs.kernels.layout import (
     C_LEGS,
     C_LMAX,
@@ -25,16 +34,25 @@ from envs.kernels.layout import (
     C_SHIGH,
     C_SLOW,
     C_SPACING,
+    C_TRANSLATIONAL,
     W_A,
-    W_RHS,
     W_SEG,
     W_SEG_D,
-    W_SOL,
 )
+from envs.kernels.packing import _OVERLOAD_OPTIONS, THREE, WORK_ARRAYS, _literal_path, row_path
 from envs.kernels.pose import _difference, _metric, _retract
-from envs.kernels.setup import jit
+from envs.kernels.setup import jit, jit_inline
 
-__all__ = ["SEGMENT_MAX_POINTS", "safe_batch", "safety_batch", "segment_batch", "segment_min_safety_batch"]
+__all__ = [
+    "SEGMENT_MAX_POINTS",
+    "CertificateKernels",
+    "certificate_kernels",
+    "certificate_path",
+    "safe_batch",
+    "safety_batch",
+    "segment_batch",
+    "segment_min_safety_batch",
+]
 
 drop_stale_caches(__file__)
 
@@ -44,32 +62,112 @@ SEGMENT_MAX_POINTS = 2000
 
 
 @jit
-def _safety(c, strokes, w):
-    """The measure tasks are certified on, on k's scale: k, or with cranks and sliders min(k, k_I · s / s_I).
+def _measures_three(c, x0, x1, x2, always):
+    """(inside, k, sign(det J_x), k_I) of the pose (x0, x1, x2) of a robot with three actuators, in scalars.
 
-    So a configuration has safety ≥ safe_threshold (s) exactly when k ≥ s and k_I ≥ actuator_safe_threshold
-    (s_I): both kinds of singularity are kept at bay. Needs the rows of A at (strokes, x) in w.
+    ``inside`` says whether every actuator coordinate (the closed-form inverse kinematics) lies within its
+    limits less the margin; where one does not, k, the sign and k_I are NaN, 0 and NaN unless ``always``. The
+    operations are those of ``_measures_work`` (``constraints._inverse_kinematics``, ``_singularity``,
+    ``_actuator_condition``) in the same order, so both give the same results.
     """
-    k, _ = _singularity(c, strokes, w, W_A)
-    if c[C_LEGS] != 0.0:
-        return k
-    return min(k, _actuator_condition(c, w) * c[C_SAFE] / c[C_SAFE1])
+    if c[C_TRANSLATIONAL] != 0.0:  # ``pose._frame``: p = x, R = I
+        cs, sn, z = 1.0, 0.0, x2
+    else:  # p = (x0, x1, 0), R = R_z(x2)
+        cs, sn, z = math.cos(x2), math.sin(x2), 0.0
+    lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
+    if c[C_LEGS] != 0.0:  # the anchors are the B_i, and q_i = ‖d_i‖ from the rows (``_inverse_kinematics``)
+        a = three.rows(c, three.leg_anchors(c, 0.0, 0.0, 0.0), x0, x1, x2)  # ℓ_i enters −J_q / 2 only, unused for legs
+        q0, q1, q2 = math.sqrt(a[9]), math.sqrt(a[10]), math.sqrt(a[11])
+        inside = lo <= q0 <= hi and lo <= q1 <= hi and lo <= q2 <= hi
+        if not (inside or always):
+            return False, np.nan, 0.0, np.nan
+        anc = three.leg_anchors(c, q0, q1, q2)
+    else:
+        # The indices as int64, not as constants (one compiled ``three.ik_leg``, as ``three.anchors``).
+        q0 = three._ik_one(c, np.int64(0), cs, sn, x0, x1, z)
+        inside = lo <= q0 <= hi
+        if not (inside or always):
+            return False, np.nan, 0.0, np.nan
+        q1 = three._ik_one(c, np.int64(1), cs, sn, x0, x1, z)
+        inside = inside and lo <= q1 <= hi
+        if not (inside or always):
+            return False, np.nan, 0.0, np.nan
+        q2 = three._ik_one(c, np.int64(2), cs, sn, x0, x1, z)
+        inside = inside and lo <= q2 <= hi
+        if not (inside or always):
+            return False, np.nan, 0.0, np.nan
+        anc = three.anchors(c, q0, q1, q2)
+        a = three.rows(c, anc, x0, x1, x2)
+    k, sign, k1 = three.singularity(c, anc, a)
+    return inside, k, sign, k1
 
 
 @jit
-def _pose_safety(c, x, w, strokes):
-    """The certificate of one pose: its ``_safety``, or −1 where an actuator leaves its limits less the margin.
-
-    Every safety decision (the task samplers, the certified grid, the planner's edges) goes through here. The
-    strokes of x (inverse kinematics) are left in ``strokes`` and the rows of A there in w. The sampling box is
-    not checked.
-    """
+def _measures_work(c, x, w, strokes, always):
+    """``_measures_three`` of any robot over the work array w: the strokes of x go to ``strokes``, A's rows to w."""
     _inverse_kinematics(c, x, w, strokes)
     lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
+    inside = True
     for j in range(int(c[C_N])):
         if not (lo <= strokes[j] <= hi):
-            return -1.0
-    return _safety(c, strokes, w)
+            inside = False
+    if not (inside or always):
+        return False, np.nan, 0.0, np.nan
+    k, sign = _singularity(c, strokes, w, W_A)
+    return inside, k, sign, _actuator_condition(c, w)
+
+
+def _measures(path, c, x, w, strokes, always):
+    """(inside, k, sign(det J_x), k_I) of the pose x: whether its strokes keep the margin, and the two measures.
+
+    Where a stroke leaves them, k, the sign and k_I are NaN, 0 and NaN unless ``always``; the sign is 0 where
+    the inverse kinematics has no solution. ``path`` is the row path (``envs.kernels.packing.row_path``), a
+    compile-time constant: three actuators on three pose coordinates compute in scalars (``_measures_three``),
+    the rest over the work array w (``_measures_work``), the only code the overload below compiles.
+    """
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_measures, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _measures_of_path(path, c, x, w, strokes, always):
+    if _literal_path(path) == WORK_ARRAYS:
+
+        def work(path, c, x, w, strokes, always):
+            return _measures_work(c, x, w, strokes, always)
+
+        return work
+
+    def scalars(path, c, x, w, strokes, always):
+        return _measures_three(c, x[0], x[1], x[2], always)
+
+    return scalars
+
+
+@jit_inline
+def _safety(c, inside, k, k1):
+    """Safety from ``_measures``: −1 outside the stroke margin, else k (legs) or min(k, k_I · s / s_I).
+
+    The measure tasks are certified on, on k's scale: a configuration has safety ≥ safe_threshold (s) exactly
+    when k ≥ s and k_I ≥ actuator_safe_threshold (s_I), both kinds of singularity kept at bay.
+    """
+    if not inside:
+        return -1.0
+    if c[C_LEGS] != 0.0:
+        return k
+    return min(k, k1 * c[C_SAFE] / c[C_SAFE1])
+
+
+@jit_inline
+def _pose_safety(path, c, x, w, strokes):
+    """The certificate of one pose: (``_safety``, sign(det J_x)), the sign 0 where a stroke leaves its margin.
+
+    Every safety decision (the task samplers, the certified grid, the planner's edges) goes through here. The
+    sampling box is not checked.
+    """
+    # ``always`` a bool, not the constant False: one compiled ``_measures`` for every caller (a literal bool would
+    # be a second specialisation of it).
+    inside, k, sign, k1 = _measures(path, c, x, w, strokes, np.bool_(False))
+    return _safety(c, inside, k, k1), sign
 
 
 @jit
@@ -82,15 +180,16 @@ def _in_box(c, x):
 
 
 @jit
-def _safe(c, x, w, strokes):
+def _safe(path, c, x, w, strokes):
     """Whether x is in the sampling box and its ``_pose_safety`` (strokes with margin, safety) ≥ safe_threshold."""
     if not _in_box(c, x):
         return False
-    return _pose_safety(c, x, w, strokes) >= c[C_SAFE]
+    safety, _ = _pose_safety(path, c, x, w, strokes)
+    return safety >= c[C_SAFE]
 
 
 @jit
-def _segment_min_k(c, start, target, w, strokes, stop_below, spacing, box):
+def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box):
     """Smallest ``_pose_safety`` along the geodesic start → target (p linear, R along exp).
 
     Checked points are at most ``spacing`` apart in ‖(δp, ℓ_c δθ)‖ (ends included; at most
@@ -108,11 +207,9 @@ def _segment_min_k(c, start, target, w, strokes, stop_below, spacing, box):
         _retract(c, start, direction, s / count, point)
         if box and not _in_box(c, point):
             return -1.0
-        safety = _pose_safety(c, point, w, strokes)
+        safety, sign = _pose_safety(path, c, point, w, strokes)
         if safety < 0.0:
             return -1.0
-        det = _solve(w, int(c[C_N]), W_A, w[W_RHS], w[W_SOL])
-        sign = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
         if s == 0:
             first_sign = sign
         elif sign != first_sign:
@@ -123,23 +220,80 @@ def _segment_min_k(c, start, target, w, strokes, stop_below, spacing, box):
     return worst
 
 
-@jit
+def certificate_path(c) -> int:
+    """The code the certificate of the robot of ``c`` compiles: ``THREE`` (scalars) or ``WORK_ARRAYS``.
+
+    Three actuators on three pose coordinates (the row paths ``PLANAR_LEGS`` and ``THREE``) share the scalar code.
+
+    Args:
+        c: Packed constants, shape (C_SIZE,) or (N, C_SIZE) (the first row is read).
+    """
+    return WORK_ARRAYS if row_path(c) == WORK_ARRAYS else THREE
+
+
+class CertificateKernels(NamedTuple):
+    """The certificate's entry kernels of one path (see ``_certificate_kernels``)."""
+
+    safe: Any
+    segment: Any
+    safety: Any
+
+
+def _certificate_kernels(path: int) -> CertificateKernels:
+    """The certificate's entry kernels for the path ``path`` (``certificate_path``), a compile-time constant.
+
+    A closure over an int is cached by Numba under its value, so each path's kernels compile (and load from the
+    on-disk cache) on their own; each gets a name of its own, hence its own cache index (see
+    ``envs.kernels.step._path_kernels``).
+    """
+
+    def safe(c, x, out):
+        w = _work()
+        strokes = np.empty(6)
+        for i in range(x.shape[0]):
+            out[i] = _safe(path, c, x[i], w, strokes)
+
+    def segment(c, start, target, spacing, box, out):
+        w = _work()
+        strokes = np.empty(6)
+        for i in range(start.shape[0]):
+            out[i] = _segment_min_k(path, c, start[i], target[i], w, strokes, -np.inf, spacing, box)
+
+    def safety(c, x, o_safety, o_sign):
+        w = _work()
+        strokes = np.empty(6)
+        for i in range(x.shape[0]):
+            inside, k, o_sign[i], k1 = _measures(path, c, x[i], w, strokes, np.bool_(True))
+            o_safety[i] = _safety(c, inside, k, k1)
+
+    kernels = (safe, segment, safety)
+    for kernel in kernels:
+        kernel.__qualname__ = kernel.__name__ = f"certificate_{kernel.__name__}_path{path}"
+    return CertificateKernels(*(jit(kernel) for kernel in kernels))
+
+
+#: The certificate's entry kernels by ``certificate_path``.
+_CERTIFICATE_KERNELS = {path: _certificate_kernels(path) for path in (THREE, WORK_ARRAYS)}
+
+
+def certificate_kernels(c) -> CertificateKernels:
+    """The certificate's entry kernels of the robot of packed constants ``c`` (its ``certificate_path``'s)."""
+    return _CERTIFICATE_KERNELS[certificate_path(c)]
+
+
 def safe_batch(c, x):
-    """Whether each pose (N, m) is in the safe set (sampling box, strokes with margin, k ≥ safe_threshold)."""
+    """Whether each pose (N, m) is in the safe set (sampling box, strokes with margin, safety ≥ safe_threshold).
+
+    Args:
+        c: Packed constants (``pack_family``).
+        x: Poses, shape (N, m).
+
+    Returns:
+        bool array, shape (N,).
+    """
+    x = np.ascontiguousarray(x, dtype=np.float64)
     out = np.empty(x.shape[0], dtype=np.bool_)
-    w = _work()
-    strokes = np.empty(6)
-    for i in range(x.shape[0]):
-        out[i] = _safe(c, x[i], w, strokes)
-    return out
-
-
-@jit
-def _segment_loop(c, start, target, spacing, box, out):
-    w = _work()
-    strokes = np.empty(6)
-    for i in range(start.shape[0]):
-        out[i] = _segment_min_k(c, start[i], target[i], w, strokes, -np.inf, spacing, box)
+    certificate_kernels(c).safe(c, x, out)
     return out
 
 
@@ -148,20 +302,11 @@ def segment_batch(c, start, target):
 
     Points ``segment_spacing`` apart; −1 if one leaves the sampling box or the stroke limits less the margin.
     """
+    start = np.ascontiguousarray(start, dtype=np.float64)
+    target = np.ascontiguousarray(target, dtype=np.float64)
     out = np.empty(start.shape[0])
-    _segment_loop(c, start, target, c[C_SPACING], True, out)
+    certificate_kernels(c).segment(c, start, target, c[C_SPACING], True, out)
     return out
-
-
-@jit
-def _safety_loop(c, x, o_safety, o_sign):
-    w = _work()
-    strokes = np.empty(6)
-    m = int(c[C_N])
-    for i in range(x.shape[0]):
-        o_safety[i] = _pose_safety(c, x[i], w, strokes)
-        det = _solve(w, m, W_A, w[W_RHS], w[W_SOL])
-        o_sign[i] = 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
 
 
 def safety_batch(c, x):
@@ -173,7 +318,7 @@ def safety_batch(c, x):
     """
     x = np.ascontiguousarray(x, dtype=np.float64)
     o_safety, o_sign = np.empty(x.shape[0]), np.empty(x.shape[0])
-    _safety_loop(c, x, o_safety, o_sign)
+    certificate_kernels(c).safety(c, x, o_safety, o_sign)
     return o_safety, o_sign
 
 
@@ -193,5 +338,5 @@ def segment_min_safety_batch(c, start, target, spacing):
     start = np.ascontiguousarray(start, dtype=np.float64)
     target = np.ascontiguousarray(target, dtype=np.float64)
     out = np.empty(start.shape[0])
-    _segment_loop(c, start, target, float(spacing), False, out)
+    certificate_kernels(c).segment(c, start, target, float(spacing), False, out)
     return out

@@ -8,30 +8,25 @@ singularity-free path between them is known without checking one. Each pose is a
 sliders, k_I ≥ k_I,safe) and still in that region. Every draw comes from NumPy generators through
 ``envs.kernels.setup.random_streams``, so a generator's stream is the same whether NumPy or a kernel draws.
 
-The packed grid (``pack_workspace``) is a ``PackedGrid``, a named tuple of read-only arrays.
+The packed grid (``pack_workspace``) is a tuple: (cell (3,), labels (n_0, n_1, n_2), sampled-label lookup,
+component ids (c,), cumulative sampling weights (c,), the sampled components' node indices, their offsets
+(c + 1,), axis 0, axis 1, axis 2).
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _inverse_kinematics, _singularity, _work
 from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL, W_A
+from envs.kernels.packing import THREE
 from envs.kernels.setup import _next_double, jit
 from envs.tasks.certificate import _safe
 
-__all__ = [
-    "SAMPLER_TRIES",
-    "SEGMENT_POINTS",
-    "PackedGrid",
-    "pack_workspace",
-    "sample_circle_batch",
-    "sample_reach_batch",
-]
+__all__ = ["SAMPLER_TRIES", "SEGMENT_POINTS", "pack_workspace", "sample_circle_batch", "sample_reach_batch"]
 
 drop_stale_caches(__file__)
 
@@ -43,23 +38,8 @@ SEGMENT_POINTS = 33
 _TWO_PI = 2.0 * math.pi
 
 
-class PackedGrid(NamedTuple):
-    """A certified grid (``envs.tasks.grid.WorkspaceMap``) as the sampling kernels read it; c sampled components."""
-
-    cell: np.ndarray  #: the grid's cell sizes, (3,)
-    labels: np.ndarray  #: the component label of every node, (n_0, n_1, n_2) int64
-    sampled: np.ndarray  #: whether a label is a sampled component, (labels.max() + 1,) bool
-    ids: np.ndarray  #: the sampled components' labels, (c,) int64
-    cumulative: np.ndarray  #: cumulative sampling weights of the components, (c,)
-    nodes: np.ndarray  #: the sampled components' flat node indices, one component after the other
-    offsets: np.ndarray  #: where each component's nodes start in ``nodes``, (c + 1,) int64
-    axis0: np.ndarray  #: the grid values of pose coordinate 0, (n_0,)
-    axis1: np.ndarray  #: the grid values of pose coordinate 1, (n_1,)
-    axis2: np.ndarray  #: the grid values of pose coordinate 2, (n_2,)
-
-
-def pack_workspace(workspace) -> PackedGrid:
-    """A certified ``envs.tasks.grid.WorkspaceMap`` as the ``PackedGrid`` the sampling kernels read."""
+def pack_workspace(workspace) -> tuple:
+    """A certified ``envs.tasks.grid.WorkspaceMap`` as the tuple of arrays the sampling kernels read (module doc)."""
     labels = np.ascontiguousarray(workspace.labels, dtype=np.int64)
     ids = np.asarray(workspace.component_ids, dtype=np.int64)
     sampled = np.zeros(int(labels.max()) + 1, dtype=np.bool_)
@@ -69,7 +49,7 @@ def pack_workspace(workspace) -> PackedGrid:
     offsets = np.concatenate([[0], np.cumsum([len(n) for n in nodes])]).astype(np.int64)
     axes = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in workspace.axes)
     cell = np.asarray(workspace.spec.cell, dtype=np.float64)
-    packed = PackedGrid(cell, labels, sampled, ids, cumulative, np.concatenate(nodes), offsets, *axes)
+    packed = (cell, labels, sampled, ids, cumulative, np.concatenate(nodes), offsets, *axes)
     for array in packed:
         array.setflags(write=False)
     return packed
@@ -90,31 +70,31 @@ def _node_index(values, v):
 @jit
 def _label(ws, x):
     """Component id of the grid node nearest to the pose x (0: not in a safe region)."""
-    return ws.labels[_node_index(ws.axis0, x[0]), _node_index(ws.axis1, x[1]), _node_index(ws.axis2, x[2])]
+    return ws[1][_node_index(ws[7], x[0]), _node_index(ws[8], x[1]), _node_index(ws[9], x[2])]
 
 
 @jit
 def _grid_safe(c, ws, x, w, strokes):
-    """Whether x is safe (the family's ``_safe``) and its node lies in a sampled region."""
-    if not _safe(c, x, w, strokes):
+    """Whether x is safe (the family's ``_safe``, in scalars) and its node lies in a sampled region."""
+    if not _safe(THREE, c, x, w, strokes):
         return False
-    return ws.sampled[_label(ws, x)]
+    return ws[2][_label(ws, x)]
 
 
 @jit
 def _pose_in_component(c, ws, fn, st, j, w, strokes, out):
     """A safe pose of sampled component j into out: a random node of it jittered within its cell; found?"""
-    cell, labels, comp = ws.cell, ws.labels, ws.ids[j]
-    nodes, offsets = ws.nodes, ws.offsets
+    cell, labels, comp = ws[0], ws[1], ws[3][j]
+    nodes, offsets = ws[5], ws[6]
     size = offsets[j + 1] - offsets[j]
     n1, n2 = labels.shape[1], labels.shape[2]
     for _ in range(SAMPLER_TRIES):
         flat = nodes[offsets[j] + min(int(_next_double(fn, st) * size), size - 1)]
         i0, rest = divmod(flat, n1 * n2)
         i1, i2 = divmod(rest, n2)
-        out[0] = ws.axis0[i0] + (_next_double(fn, st) - 0.5) * cell[0]
-        out[1] = ws.axis1[i1] + (_next_double(fn, st) - 0.5) * cell[1]
-        out[2] = ws.axis2[i2] + (_next_double(fn, st) - 0.5) * cell[2]
+        out[0] = ws[7][i0] + (_next_double(fn, st) - 0.5) * cell[0]
+        out[1] = ws[8][i1] + (_next_double(fn, st) - 0.5) * cell[1]
+        out[2] = ws[9][i2] + (_next_double(fn, st) - 0.5) * cell[2]
         if _grid_safe(c, ws, out, w, strokes) and _label(ws, out) == comp:
             return True
     return False
@@ -123,7 +103,7 @@ def _pose_in_component(c, ws, fn, st, j, w, strokes, out):
 @jit
 def _choose_component(ws, fn, st):
     """Index of a sampled component, drawn with probability proportional to its size."""
-    cumulative = ws.cumulative
+    cumulative = ws[4]
     u = _next_double(fn, st) * cumulative[-1]
     for j in range(cumulative.shape[0] - 1):
         if u < cumulative[j]:
@@ -135,7 +115,7 @@ def _choose_component(ws, fn, st):
 def _component_index(ws, x):
     """Index (into the sampled components) of the region of a pose, −1 if it is in none."""
     label = _label(ws, x)
-    ids = ws.ids
+    ids = ws[3]
     for j in range(ids.shape[0]):
         if ids[j] == label:
             return j
@@ -268,7 +248,7 @@ def _sample_circle(c, ws, streams, r_lo, r_hi, a_lo, a_hi, n_check, o_center, o_
             r = r_lo + _next_double(fn, st) * (r_hi - r_lo)
             th = -math.pi + _next_double(fn, st) * _TWO_PI
             a = a_lo + _next_double(fn, st) * (a_hi - a_lo)
-            comp = ws.ids[j]
+            comp = ws[3][j]
             good = True
             for step in range(n_check):
                 wt = omega_dt * step

@@ -2,36 +2,44 @@
 
 Every draw comes from NumPy generators through ``envs.kernels.setup.random_streams`` and every candidate is
 checked by the certificate (``envs.tasks.certificate``); many pairs with one stream per robot run on every core.
+The entry kernels are compiled per certificate path (``sampler_kernels``), a compile-time constant of the
+certificate's code: a robot compiles its own path only.
 """
 
 from __future__ import annotations
+
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
 
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import _inverse_kinematics, _singularity, _work
+from envs.kernels.constraints import _work
 from envs.kernels.evaluation import _reference_at
 from envs.kernels.layout import (
     C_HARD,
     C_HARD_KIND,
-    C_LMAX,
-    C_LMIN,
-    C_MARGIN,
     C_N,
     C_PATH,
     C_SAFE,
     C_SHIGH,
     C_SLOW,
     C_SPACING,
-    W_A,
 )
-from envs.kernels.packing import read_only
+from envs.kernels.packing import THREE, WORK_ARRAYS, read_only
 from envs.kernels.pose import _TWO_PI, _difference, _metric
 from envs.kernels.setup import _next_double, jit, jit_inline, jit_parallel
-from envs.tasks.certificate import _safe, _segment_min_k
+from envs.tasks.certificate import _measures, _safe, _segment_min_k, certificate_path
 
-__all__ = ["PARALLEL_MIN_SAMPLES", "SAMPLER_TRIES", "WAYPOINT_TRIES", "sample_reach_batch", "sample_track_batch"]
+__all__ = [
+    "PARALLEL_MIN_SAMPLES",
+    "SAMPLER_TRIES",
+    "WAYPOINT_TRIES",
+    "SamplerKernels",
+    "sample_reach_batch",
+    "sample_track_batch",
+    "sampler_kernels",
+]
 
 drop_stale_caches(__file__)
 
@@ -45,69 +53,62 @@ WAYPOINT_TRIES = 64
 
 
 @jit
-def _draw_safe(c, fn, st, w, strokes, out):
+def _draw_safe(path, c, fn, st, w, strokes, out):
     """A pose drawn uniformly in the sampling box until it is safe; False after ``SAMPLER_TRIES`` rejections."""
     m = int(c[C_N])
     for _ in range(SAMPLER_TRIES):
         for j in range(m):
             lo, hi = c[C_SLOW + j], c[C_SHIGH + j]
             out[j] = lo + (hi - lo) * _next_double(fn, st)
-        if _safe(c, out, w, strokes):
+        if _safe(path, c, out, w, strokes):
             return True
     return False
 
 
 @jit
-def _draw_band(c, fn, st, w, strokes, low, high, out):
+def _draw_band(path, c, fn, st, w, strokes, low, high, out):
     """A pose of the sampling box with strokes within the margin and low ≤ k < high; False after the tries."""
     m = int(c[C_N])
-    lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
     for _ in range(SAMPLER_TRIES):
         for j in range(m):
             out[j] = c[C_SLOW + j] + (c[C_SHIGH + j] - c[C_SLOW + j]) * _next_double(fn, st)
-        _inverse_kinematics(c, out, w, strokes)
-        inside = True
-        for j in range(m):
-            if not (lo <= strokes[j] <= hi):
-                inside = False
-        if inside:
-            k, _ = _singularity(c, strokes, w, W_A)
-            if low <= k < high:
-                return True
+        inside, k, _, _ = _measures(path, c, out, w, strokes, np.bool_(False))  # a bool (see ``_pose_safety``)
+        if inside and low <= k < high:
+            return True
     return False
 
 
 @jit_inline
-def _sample_reach_one(c, fn, st, hard, min_distance, w, strokes, start, target, waypoint, step):
+def _sample_reach_one(path, c, fn, st, hard, min_distance, w, strokes, start, target, waypoint, step):
     """One certified pair from the stream (fn, st) into start, target, waypoint (see ``_sample_reach``); success."""
     safe = c[C_SAFE]
     box = np.bool_(True)  # a bool, not the constant True: one compiled _segment_min_k for every caller
     band = hard and c[C_HARD_KIND] != 0.0
     floor = 2.0 * c[C_HARD]
     for _ in range(SAMPLER_TRIES):
-        if not _draw_safe(c, fn, st, w, strokes, start):
+        if not _draw_safe(path, c, fn, st, w, strokes, start):
             return False
         if band:
-            if not _draw_band(c, fn, st, w, strokes, floor, safe, target):
+            if not _draw_band(path, c, fn, st, w, strokes, floor, safe, target):
                 return False
-        elif not _draw_safe(c, fn, st, w, strokes, target):
+        elif not _draw_safe(path, c, fn, st, w, strokes, target):
             return False
         _difference(c, target, start, step)
         if not _metric(c, step) >= min_distance:
             continue
         if not hard:
-            if _segment_min_k(c, start, target, w, strokes, safe, c[C_SPACING], box) >= safe:
+            if _segment_min_k(path, c, start, target, w, strokes, safe, c[C_SPACING], box) >= safe:
                 return True
         elif band:
-            if _segment_min_k(c, start, target, w, strokes, floor, c[C_SPACING], box) >= floor:
+            if _segment_min_k(path, c, start, target, w, strokes, floor, c[C_SPACING], box) >= floor:
                 return True
-        elif 0.0 <= _segment_min_k(c, start, target, w, strokes, -np.inf, c[C_SPACING], box) < safe:
+        elif 0.0 <= _segment_min_k(path, c, start, target, w, strokes, -np.inf, c[C_SPACING], box) < safe:
             for _ in range(WAYPOINT_TRIES):
-                if not _draw_safe(c, fn, st, w, strokes, waypoint):
+                if not _draw_safe(path, c, fn, st, w, strokes, waypoint):
                     return False
                 if (
-                    _segment_min_k(c, start, waypoint, w, strokes, safe, c[C_SPACING], box) >= safe
-                    and _segment_min_k(c, waypoint, target, w, strokes, safe, c[C_SPACING], box) >= safe
+                    _segment_min_k(path, c, start, waypoint, w, strokes, safe, c[C_SPACING], box) >= safe
+                    and _segment_min_k(path, c, waypoint, target, w, strokes, safe, c[C_SPACING], box) >= safe
                 ):
                     return True
     return False
@@ -122,51 +123,124 @@ def _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint
         o_waypoint[i, j] = waypoint[j] if hard and not band else target[j]
 
 
-@jit
-def _sample_reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
-    """Fill o_start, o_target, o_waypoint (M, m) with certified pairs; −1 on success, else the failing pair.
+class SamplerKernels(NamedTuple):
+    """The samplers' entry kernels of one certificate path (see ``_sampler_kernels``).
 
-    Standard pair: the geodesic start → target has k ≥ safe_threshold at every checked point. Hard pair
-    (``hard_kind`` "detour"): that geodesic dips below safe_threshold (it stays inside the box and stroke
-    limits), and the two geodesics start → waypoint → target are safe. Hard pair ("ill_conditioned"): a safe
-    start and a target in the ill-conditioned band 2 hard_threshold ≤ k < safe_threshold, joined by a
-    geodesic that keeps k ≥ 2 hard_threshold.
+    ``reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint)`` fills o_start, o_target, o_waypoint
+    (M, m) with certified pairs and returns −1 on success, else the failing pair. Standard pair: the geodesic
+    start → target has safety ≥ safe_threshold at every checked point. Hard pair (``hard_kind`` "detour"): that
+    geodesic dips below safe_threshold (it stays inside the box and stroke limits), and the two geodesics
+    start → waypoint → target are safe. Hard pair ("ill_conditioned"): a safe start and a target in the
+    ill-conditioned band 2 hard_threshold ≤ k < safe_threshold, joined by a geodesic that keeps
+    safety ≥ 2 hard_threshold. ``streams`` holds one stream for all pairs or one per pair.
+
+    ``reach_parallel`` is ``reach`` on every core, for one stream per robot (each robot's pair depends on its
+    stream only): every robot draws its pair (the serial kernel stops at the first failure); it returns the first
+    failing pair.
+
+    ``track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase)`` fills references (centre,
+    amplitude, phase) whose poses at ``n_check`` times of a period, and the segments between them, are all safe.
+    Sinusoids: a_j uniform in [½, 1] of ``max_amplitude`` and θ_j uniform. A path: a = ``max_amplitude``,
+    θ_0 = 0 (the start at the first vertex) and the heading θ_1 = ψ uniform in [0, 2π) (see ``_reference_at``).
     """
-    shared = streams.shape[0] == 1
-    w = _work()
-    strokes = np.empty(6)
-    start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
-    for i in range(o_start.shape[0]):
-        s = 0 if shared else i
-        if not _sample_reach_one(
-            c, streams[s, 0], streams[s, 1], hard, min_distance, w, strokes, start, target, waypoint, step
-        ):
-            return i
-        _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
-    return -1
+
+    reach: Any
+    reach_parallel: Any
+    track: Any
 
 
-@jit_parallel
-def _sample_reach_parallel(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
-    """``_sample_reach`` on every core, for one stream per robot (each robot's pair depends on its stream only).
+def _sampler_kernels(path: int) -> SamplerKernels:
+    """The samplers' entry kernels for the certificate path ``path`` (``certificate_path``), a compile-time constant.
 
-    Every robot draws its pair (the serial kernel stops at the first failure); returns the first failing pair.
+    Each gets a name of its own per path, hence its own Numba cache index (see ``envs.kernels.step._path_kernels``).
     """
-    n = o_start.shape[0]
-    ok = np.empty(n, dtype=np.bool_)
-    for i in numba.prange(n):
+
+    def reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
+        shared = streams.shape[0] == 1
         w = _work()
         strokes = np.empty(6)
         start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
-        ok[i] = _sample_reach_one(
-            c, streams[i, 0], streams[i, 1], hard, min_distance, w, strokes, start, target, waypoint, step
-        )
-        if ok[i]:
+        for i in range(o_start.shape[0]):
+            s = 0 if shared else i
+            if not _sample_reach_one(
+                path, c, streams[s, 0], streams[s, 1], hard, min_distance, w, strokes, start, target, waypoint, step
+            ):
+                return i
             _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
-    for i in range(n):
-        if not ok[i]:
-            return i
-    return -1
+        return -1
+
+    def reach_parallel(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
+        n = o_start.shape[0]
+        ok = np.empty(n, dtype=np.bool_)
+        for i in numba.prange(n):
+            w = _work()
+            strokes = np.empty(6)
+            start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+            ok[i] = _sample_reach_one(
+                path, c, streams[i, 0], streams[i, 1], hard, min_distance, w, strokes, start, target, waypoint, step
+            )
+            if ok[i]:
+                _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
+        for i in range(n):
+            if not ok[i]:
+                return i
+        return -1
+
+    def track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
+        m = int(c[C_N])
+        safe = c[C_SAFE]
+        box = np.bool_(True)  # a bool, not the constant True (see ``_sample_reach_one``)
+        path_kind = c[C_PATH] != 0.0
+        shared = streams.shape[0] == 1
+        w = _work()
+        strokes, point, previous, rate = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+        for i in range(o_center.shape[0]):
+            s = 0 if shared else i
+            fn, st = streams[s, 0], streams[s, 1]
+            done = False
+            for _ in range(SAMPLER_TRIES):
+                if not _draw_safe(path, c, fn, st, w, strokes, o_center[i]):
+                    return i
+                for j in range(m):
+                    if path_kind:
+                        o_amplitude[i, j] = max_amplitude[j]
+                        o_phase[i, j] = 0.0
+                    else:
+                        o_amplitude[i, j] = max_amplitude[j] * (0.5 + 0.5 * _next_double(fn, st))
+                        o_phase[i, j] = _TWO_PI * _next_double(fn, st)
+                if path_kind:
+                    o_phase[i, 1] = _TWO_PI * _next_double(fn, st)
+                ok = True
+                for step in range(n_check + 1):
+                    _reference_at(c, _TWO_PI * step / n_check, o_center, o_amplitude, o_phase, i, point, rate)
+                    if (
+                        step > 0
+                        and _segment_min_k(path, c, previous, point, w, strokes, safe, c[C_SPACING], box) < safe
+                    ):
+                        ok = False
+                        break
+                    for j in range(m):
+                        previous[j] = point[j]
+                if ok:
+                    done = True
+                    break
+            if not done:
+                return i
+        return -1
+
+    kernels = (reach, reach_parallel, track)
+    for kernel in kernels:
+        kernel.__qualname__ = kernel.__name__ = f"sample_{kernel.__name__}_path{path}"
+    return SamplerKernels(jit(reach), jit_parallel(reach_parallel), jit(track))
+
+
+#: The samplers' entry kernels by ``certificate_path``.
+_SAMPLER_KERNELS = {path: _sampler_kernels(path) for path in (THREE, WORK_ARRAYS)}
+
+
+def sampler_kernels(c) -> SamplerKernels:
+    """The samplers' entry kernels of the robot of packed constants ``c`` (its ``certificate_path``'s)."""
+    return _SAMPLER_KERNELS[certificate_path(c)]
 
 
 def sample_reach_batch(c, streams, n, m, hard, min_distance):
@@ -185,66 +259,19 @@ def sample_reach_batch(c, streams, n, m, hard, min_distance):
     """
     c = read_only(c)
     o_start, o_target, o_waypoint = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    kernels = sampler_kernels(c)
     parallel = streams.shape[0] > 1 and n >= PARALLEL_MIN_SAMPLES
-    kernel = _sample_reach_parallel if parallel else _sample_reach
+    kernel = kernels.reach_parallel if parallel else kernels.reach
     if kernel(c, streams, hard, min_distance, o_start, o_target, o_waypoint) >= 0:
         return None
     return o_start, o_target, o_waypoint
-
-
-@jit
-def _sample_track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
-    """Fill references (centre, amplitude, phase) whose poses at ``n_check`` times of a period are all safe.
-
-    Sinusoids: a_j uniform in [½, 1] of ``max_amplitude`` and θ_j uniform. A path: a = ``max_amplitude``, θ_0 = 0
-    (the start at the first vertex) and the heading θ_1 = ψ uniform in [0, 2π) (see ``_reference_at``).
-    """
-    m = int(c[C_N])
-    safe = c[C_SAFE]
-    box = np.bool_(True)  # a bool, not the constant True (see ``_sample_reach_one``)
-    path = c[C_PATH] != 0.0
-    shared = streams.shape[0] == 1
-    w = _work()
-    strokes, point, previous, rate = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
-    for i in range(o_center.shape[0]):
-        s = 0 if shared else i
-        fn, st = streams[s, 0], streams[s, 1]
-        done = False
-        for _ in range(SAMPLER_TRIES):
-            if not _draw_safe(c, fn, st, w, strokes, o_center[i]):
-                return i
-            for j in range(m):
-                if path:
-                    o_amplitude[i, j] = max_amplitude[j]
-                    o_phase[i, j] = 0.0
-                else:
-                    o_amplitude[i, j] = max_amplitude[j] * (0.5 + 0.5 * _next_double(fn, st))
-                    o_phase[i, j] = _TWO_PI * _next_double(fn, st)
-            if path:
-                o_phase[i, 1] = _TWO_PI * _next_double(fn, st)
-            ok = True
-            for step in range(n_check + 1):
-                _reference_at(c, _TWO_PI * step / n_check, o_center, o_amplitude, o_phase, i, point, rate)
-                if step > 0 and _segment_min_k(c, previous, point, w, strokes, safe, c[C_SPACING], box) < safe:
-                    ok = False
-                    break
-                for j in range(m):
-                    previous[j] = point[j]
-            if ok:
-                done = True
-                break
-        if not done:
-            return i
-    return -1
 
 
 def sample_track_batch(c, streams, n, m, max_amplitude, n_check):
     """Draw n references whose whole period stays in the safe set (checked between ``n_check`` points), or None."""
     o_center, o_amplitude, o_phase = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
     c = read_only(c)
-    if (
-        _sample_track(c, streams, np.asarray(max_amplitude, dtype=np.float64), n_check, o_center, o_amplitude, o_phase)
-        >= 0
-    ):
+    max_amplitude = np.asarray(max_amplitude, dtype=np.float64)
+    if sampler_kernels(c).track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase) >= 0:
         return None
     return o_center, o_amplitude, o_phase

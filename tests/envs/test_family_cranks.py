@@ -345,7 +345,8 @@ def test_parallel_reach_sampler_equals_the_serial_one(hard):
     params = gym.make("Planar3RRRReach-v0").unwrapped.params
     n = 3 * fk.PARALLEL_MIN_SAMPLES + 1
     outs = []
-    for kernel in (samplers._sample_reach, samplers._sample_reach_parallel):
+    kernels = samplers.sampler_kernels(params.packed)
+    for kernel in (kernels.reach, kernels.reach_parallel):
         generators = [np.random.default_rng(100 + i) for i in range(n)]
         streams = fk.random_streams(generators)
         arrays = [np.empty((n, 3)) for _ in range(3)]

@@ -111,17 +111,19 @@ def test_a_second_process_loads_every_kernel_of_the_first_step_from_the_cache():
 
 
 def test_every_path_kernel_has_its_own_cache_index():
-    """Each (row path, pose space)'s entry kernels keep their own Numba cache index file.
+    """Each path's entry kernels (the step's, the certificate's, the samplers') keep their own Numba cache index file.
 
     Closures of one name share an index, and Numba's index is read, extended and rewritten without a lock: two
     processes compiling two robots' paths at once (two pytest workers, two Ray workers) would then overwrite each
     other's entries, and a later process could load the machine code of one path for another.
     """
     from envs.kernels import step
+    from envs.tasks import certificate, samplers
 
     names = [
-        getattr(kernels, role)._cache._cache_file._index_name
-        for kernels in step._PATH_KERNELS.values()
-        for role in step.PathKernels._fields
+        kernel._cache._cache_file._index_name
+        for table in (step._PATH_KERNELS, certificate._CERTIFICATE_KERNELS, samplers._SAMPLER_KERNELS)
+        for kernels in table.values()
+        for kernel in kernels
     ]
     assert len(set(names)) == len(names), sorted(name for name in names if names.count(name) > 1)
