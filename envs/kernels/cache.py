@@ -14,8 +14,11 @@ import hashlib
 import sys
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
-__all__ = ["dependencies", "drop_stale_caches"]
+from numba.core.caching import CompileResultCacheImpl
+
+__all__ = ["cache_folder", "dependencies", "drop_stale_caches"]
 
 #: The package whose modules are followed (the kernels call into no other package's jitted code).
 _PACKAGE = "envs."
@@ -57,10 +60,21 @@ def dependencies(module_file: str | Path) -> list[Path]:
     return sorted(p for p in (Path(sys.modules[name].__file__).resolve() for name in seen) if p != here)
 
 
+def cache_folder(module_file: str | Path) -> Path:
+    """The folder where Numba caches the jitted functions of ``module_file``, found as Numba finds it.
+
+    ``NUMBA_CACHE_DIR`` when it is set, else ``__pycache__`` beside the source, or the user-wide cache when that
+    cannot be written (Numba's cache locators, tried in its order).
+    """
+    namespace: dict[str, Any] = {}
+    exec(compile("def probe():\n    pass\n", str(module_file), "exec"), namespace)  # a function "of" that file
+    return Path(CompileResultCacheImpl(namespace["probe"])._locator.get_cache_path())
+
+
 def drop_stale_caches(module_file: str | Path, sources: Iterable[str | Path] | None = None) -> bool:
     """Remove the Numba cache of a module if a module it depends on changed since the cache was built.
 
-    The sources of the module's ``dependencies`` are hashed into ``__pycache__/<module>.deps``; where the hash
+    The sources of the module's ``dependencies`` are hashed into ``<cache folder>/<module>.deps``; where the hash
     differs (or is missing), the module's ``<module>.*.nbi`` / ``.nbc`` files are deleted, so Numba compiles
     afresh on first use. Call it at import time, after the module's imports and before any of its functions is
     compiled. A cache folder that cannot be written (a read-only install) is left alone.
@@ -73,7 +87,7 @@ def drop_stale_caches(module_file: str | Path, sources: Iterable[str | Path] | N
         True if a stale cache was dropped (or there was no record of one).
     """
     here = Path(module_file)
-    cache = here.parent / "__pycache__"
+    cache = cache_folder(here)
     digest = hashlib.sha256()
     for path in dependencies(module_file) if sources is None else sorted(Path(p) for p in sources):
         digest.update(path.name.encode() + b"\0" + path.read_bytes())

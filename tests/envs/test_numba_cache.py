@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import re
+import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 from envs.kernels import step
 from envs.kernels.cache import dependencies, drop_stale_caches
@@ -127,3 +131,32 @@ def test_every_path_kernel_has_its_own_cache_index():
         for kernel in kernels
     ]
     assert len(set(names)) == len(names), sorted(name for name in names if names.count(name) > 1)
+
+
+_CACHED_MODULE = """
+import numba
+
+@numba.njit(cache=True)
+def twice(x):
+    return 2 * x
+
+twice(1.0)
+"""
+
+
+@pytest.mark.parametrize("user_folder", [False, True])
+def test_the_cache_folder_is_where_numba_writes_the_cache(tmp_path, user_folder):
+    """``cache_folder`` finds the folder Numba itself writes a module's cache to, with or without NUMBA_CACHE_DIR."""
+    module = tmp_path / "src" / "mine.py"
+    module.parent.mkdir()
+    module.write_text(_CACHED_MODULE)
+    env = {**os.environ, "PYTHONPATH": str(module.parent)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    if user_folder:
+        env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")
+    script = "import mine, sys; from envs.kernels.cache import cache_folder; print(cache_folder(sys.argv[1]))"
+    done = subprocess.run([sys.executable, "-c", script, str(module)], env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    folder = Path(done.stdout.strip())
+    assert sorted(p.name.split(".")[0] for p in folder.glob("*.nbi")) == ["mine"]
+    assert folder.is_relative_to(tmp_path / ("numba" if user_folder else "src"))
