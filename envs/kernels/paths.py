@@ -70,7 +70,7 @@ def vector(path, row):
     return _compiled_only()
 
 
-@overload(vector, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(vector, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _vector(path, row):
     if _literal_path(path) == WORK_ARRAYS:
         return lambda path, row: row
@@ -82,7 +82,7 @@ def keep(path, v, out):
     return _compiled_only()
 
 
-@overload(keep, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(keep, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _keep(path, v, out):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -101,7 +101,7 @@ def lerp(path, a, b, f, out):
     return _compiled_only()
 
 
-@overload(lerp, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(lerp, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _lerp(path, a, b, f, out):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -120,7 +120,7 @@ def axpy(path, a, s, b, out):
     return _compiled_only()
 
 
-@overload(axpy, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(axpy, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _axpy(path, a, s, b, out):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -139,7 +139,7 @@ def rk4_mean(path, v, k1, k2, k3, out):
     return _compiled_only()
 
 
-@overload(rk4_mean, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(rk4_mean, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _rk4_mean(path, v, k1, k2, k3, out):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -169,7 +169,7 @@ def commanded(path, c, q, action, a_out, nq_out, qr_out):
     return _compiled_only()
 
 
-@overload(commanded, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(commanded, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _commanded(path, c, q, action, a_out, nq_out, qr_out):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -210,7 +210,7 @@ def retract(path, c, x, v, h, out):
     return _compiled_only()
 
 
-@overload(retract, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(retract, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _retract(path, c, x, v, h, out):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -228,7 +228,7 @@ def metric(path, c, v):
     return _compiled_only()
 
 
-@overload(metric, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(metric, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _metric(path, c, v):
     if _literal_path(path) == WORK_ARRAYS:
         return lambda path, c, v: pose._metric(c, v)
@@ -240,7 +240,7 @@ def jump(path, c, y, x, w):
     return _compiled_only()
 
 
-@overload(jump, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(jump, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _jump(path, c, y, x, w):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -261,7 +261,7 @@ def anchors_at(path, c, q):
     return _compiled_only()
 
 
-@overload(anchors_at, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(anchors_at, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _anchors_at(path, c, q):
     chosen = _literal_path(path)
     if chosen == WORK_ARRAYS:
@@ -276,7 +276,7 @@ def rows_at(path, c, q, anchors, x, w):
     return _compiled_only()
 
 
-@overload(rows_at, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(rows_at, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _rows_at(path, c, q, anchors, x, w):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -293,7 +293,7 @@ def pose_rate(path, c, q, rows, rate, w, out):
     return _compiled_only()
 
 
-@overload(pose_rate, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(pose_rate, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _pose_rate(path, c, q, rows, rate, w, out):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -315,7 +315,7 @@ def newton(path, c, q, anchors, guess, w, tolerance, max_iterations):
     return _compiled_only()
 
 
-@overload(newton, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(newton, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _newton_of(path, c, q, anchors, guess, w, tolerance, max_iterations):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -341,7 +341,7 @@ def measure(path, c, q, anchors, rows, w):
     return _compiled_only()
 
 
-@overload(measure, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(measure, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _measure(path, c, q, anchors, rows, w):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -358,7 +358,7 @@ def inverse_kinematics(path, c, x, out):
     return _compiled_only()
 
 
-@overload(inverse_kinematics, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(inverse_kinematics, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _inverse_kinematics(path, c, x, out):
     if _literal_path(path) == WORK_ARRAYS:
 
@@ -376,7 +376,7 @@ def residual(path, c, q, anchors, rows, w):
     return _compiled_only()
 
 
-@overload(residual, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS, inline="always")
+@overload(residual, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _residual_of(path, c, q, anchors, rows, w):
     if _literal_path(path) == WORK_ARRAYS:
         return lambda path, c, q, anchors, rows, w: _residual(c, q, w)
