@@ -20,10 +20,21 @@ configuration ``qpos0`` the model is closed and the actuated joints read q. Name
     motor        actuator ``motor{i}`` on joint ``actuator{i}``, gear 1, no control limits: ``data.ctrl`` is
                  τ (N for legs and sliders, N·m for cranks), the effort dual to q of ``kinematics.dynamics``.
 
-The rods' spin about their own axis, which ``InertialParameters`` neglects, gets a moment of inertia
-``axial_inertia`` times the rod's transverse one: a ball joint lets a leg (or a link) spin freely about its
-axis, and since every such body is axisymmetric and its closure acts on the axis, that spin is decoupled from
-the platform's motion whatever its inertia. Contacts are disabled; the geoms are for display only.
+The platform's joints come first in ``qpos`` (``platform_pose`` reads x from them). The inertial data map to
+MuJoCo's bodies as follows (every ``<inertial>`` explicit, geoms for display only, contacts disabled):
+
+    platform     mass m at c, inertia I_c in {P} axes (planar: I_zz on every axis; only z turns).
+    leg          cylinder: mass at c along the leg from B_i, transverse moment I about its centre of mass;
+                 rod: mass at c from P_i, transverse moment I.
+    crank        rotor and arm: mass at c along the arm, moment J − m c² about its centre of mass on every
+                 axis, so J about the motor axis; link: mass at ℓ − c from A_i, transverse moment I.
+    slider       carriage: mass at A_i (it only translates); link as for a crank.
+
+Rods and cylinders get a moment of inertia about their own axis, ``axial_inertia`` times the transverse one,
+which ``InertialParameters`` neglects: a ball joint lets a leg (or a link) spin about its axis, and since every
+such body is axisymmetric and its closure acts on the axis, that spin is decoupled from the platform's motion
+whatever its inertia. A mass or moment of zero becomes 1e-9 (kg or kg·m²), as MuJoCo refuses massless moving
+bodies.
 """
 
 from __future__ import annotations
@@ -38,10 +49,13 @@ from kinematics._validation import FloatArray
 from kinematics.family import DistanceConstraintMechanism
 from kinematics.inertia import InertialParameters, default_inertia
 
-__all__ = ["INTEGRATORS", "platform_pose", "to_mjcf"]
+__all__ = ["ASSEMBLY_TOLERANCE", "INTEGRATORS", "platform_pose", "to_mjcf"]
 
 #: MuJoCo's integrators ``to_mjcf`` accepts.
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
+
+#: Largest gap [m] between a link's length and the distance of its ends that ``to_mjcf`` assembles.
+ASSEMBLY_TOLERANCE = 1e-9
 
 #: Smallest mass [kg] and moment of inertia [kg·m²] given to a moving body: MuJoCo refuses massless ones.
 _FLOOR = 1e-9
@@ -99,9 +113,12 @@ def _assembly(mechanism: DistanceConstraintMechanism, q: Any, x: Any) -> tuple[F
     q = mechanism.inverse_kinematics(x) if q is None else mechanism._q(np.array(q, dtype=np.float64))
     if q.ndim != 1 or not np.isfinite(q).all():
         raise ValueError(f"q must be finite actuator coordinates of shape ({mechanism.n_actuators},), got {q!r}")
-    residual = float(np.max(np.abs(mechanism.constraints(q, x)) / np.maximum(mechanism.link_lengths, 1e-3)))
-    if not residual < 1e-6:
-        raise ValueError(f"(q, x) must be an assembled pose (|Φ_i| / ℓ_i < 1e-6), got {residual:.3g}")
+    lengths = np.where(np.array(mechanism.actuator_kinds) == "leg", q, mechanism.link_lengths)
+    residual = float(np.max(np.abs(np.linalg.norm(mechanism.link_vectors(q, x), axis=-1) - lengths)))
+    if not residual < ASSEMBLY_TOLERANCE:
+        raise ValueError(
+            f"(q, x) must be an assembled pose (every |‖d_i‖ − ℓ_i| < {ASSEMBLY_TOLERANCE} m), got {residual:.3g} m"
+        )
     return q, x
 
 
@@ -140,8 +157,9 @@ def to_mjcf(
         The MJCF document, a string.
 
     Raises:
-        ValueError: If the inertia does not fit the mechanism, (q, x) is not assembled, a crank's moment of
-            inertia about its axis is below m c² (its arm's own share), or an option is out of range (naming it).
+        ValueError: If the inertia does not fit the mechanism, (q, x) is not assembled (``ASSEMBLY_TOLERANCE``),
+            a crank's moment of inertia about its axis is not above m c² (its arm's own share), or an option is
+            out of range (naming it).
     """
     if not isinstance(mechanism, DistanceConstraintMechanism):
         raise TypeError(f"mechanism must be a DistanceConstraintMechanism, got {type(mechanism).__name__}")

@@ -13,8 +13,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from kinematics import Delta, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
-from kinematics.dynamics import STANDARD_GRAVITY, InertialParameters, RobotDynamics, default_inertia
+from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
+from kinematics.dynamics import (
+    STANDARD_GRAVITY,
+    InertialParameters,
+    RobotDynamics,
+    default_inertia,
+    rod_from_end_masses,
+)
 from kinematics.mjcf import platform_pose, to_mjcf
 
 #: Each preset with the half-width of its random start poses around the home pose (translations [m], rotations
@@ -27,8 +33,16 @@ PRESETS = {
     "3-PRR": (Planar3PRR, 0.03, 0.1),
 }
 
-#: The robots of the statics and dynamics comparisons.
-COMPARED = ("3-RPR", "hexapod", "Delta")
+#: The forced-motion scenarios: number of start poses, size of the random offsets to the holding forces (a
+#: fraction of the largest), and the least distance [m] every start must go from its start. The 3-RRR and the 3-PRR
+#: have small workspaces: smaller offsets keep them inside for 0.5 s.
+SCENARIOS = {
+    "3-RPR": (5, 0.3, 0.01),
+    "hexapod": (5, 0.3, 0.01),
+    "Delta": (5, 0.3, 0.01),
+    "3-RRR": (3, 0.05, 0.005),
+    "3-PRR": (3, 0.05, 0.005),
+}
 
 HOLD_TIME = 0.2  # [s]
 SEGMENT = 0.05  # [s], the actuator efforts change every SEGMENT
@@ -89,30 +103,46 @@ def start_poses(robot, name: str, count: int, seed: int = 7) -> np.ndarray:
     return np.array(kept)
 
 
-def efforts(dynamics: RobotDynamics, X0: np.ndarray, seed: int = 11) -> np.ndarray:
-    """Holding forces at X0 plus uniform offsets of ±30 % of the largest, per segment: shape (SEGMENTS, K, n)."""
+def efforts(dynamics: RobotDynamics, X0: np.ndarray, fraction: float, seed: int = 11) -> np.ndarray:
+    """Holding forces at X0 plus uniform offsets of ± ``fraction`` of the largest, per segment: (SEGMENTS, K, n)."""
     rng = np.random.default_rng(seed)
     hold = dynamics.holding_forces(dynamics.mechanism.inverse_kinematics(X0), X0)
-    scale = 0.3 * np.abs(hold).max(axis=-1, keepdims=True)
+    scale = fraction * np.abs(hold).max(axis=-1, keepdims=True)
     return hold + scale * rng.uniform(-1.0, 1.0, (SEGMENTS,) + hold.shape)
 
 
-def drift(robot, inertia, tau: np.ndarray, exported: InertialParameters | None = None) -> float:
-    """How far [m] the platform's origin moves in HOLD_TIME from rest at home under constant efforts τ."""
-    model, data = load(robot, inertia if exported is None else exported)
+def drift(
+    robot, inertia, x: np.ndarray, scale: float = 1.0, exported: InertialParameters | None = None, **options
+) -> float:
+    """How far [m] the platform's points P_i move in HOLD_TIME from rest at x under our holding forces × scale.
+
+    Args:
+        robot: The mechanism.
+        inertia: The inertia of our holding forces.
+        x: The pose to start from at rest, shape (m,).
+        scale: Factor on the holding forces (0: none).
+        exported: Inertia written into the MJCF (default ``inertia``).
+        **options: Options of ``to_mjcf``.
+    """
+    tau = scale * RobotDynamics(robot, inertia).holding_forces(robot.inverse_kinematics(x), x)
+    model, data = load(robot, inertia if exported is None else exported, x=x, **options)
     data.ctrl[:] = tau
     mujoco.mj_step(model, data, nstep=round(HOLD_TIME / model.opt.timestep))
-    d = robot.pose_space.point_dim
-    return float(np.linalg.norm(platform_pose(robot, data.qpos)[:d] - robot.home_pose()[:d]))
+    end = robot.platform_points_in_base(platform_pose(robot, data.qpos))
+    return float(np.linalg.norm(end - robot.platform_points_in_base(x), axis=-1).max())
 
 
-def compare(name: str, count: int, exported: InertialParameters | None = None) -> dict[str, np.ndarray]:
+def compare(
+    name: str, count: int, exported: InertialParameters | None = None, fraction: float = 0.3, **options
+) -> dict[str, np.ndarray]:
     """Both simulations from ``count`` start poses at rest under the same efforts; the gaps at 0.5 s.
 
     Args:
         name: A key of PRESETS.
         count: Number of start poses.
         exported: Inertia written into the MJCF (default: the one our dynamics uses).
+        fraction: Size of the random offsets to the holding forces (see ``efforts``).
+        **options: Options of ``to_mjcf``.
 
     Returns:
         Per start: "position" [m] and "angle" [deg] gaps, "closure" (MuJoCo's largest violation [m], sampled
@@ -122,7 +152,7 @@ def compare(name: str, count: int, exported: InertialParameters | None = None) -
     robot, inertia = robot_and_inertia(name)
     dynamics = RobotDynamics(robot, inertia)
     X0 = start_poses(robot, name, count)
-    tau = efforts(dynamics, X0)
+    tau = efforts(dynamics, X0, fraction)
     d = robot.pose_space.point_dim
     out = {key: np.zeros(count) for key in ("position", "angle", "closure", "moved")}
     x, xdot = X0.copy(), np.zeros_like(X0)
@@ -133,7 +163,7 @@ def compare(name: str, count: int, exported: InertialParameters | None = None) -
         out["moved"] = np.maximum(out["moved"], travel)
     out["phi"] = np.abs(robot.constraints(state.q, x)).max(axis=-1)
     for j in range(count):
-        model, data = load(robot, inertia if exported is None else exported, x=X0[j])
+        model, data = load(robot, inertia if exported is None else exported, x=X0[j], **options)
         steps = round(SEGMENT / model.opt.timestep) // 4
         for k in range(SEGMENTS):
             data.ctrl[:] = tau[k, j]
@@ -231,17 +261,34 @@ def test_inertia_must_fit():
 def test_holding_forces_hold_the_platform_in_mujoco(name):
     """Our holding forces as motor controls keep the platform within 1 µm for 0.2 s; without them it falls."""
     robot, inertia = robot_and_inertia(name)
-    x = robot.home_pose()
-    tau = RobotDynamics(robot, inertia).holding_forces(robot.inverse_kinematics(x), x)
-    assert drift(robot, inertia, tau) < DRIFT_TOLERANCE
-    assert drift(robot, inertia, np.zeros_like(tau)) > 0.02
+    for x in (robot.home_pose(), start_poses(robot, name, 1)[0]):
+        assert drift(robot, inertia, x) < DRIFT_TOLERANCE
+    assert drift(robot, inertia, robot.home_pose(), scale=0.0) > 0.02
 
 
-@pytest.mark.parametrize("name", COMPARED)
+def off_centre(name: str) -> tuple[object, InertialParameters]:
+    """A preset with masses off the symmetric places: the hexapod's payload off-centre, links heavier at A_i."""
+    robot, inertia = robot_and_inertia(name)
+    if name == "hexapod":
+        return robot, inertia.replace(platform_com=(0.03, -0.02, 0.05))
+    mass, com, moment = rod_from_end_masses(0.2, 0.1, float(robot.link_lengths[0]))
+    return robot, inertia.replace(distal_mass=mass, distal_com=com, distal_inertia=moment)
+
+
+@pytest.mark.parametrize("name", ["hexapod", "Delta", "3-RRR", "3-PRR"])
+def test_holding_forces_hold_off_centre_masses_in_mujoco(name):
+    """An off-centre payload, links heavier at the anchor (2:1 end masses): each mass is placed from the right end."""
+    robot, inertia = off_centre(name)
+    for x in (robot.home_pose(), start_poses(robot, name, 1)[0]):
+        assert drift(robot, inertia, x) < DRIFT_TOLERANCE
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
 def test_forced_motion_agrees_with_mujoco(name):
-    """From 5 start poses at rest, 0.5 s of piecewise-constant efforts: the same pose within 10 µm and 1e-3°."""
-    out = compare(name, 5)
-    assert out["moved"].min() > 0.01  # the platform goes at least 1 cm from its start
+    """From start poses at rest, 0.5 s of piecewise-constant efforts: the same pose within 10 µm and 1e-3°."""
+    count, fraction, travel = SCENARIOS[name]
+    out = compare(name, count, fraction=fraction)
+    assert out["moved"].min() > travel  # every start goes somewhere
     assert out["position"].max() < POSITION_TOLERANCE, out["position"]
     assert out["angle"].max() < ANGLE_TOLERANCE, out["angle"]
     assert out["closure"].max() < CLOSURE_TOLERANCE, out["closure"]
@@ -273,9 +320,7 @@ def _planted(name: str, error: str) -> tuple[object, InertialParameters, Inertia
 def test_statics_see_a_wrong_weight(name, error):
     """A wrong rod mass or centre of mass in the MJCF moves the held platform by more than the tolerance."""
     robot, inertia, wrong = _planted(name, error)
-    x = robot.home_pose()
-    tau = RobotDynamics(robot, inertia).holding_forces(robot.inverse_kinematics(x), x)
-    assert drift(robot, inertia, tau, exported=wrong) > 100 * DRIFT_TOLERANCE
+    assert drift(robot, inertia, robot.home_pose(), exported=wrong) > 100 * DRIFT_TOLERANCE
 
 
 @pytest.mark.parametrize(
@@ -287,3 +332,83 @@ def test_dynamics_see_a_wrong_inertia(name, error):
     _, _, wrong = _planted(name, error)
     out = compare(name, 1, exported=wrong)
     assert out["position"].max() > 10 * POSITION_TOLERANCE
+
+
+# -- members of the family beyond the presets --------------------------------------------------------
+
+
+def linear_delta() -> tuple[DistanceConstraintMechanism, InertialParameters]:
+    """A linear Delta: three carriages on vertical rails, links to a translating plate; made-up masses."""
+    angles = np.radians([0.0, 120.0, 240.0])
+    ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
+    robot = DistanceConstraintMechanism(
+        0.3 * ring, 0.05 * ring, pose_space="translational", actuators="slider", link_lengths=0.4, rails=[0, 0, 1.0]
+    )
+    inertia = InertialParameters(
+        platform_mass=0.4,
+        platform_com=(0.0, 0.0, -0.01),
+        platform_inertia=np.diag([1e-3, 1e-3, 2e-3]),
+        actuator_mass=np.full(3, 0.5),
+        actuator_com=0.0,
+        actuator_inertia=0.0,
+        distal_mass=0.1,
+        distal_com=0.25,
+        distal_inertia=1e-3,
+        gravity=(0.0, 0.0, -STANDARD_GRAVITY),
+    )
+    return robot, inertia
+
+
+def six_rus() -> tuple[DistanceConstraintMechanism, InertialParameters]:
+    """A 6-RUS on the hexapod's anchors (cranks turning tangent arms in vertical planes), tilted gravity."""
+    hexapod = StewartGough()
+    base, x = hexapod.base, hexapod.home_pose()
+    radial = base / np.linalg.norm(base, axis=1, keepdims=True)
+    u = np.stack([(-1.0) ** i * np.cross([0.0, 0.0, 1.0], radial[i]) for i in range(6)])
+    v = np.tile([0.0, 0.0, 1.0], (6, 1))
+    elbows = base + 0.1 * (np.cos(0.3) * u + np.sin(0.3) * v)
+    lengths = np.linalg.norm(hexapod.platform_points_in_base(x) - elbows, axis=1)
+    robot = DistanceConstraintMechanism(
+        base,
+        hexapod.platform,
+        actuators="crank",
+        crank_radii=0.1,
+        link_lengths=lengths,
+        crank_axes=np.stack([u, v], axis=1),
+        branches=-1,
+        home=x,
+    )
+    inertia = InertialParameters(
+        platform_mass=3.0,
+        platform_com=(0.01, 0.0, 0.02),
+        platform_inertia=np.diag([0.02, 0.03, 0.04]),
+        actuator_mass=np.full(6, 0.3),
+        actuator_com=0.05,
+        actuator_inertia=0.3 * 0.1**2 / 3.0 + 0.002,
+        distal_mass=0.2,
+        distal_com=0.1,
+        distal_inertia=0.2 * 0.35**2 / 12.0,
+        gravity=(0.5, -0.3, -STANDARD_GRAVITY),
+    )
+    return robot, inertia
+
+
+@pytest.mark.parametrize("build", [linear_delta, six_rus])
+def test_other_members_agree_with_mujoco(build):
+    """Spatial sliders and spatial cranks: holding forces hold, and 0.3 s under ±20 % offsets ends at one pose."""
+    robot, inertia = build()
+    x = robot.home_pose()
+    assert drift(robot, inertia, x) < DRIFT_TOLERANCE
+    assert drift(robot, inertia, x, scale=0.0) > 0.02
+    dynamics = RobotDynamics(robot, inertia)
+    offsets = 1.0 + 0.2 * np.random.default_rng(3).uniform(-1.0, 1.0, robot.n_actuators)
+    tau = offsets * dynamics.holding_forces(robot.inverse_kinematics(x), x)
+    ours = dynamics.step(x, np.zeros_like(x), tau, 0.3, substeps=300).x
+    model, data = load(robot, inertia)
+    data.ctrl[:] = tau
+    mujoco.mj_step(model, data, nstep=round(0.3 / model.opt.timestep))
+    gap = robot.pose_difference(ours, platform_pose(robot, data.qpos))
+    assert np.linalg.norm(robot.pose_difference(x, ours)[:3]) > 0.005
+    assert np.linalg.norm(gap[:3]) < POSITION_TOLERANCE
+    assert np.degrees(np.linalg.norm(gap[3:])) < ANGLE_TOLERANCE
+    assert closure_violation(data) < CLOSURE_TOLERANCE
