@@ -235,6 +235,12 @@ class DistanceConstraintMechanism(FamilySingularities):
             return np.array([centre[0], centre[1], centre[2] - radius])
         return np.array([centre[0], centre[1], centre[2] + radius, 0.0, 0.0, 0.0])
 
+    def to_mjcf(self, inertia: Any = None, **options: Any) -> str:
+        """An MJCF model of the robot for MuJoCo: ``kinematics.mjcf.to_mjcf(self, inertia, **options)``."""
+        from kinematics.mjcf import to_mjcf
+
+        return to_mjcf(self, inertia, **options)
+
     def __repr__(self) -> str:
         """Geometry in a form that can be pasted back."""
         extra = ""
