@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from envs.kernels import step
-from envs.kernels.cache import dependencies, drop_stale_caches
+from envs.kernels.cache import cache_folder, dependencies, drop_stale_caches
 
 
 def test_a_changed_dependency_drops_the_cache_and_an_unchanged_one_keeps_it(tmp_path):
@@ -19,8 +19,8 @@ def test_a_changed_dependency_drops_the_cache_and_an_unchanged_one_keeps_it(tmp_
     module, dependency = tmp_path / "mine.py", tmp_path / "theirs.py"
     module.write_text("x = 1\n")
     dependency.write_text("def f(): return 1\n")
-    cache = tmp_path / "__pycache__"
-    cache.mkdir()
+    cache = cache_folder(module)  # beside the source, or under NUMBA_CACHE_DIR where that is set
+    cache.mkdir(parents=True, exist_ok=True)
     mine = [cache / "mine.f-3.py311.nbi", cache / "mine.f-3.py311.1.nbc"]
     other = cache / "theirs.f-1.py311.nbi"
     for path in (*mine, other):
