@@ -1,0 +1,53 @@
+"""Offsets into the packed inertial data (``envs.kernels.dynamics.pack_inertia``) and the rows of its work array.
+
+``INERTIA`` is the one table of the packed inertia: (name, entries, meaning) in order; each name's offset
+``I_<name>`` is the sum of the entries before it (``envs.kernels.layout.offsets``), and ``C_INERTIA_SIZE`` is the
+total. Points and vectors have three entries (a planar robot's z is 0); per-leg blocks have ``MAX_LEGS``. The
+bodies are ``kinematics.inertia.InertialParameters``'s; the per-leg weights are the combinations the equations
+of motion read (``kinematics.dynamics.RobotDynamics``): with the leg kinds' indicators leg_i, crank_i, slider_i,
+
+    W_Q_i = crank_i J_i + slider_i m_a,i           (weight of q̇_i²: a crank's rotor and arm, a slider's carriage)
+    W_U_i = leg_i (m_a,i c_a,i² + I_a,i) + I_d,i   (weight of |u̇_i|²: a leg's cylinder, the rod's rotation)
+    LEVER_i = leg_i c_a,i                           (a cylinder's centre of mass moves with LEVER_i u̇_i)
+    ARM_i = crank_i c_a,i / a_i + slider_i          (an arm's or carriage's centre of mass moves with ARM_i A_i′ q̇_i)
+
+``DYNAMICS_WORK`` lists the rows of the work array of one robot (``envs.kernels.dynamics._dynamics_work``, six
+columns): row ``D_<name>`` is the first of the name's rows.
+"""
+
+from __future__ import annotations
+
+from envs.kernels.layout import MAX_LEGS, offsets
+
+_ONE, _VECTOR, _LEGS = 1, 3, MAX_LEGS
+
+#: (name, entries, meaning) of every block of the packed inertia, in order.
+INERTIA: tuple[tuple[str, int, str], ...] = (
+    ("N", _ONE, "number of legs n the data are for"),
+    ("MASS", _ONE, "platform mass m [kg]"),
+    ("COM", _VECTOR, "platform centre of mass c in {P} [m]"),
+    ("INERTIA", 9, "platform inertia about c in {P} axes [kg·m²], row-major 3 × 3 (planar: I_zz at (2, 2) only)"),
+    ("GRAVITY", _VECTOR, "gravitational acceleration g in {B} [m/s²]"),
+    ("AMASS", _LEGS, "actuator body masses m_a [kg]"),
+    ("LEVER", _LEGS, "leg_i c_a,i [m]"),
+    ("ARM", _LEGS, "crank_i c_a,i / a_i + slider_i"),
+    ("WQ", _LEGS, "weight of q̇_i² [kg or kg·m²]"),
+    ("WU", _LEGS, "weight of |u̇_i|² [kg·m²]"),
+    ("DMASS", _LEGS, "distal rod masses m_d [kg]"),
+    ("DCOM", _LEGS, "distal rod centres of mass from P_i along the rod [m]"),
+)
+
+INERTIA_OFFSETS, C_INERTIA_SIZE = offsets(INERTIA, "I_")
+globals().update(INERTIA_OFFSETS)  # I_N, I_MASS, …: the names the kernels import
+
+#: (name, rows, meaning) of the work array of the equations of motion of one robot, in order.
+DYNAMICS_WORK: tuple[tuple[str, int, str], ...] = (
+    ("M", 6, "mass matrix M, m × m"),
+    ("LU", 6, "elimination copy of M"),
+    ("BIAS", 1, "c + G"),
+    ("FORCE", 1, "J_iᵀ τ"),
+    ("RHS", 1, "J_iᵀ τ − c − G"),
+    ("ACC", 1, "ẍ"),
+)
+DYNAMICS_ROWS, D_SIZE = offsets(DYNAMICS_WORK, "D_")
+globals().update(DYNAMICS_ROWS)  # D_M, D_LU, …
