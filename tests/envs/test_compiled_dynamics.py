@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import functools
 
+import numba
 import numpy as np
 import pytest
 
 from envs.kernels import dynamics
 from envs.kernels.dynamics_layout import C_INERTIA_SIZE
 from envs.kernels.packing import PLANAR_LEGS, THREE, WORK_ARRAYS, pack_family, row_path
-from envs.kernels.setup import jit
 from envs.presets import build_family_params
 from kinematics.dynamics import STANDARD_GRAVITY, RobotDynamics, default_inertia
 
@@ -91,7 +91,8 @@ def test_work_path_matches_the_reference_on_three_actuators(name):
     _close(acc, reference.forward_dynamics(q, x, xdot, tau), f"{name}: ẍ")
 
 
-@jit
+# Not cached on disk: a test module's cache would outlive a change to the kernels it calls (``envs.kernels.cache``).
+@numba.njit(cache=False)
 def _accelerations_planar_legs(c, ci, q, x, xdot, tau):
     """``dynamics.acceleration`` on the register path of three legs, robot by robot (as an integrator calls it)."""
     out = np.empty(x.shape)
