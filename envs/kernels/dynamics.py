@@ -19,8 +19,9 @@ P_i, from q̈_i⁰ and ü_i⁰, the accelerations at ẍ = 0 (``_leg``). Then
     M = Σ_i K_iᵀ S_i K_i + platform,   c + G = Σ_i K_iᵀ F_i + platform,   J_iᵀ τ = Σ_i τ_i K_iᵀ g_i,
 
 where K_iᵀ f is the generalised force of a force f at P_i (spatial (f, r_i × f); planar (f_x, f_y,
-(r_i × f)_z); translational f), K_iᵀ K_i = Σ_a (K_iᵀ e_a)(K_iᵀ e_a)ᵀ, and the platform is a point mass at its
-centre of mass plus its rotational inertia R I Rᵀ (spatial, with the gyroscopic ω × (R I Rᵀ ω); planar I_zz).
+(r_i × f)_z); translational f), and the platform is a point mass at its centre of mass plus its rotational
+inertia R I Rᵀ (spatial, with the gyroscopic ω × (R I Rᵀ ω); planar I_zz). The terms s_I K_iᵀ K_i of all the
+points add up from their moments Σ s_I, Σ s_I r and Σ s_I r rᵀ (``_moments``).
 Points are 3-D throughout (a planar robot's z is 0); the twist's angular part is ω = (0, 0, φ̇) (planar),
 ω (spatial) or 0 (translational), so a point's velocity is v + ω × r and its acceleration at constant twist
 ω × (ω × r) on every pose space.
@@ -64,7 +65,7 @@ from envs.kernels.dynamics_layout import (
     I_WQ,
     I_WU,
 )
-from envs.kernels.layout import C_B, C_E, C_LAM, C_N, C_P, C_SIZE, C_SPATIAL, C_TRANSLATIONAL
+from envs.kernels.layout import C_B, C_E, C_LAM, C_LEGS, C_N, C_P, C_SIZE, C_SPATIAL, C_TRANSLATIONAL
 from envs.kernels.linalg import solve3, solve6
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, read_only, row_path
 from envs.kernels.pose import _frame
@@ -149,12 +150,16 @@ def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2):
     [m/s²]. Returns the coefficients of S_i (module docstring), g_i, h_i and F_i [N], the force at P_i whose
     generalised force K_iᵀ F_i is the leg's share of c + G.
     """
-    A0, A1, A2, D0, D1, D2, ell, _speed = three.anchor(c, i, qi)
-    e0, e1, e2 = c[C_E + 3 * i], c[C_E + 3 * i + 1], c[C_E + 3 * i + 2]
-    # A_i″ = −a_i (cos q u_i + sin q v_i) = −(A_i − B_i − q e_i)
-    DD0 = c[C_B + 3 * i] + qi * e0 - A0
-    DD1 = c[C_B + 3 * i + 1] + qi * e1 - A1
-    DD2 = c[C_B + 3 * i + 2] + qi * e2 - A2
+    if c[C_LEGS] != 0.0:  # A_i = B_i, ℓ_i = q_i
+        A0, A1, A2, D0, D1, D2, ell = c[C_B + 3 * i], c[C_B + 3 * i + 1], c[C_B + 3 * i + 2], 0.0, 0.0, 0.0, qi
+        DD0, DD1, DD2 = 0.0, 0.0, 0.0
+    else:
+        A0, A1, A2, D0, D1, D2, ell, _speed = three.anchor(c, i, qi)
+        e0, e1, e2 = c[C_E + 3 * i], c[C_E + 3 * i + 1], c[C_E + 3 * i + 2]
+        # A_i″ = −a_i (cos q u_i + sin q v_i) = −(A_i − B_i − q e_i)
+        DD0 = c[C_B + 3 * i] + qi * e0 - A0
+        DD1 = c[C_B + 3 * i + 1] + qi * e1 - A1
+        DD2 = c[C_B + 3 * i + 2] + qi * e2 - A2
     lam = c[C_LAM + i]
     d0, d1, d2 = P0 - A0, P1 - A1, P2 - A2
     inv = 1.0 / ell
@@ -287,22 +292,54 @@ def _wrench(spatial, translational, r0, r1, r2, f0, f1, f2):
 
 
 @jit
-def _add_outer(M, m, s, a, b):
-    """M (m × m) += s (a bᵀ + b aᵀ) / 2 for 6-tuples a, b."""
-    half = 0.5 * s
-    for j in range(m):
-        for k in range(m):
-            M[j, k] += half * (a[j] * b[k] + b[j] * a[k])
+def _moments(moments, s, r0, r1, r2):
+    """The moments (Σ s, Σ s r (3), Σ s r rᵀ (6: xx, xy, xz, yy, yz, zz)) with the point p + r of weight s added."""
+    return (
+        moments[0] + s,
+        moments[1] + s * r0, moments[2] + s * r1, moments[3] + s * r2,
+        moments[4] + s * r0 * r0, moments[5] + s * r0 * r1, moments[6] + s * r0 * r2,
+        moments[7] + s * r1 * r1, moments[8] + s * r1 * r2, moments[9] + s * r2 * r2,
+    )  # fmt: skip
 
 
 @jit
-def _add_point(M, m, spatial, translational, s_i, s_g, s_x, r0, r1, r2, G, H):
-    """M += K ᵀ (s_I I + s_g g gᵀ + s_x (g hᵀ + h gᵀ)) K at the point p + r, with G = Kᵀg and H = Kᵀh."""
-    for axis in range(3):
-        e = _wrench(spatial, translational, r0, r1, r2, 1.0 * (axis == 0), 1.0 * (axis == 1), 1.0 * (axis == 2))
-        _add_outer(M, m, s_i, e, e)
-    _add_outer(M, m, s_g, G, G)
-    _add_outer(M, m, 2.0 * s_x, G, H)
+def _add_moments(M, spatial, translational, moments):
+    """The upper triangle of M += Σ s KᵀK over the points of ``_moments``.
+
+    Spatial KᵀK = [[I, −[r]×], [[r]×, |r|² I − r rᵀ]]; planar the (x, y, φ) block of it; translational I.
+    """
+    s, x, y, z, xx, xy, xz, yy, yz, zz = moments
+    M[0, 0] += s
+    M[1, 1] += s
+    if spatial:
+        M[2, 2] += s
+        M[0, 4] += z
+        M[0, 5] -= y
+        M[1, 3] -= z
+        M[1, 5] += x
+        M[2, 3] += y
+        M[2, 4] -= x
+        M[3, 3] += yy + zz
+        M[3, 4] -= xy
+        M[3, 5] -= xz
+        M[4, 4] += xx + zz
+        M[4, 5] -= yz
+        M[5, 5] += xx + yy
+    elif translational:
+        M[2, 2] += s
+    else:
+        M[0, 2] -= y
+        M[1, 2] += x
+        M[2, 2] += xx + yy
+
+
+@jit
+def _add_leg(M, m, s_g, s_x, G, H):
+    """The upper triangle of M += s_g G Gᵀ + s_x (G Hᵀ + H Gᵀ) for 6-tuples G, H (m used)."""
+    for j in range(m):
+        gj, hj = s_g * G[j] + s_x * H[j], s_x * G[j]
+        for k in range(j, m):
+            M[j, k] += gj * G[k] + hj * H[k]
 
 
 @jit
@@ -325,13 +362,12 @@ def _terms_work(c, ci, q, x, xdot, tau, wd):
         for k in range(m):
             M[j, k] = 0.0
     gx, gy, gz = ci[I_GRAVITY], ci[I_GRAVITY + 1], ci[I_GRAVITY + 2]
-    none = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     # the platform: a point mass at its centre of mass ...
     c0, c1, c2 = ci[I_COM], ci[I_COM + 1], ci[I_COM + 2]
     r0, r1, r2 = r00 * c0 + r01 * c1 + r02 * c2, r10 * c0 + r11 * c1 + r12 * c2, r20 * c0 + r21 * c1 + r22 * c2
     a0, a1, a2 = _omega_omega(w0, w1, w2, r0, r1, r2)
     mass = ci[I_MASS]
-    _add_point(M, m, spatial, translational, mass, 0.0, 0.0, r0, r1, r2, none, none)
+    moments = _moments((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), mass, r0, r1, r2)
     W = _wrench(spatial, translational, r0, r1, r2, mass * (a0 - gx), mass * (a1 - gy), mass * (a2 - gz))
     for j in range(m):
         bias[j] += W[j]
@@ -339,7 +375,7 @@ def _terms_work(c, ci, q, x, xdot, tau, wd):
     if spatial:
         R = (r00, r01, r02, r10, r11, r12, r20, r21, r22)
         for a in range(3):
-            for b in range(3):
+            for b in range(a, 3):
                 s = 0.0
                 for k in range(3):
                     for j in range(3):
@@ -363,12 +399,17 @@ def _terms_work(c, ci, q, x, xdot, tau, wd):
         )
         G = _wrench(spatial, translational, r0, r1, r2, g0, g1, g2)
         H = _wrench(spatial, translational, r0, r1, r2, h0, h1, h2)
-        _add_point(M, m, spatial, translational, s_i, s_g, s_x, r0, r1, r2, G, H)
+        moments = _moments(moments, s_i, r0, r1, r2)
+        _add_leg(M, m, s_g, s_x, G, H)
         W = _wrench(spatial, translational, r0, r1, r2, F0, F1, F2)
         t = tau[i]
         for j in range(m):
             bias[j] += W[j]
             force[j] += t * G[j]
+    _add_moments(M, spatial, translational, moments)
+    for j in range(m):  # the lower triangle
+        for k in range(j):
+            M[j, k] = M[k, j]
 
 
 @jit
