@@ -6,9 +6,9 @@ transition and the fused step of any robot; ``evaluation`` its reference, reward
 gathers the public kernels (with the certificate and the samplers of ``envs.tasks``); ``paths`` the step's
 operations on each row path (vectors in registers or in work arrays); ``three`` the algebra of three actuators
 in registers; ``dynamics`` the equations of motion (mass matrix, velocity-product and gravity terms, forward
-dynamics) on each row path, with the packed inertia at the offsets of ``dynamics_layout``; ``linalg`` the small
-dense linear algebra; ``setup`` the threading layer and NumPy's random streams; ``cache`` keeps Numba's on-disk
-cache true.
+dynamics) on each row path, with the packed inertia of ``dynamics_layout`` (its table and ``pack_inertia``);
+``linalg`` the small dense linear algebra; ``setup`` the threading layer and NumPy's random streams; ``cache``
+keeps Numba's on-disk cache true.
 """
 
 __all__ = [

@@ -64,6 +64,7 @@ from envs.kernels.dynamics_layout import (
     I_N,
     I_WQ,
     I_WU,
+    pack_inertia,
 )
 from envs.kernels.layout import C_B, C_E, C_LAM, C_LEGS, C_N, C_P, C_SIZE, C_SPATIAL, C_TRANSLATIONAL
 from envs.kernels.linalg import solve3, solve6
@@ -84,58 +85,6 @@ __all__ = [
 ]
 
 drop_stale_caches(__file__)
-
-
-# -- the packed inertial data -------------------------------------------------------------------------------
-
-
-def pack_inertia(mechanism, inertia) -> np.ndarray:
-    """The inertial data of a robot as the kernels' float64 vector, shape (C_INERTIA_SIZE,).
-
-    Args:
-        mechanism: The robot, a ``kinematics.DistanceConstraintMechanism`` (its actuator kinds and crank radii
-            enter the per-leg weights).
-        inertia: Its ``kinematics.inertia.InertialParameters``.
-
-    Returns:
-        Read-only vector indexed by the ``I_*`` offsets of ``envs.kernels.dynamics_layout``.
-
-    Raises:
-        TypeError: If ``inertia`` is not an ``InertialParameters``.
-        ValueError: If its number of legs or point dimension differ from the mechanism's.
-    """
-    from kinematics.inertia import InertialParameters
-
-    if not isinstance(inertia, InertialParameters):
-        raise TypeError(f"inertia must be a kinematics.InertialParameters, got {type(inertia).__name__}")
-    n, d = mechanism.n_actuators, mechanism.pose_space.point_dim
-    if inertia.n_legs != n or inertia.point_dim != d:
-        raise ValueError(
-            f"inertial parameters for {inertia.n_legs} legs with {inertia.point_dim}-D points do not fit a robot "
-            f"with {n} legs and {d}-D points"
-        )
-    kinds = np.array(mechanism.actuator_kinds)
-    leg, crank, slider = ((kinds == kind).astype(np.float64) for kind in ("leg", "crank", "slider"))
-    radii = np.where(mechanism.crank_radii > 0, mechanism.crank_radii, 1.0)
-    ci = np.zeros(C_INERTIA_SIZE)
-    ci[I_N] = n
-    ci[I_MASS] = inertia.platform_mass
-    ci[I_COM : I_COM + d] = inertia.platform_com
-    if d == 3:
-        ci[I_INERTIA : I_INERTIA + 9] = inertia.platform_inertia.ravel()
-    else:
-        ci[I_INERTIA + 8] = inertia.platform_inertia[0, 0]
-    ci[I_GRAVITY : I_GRAVITY + d] = inertia.gravity
-    mass_a, com_a, inertia_a = inertia.actuator_mass, inertia.actuator_com, inertia.actuator_inertia
-    ci[I_AMASS : I_AMASS + n] = mass_a
-    ci[I_LEVER : I_LEVER + n] = leg * com_a
-    ci[I_ARM : I_ARM + n] = crank * com_a / radii + slider
-    ci[I_WQ : I_WQ + n] = crank * inertia_a + slider * mass_a
-    ci[I_WU : I_WU + n] = leg * (mass_a * com_a**2 + inertia_a) + inertia.distal_inertia
-    ci[I_DMASS : I_DMASS + n] = inertia.distal_mass
-    ci[I_DCOM : I_DCOM + n] = inertia.distal_com
-    ci.setflags(write=False)
-    return ci
 
 
 # -- one leg, in scalars (every path) ---------------------------------------------------------------------

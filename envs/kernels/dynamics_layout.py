@@ -1,4 +1,4 @@
-"""Offsets into the packed inertial data (``envs.kernels.dynamics.pack_inertia``) and the rows of its work array.
+"""The packed inertial data of the equations of motion (``pack_inertia``), its offsets, and the rows of their work.
 
 ``INERTIA`` is the one table of the packed inertia: (name, entries, meaning) in order; each name's offset
 ``I_<name>`` is the sum of the entries before it (``envs.kernels.layout.offsets``), and ``C_INERTIA_SIZE`` is the
@@ -16,6 +16,8 @@ columns): row ``D_<name>`` is the first of the name's rows.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from envs.kernels.layout import MAX_LEGS, offsets
 
@@ -51,3 +53,55 @@ DYNAMICS_WORK: tuple[tuple[str, int, str], ...] = (
 )
 DYNAMICS_ROWS, D_SIZE = offsets(DYNAMICS_WORK, "D_")
 globals().update(DYNAMICS_ROWS)  # D_M, D_LU, …
+
+
+def pack_inertia(mechanism, inertia) -> np.ndarray:
+    """The inertial data of a robot as the kernels' float64 vector, shape (C_INERTIA_SIZE,).
+
+    Args:
+        mechanism: The robot, a ``kinematics.DistanceConstraintMechanism`` (its actuator kinds and crank radii
+            enter the per-leg weights).
+        inertia: Its ``kinematics.inertia.InertialParameters``.
+
+    Returns:
+        Read-only vector indexed by the ``I_*`` offsets (``INERTIA``).
+
+    Raises:
+        TypeError: If ``inertia`` is not an ``InertialParameters``.
+        ValueError: If its number of legs or point dimension differ from the mechanism's.
+    """
+    from kinematics.inertia import InertialParameters
+
+    if not isinstance(inertia, InertialParameters):
+        raise TypeError(f"inertia must be a kinematics.InertialParameters, got {type(inertia).__name__}")
+    n, d = mechanism.n_actuators, mechanism.pose_space.point_dim
+    if inertia.n_legs != n or inertia.point_dim != d:
+        raise ValueError(
+            f"inertial parameters for {inertia.n_legs} legs with {inertia.point_dim}-D points do not fit a robot "
+            f"with {n} legs and {d}-D points"
+        )
+    kinds = np.array(mechanism.actuator_kinds)
+    leg, crank, slider = ((kinds == kind).astype(np.float64) for kind in ("leg", "crank", "slider"))
+    radii = np.where(mechanism.crank_radii > 0, mechanism.crank_radii, 1.0)
+    tensor = inertia.platform_inertia.ravel() if d == 3 else [0.0] * 8 + [float(inertia.platform_inertia[0, 0])]
+    mass_a, com_a, inertia_a = inertia.actuator_mass, inertia.actuator_com, inertia.actuator_inertia
+    blocks = {
+        "N": [n],
+        "MASS": [inertia.platform_mass],
+        "COM": inertia.platform_com,
+        "INERTIA": tensor,
+        "GRAVITY": inertia.gravity,
+        "AMASS": mass_a,
+        "LEVER": leg * com_a,
+        "ARM": crank * com_a / radii + slider,
+        "WQ": crank * inertia_a + slider * mass_a,
+        "WU": leg * (mass_a * com_a**2 + inertia_a) + inertia.distal_inertia,
+        "DMASS": inertia.distal_mass,
+        "DCOM": inertia.distal_com,
+    }
+    ci = np.zeros(C_INERTIA_SIZE)
+    for name, value in blocks.items():
+        start = INERTIA_OFFSETS["I_" + name]
+        ci[start : start + len(value)] = value
+    ci.setflags(write=False)
+    return ci
