@@ -323,13 +323,11 @@ def _terms_work(c, ci, q, x, xdot, tau, wd):
     # ... and its rotational inertia R I Rᵀ (planar: I_zz)
     if spatial:
         R = (r00, r01, r02, r10, r11, r12, r20, r21, r22)
-        for a in range(3):
-            for b in range(a, 3):
-                s = 0.0
-                for k in range(3):
-                    for j in range(3):
-                        s += R[3 * a + k] * ci[I_INERTIA + 3 * k + j] * R[3 * b + j]
-                M[3 + a, 3 + b] += s
+        x0, _, _ = _inertia_times(R, ci, 1.0, 0.0, 0.0)  # the upper triangle of R I Rᵀ, by columns
+        y0, y1, _ = _inertia_times(R, ci, 0.0, 1.0, 0.0)
+        z0, z1, z2 = _inertia_times(R, ci, 0.0, 0.0, 1.0)
+        M[3, 3], M[3, 4], M[3, 5] = M[3, 3] + x0, M[3, 4] + y0, M[3, 5] + z0
+        M[4, 4], M[4, 5], M[5, 5] = M[4, 4] + y1, M[4, 5] + z1, M[5, 5] + z2
         l0, l1, l2 = _inertia_times(R, ci, w0, w1, w2)  # the gyroscopic moment ω × (R I Rᵀ ω)
         bias[3] += w1 * l2 - w2 * l1
         bias[4] += w2 * l0 - w0 * l2
