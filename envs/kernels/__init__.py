@@ -5,7 +5,8 @@ pose-space operations; ``constraints`` Φ, the Jacobians, the kinematics and k o
 transition and the fused step of any robot; ``evaluation`` its reference, reward and observation; ``generic``
 gathers the public kernels (with the certificate and the samplers of ``envs.tasks``); ``paths`` the step's
 operations on each row path (vectors in registers or in work arrays); ``three`` the algebra of three actuators
-in registers;
+in registers; ``dynamics`` the equations of motion (mass matrix, velocity-product and gravity terms, forward
+dynamics) on each row path, with the packed inertia of ``dynamics_layout`` (its table and ``pack_inertia``);
 ``linalg`` the small dense linear algebra; ``setup`` the threading layer and NumPy's random streams; ``cache``
 keeps Numba's on-disk cache true.
 """
@@ -13,6 +14,8 @@ keeps Numba's on-disk cache true.
 __all__ = [
     "cache",
     "constraints",
+    "dynamics",
+    "dynamics_layout",
     "evaluation",
     "generic",
     "layout",
