@@ -131,19 +131,31 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("integrator", ["euler", "rk4"])
-@pytest.mark.parametrize("env_id", ["DeltaReach-v0", "Planar3RRRReach-v0", "Planar3PRRReach-v0", "Planar3RPRReach-v0"])
-def test_register_path_equals_the_work_array_path_bit_for_bit(env_id, integrator):
+#: The robots of each pose space the register paths serve: each test compiles that space's work-array path once.
+REGISTER_ROBOTS = {
+    "planar": ("Planar3RRRReach-v0", "Planar3PRRReach-v0", "Planar3RPRReach-v0"),
+    "translational": ("DeltaReach-v0",),
+}
+
+
+@pytest.mark.parametrize("space", sorted(REGISTER_ROBOTS))
+def test_register_path_equals_the_work_array_path_bit_for_bit(space):
     """The step's register path (3 × 3 in scalars) gives exactly what its work-array path gives.
 
     One step body (``envs.kernels.step._advance``) runs on both: the work-array path is what any pose space runs,
-    the register path replaces it for three actuators (legs: the 3-RPR; cranks or sliders: the others).
-    Full-speed random actions, so some robots leave their bounds or meet a singularity and the failure branches
-    are compared too.
+    the register path replaces it for three actuators (legs: the 3-RPR; cranks or sliders: the others); both
+    integrators. Full-speed random actions, so some robots leave their bounds or meet a singularity and the
+    failure branches are compared too.
     """
+    for env_id in REGISTER_ROBOTS[space]:
+        for integrator in ("euler", "rk4"):
+            _compare_register_and_work_paths(env_id, integrator)
+
+
+def _compare_register_and_work_paths(env_id, integrator):
     env = gym.make(env_id, integrator=integrator).unwrapped
     params = env.params
-    n = 300
+    n = 200
     start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(n)], {})
     state = physics.initial_state(params, start, reference)
     cs = params.packed_rows
@@ -157,10 +169,10 @@ def test_register_path_equals_the_work_array_path_bit_for_bit(env_id, integrator
         motion = records.Motion(q, x, state.t, state.det_sign, residual)
         new = fk.transition_batch(cs, motion, action)
         for got, want in zip(new, work.transition(cs, motion, action)):
-            np.testing.assert_array_equal(got, want)
+            np.testing.assert_array_equal(got, want, err_msg=f"{env_id} {integrator}")
         reasons.append(new[7])
         q, x, residual = new[0], new[1], new[4]
-    assert np.any(np.concatenate(reasons) != 0), "no robot met a termination: the failure branches went untested"
+    assert np.any(np.concatenate(reasons) != 0), f"{env_id}: no termination, the failure branches went untested"
 
 
 def _safety(params, x):
