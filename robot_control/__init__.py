@@ -4,6 +4,13 @@ Layered between ``envs`` (which it drives and never changes) and ``training`` (w
 NumPy, SciPy and Gymnasium only, with OMPL imported where a planner first needs it (the ``planner`` extra).
 """
 
+from robot_control.computed_torque import (
+    ComputedTorqueCommand,
+    ComputedTorqueController,
+    MinimumJerkPath,
+    Reference,
+    minimum_jerk,
+)
 from robot_control.controllers import (
     CONTROLLERS,
     DAMPING_FLOOR,
@@ -26,11 +33,15 @@ __all__ = [
     "CONTROLLERS",
     "DAMPING_FLOOR",
     "PLANNERS",
+    "ComputedTorqueCommand",
+    "ComputedTorqueController",
+    "MinimumJerkPath",
     "PathFollower",
     "Plan",
     "PlannerController",
     "PlannerResidualWrapper",
     "PlannerWaypointWrapper",
+    "Reference",
     "ResolvedRateController",
     "SafeGraph",
     "SafePlanner",
@@ -40,6 +51,7 @@ __all__ = [
     "damping_factor",
     "decode_observation",
     "make_planner",
+    "minimum_jerk",
     "pose_error",
     "safe_graph",
 ]
