@@ -87,6 +87,24 @@ def test_exact_model_tracks_a_minimum_jerk_move(name):
     assert not any(command.saturated for command in commands)
 
 
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_command_imposes_the_error_dynamics(name, rng):
+    """At fast random states the plant's ẍ under the unclipped τ is ẍ_d + K_d (ẋ_d − ẋ) + K_p (x_d ⊖ x).
+
+    Speeds of about 1 m/s and 2 rad/s make the velocity-product terms c(x, ẋ) count.
+    """
+    robot, inertia, start, end = setup(name)
+    x = robot.retract(start, 0.2 * np.array(ROBOTS[name][1]) * rng.uniform(-1.0, 1.0, (3, robot.n_pose)))
+    q = robot.inverse_kinematics(x)
+    xdot = rng.uniform(-1.0, 1.0, x.shape) * np.where(robot.pose_scale < 1.0, 2.0, 1.0)
+    reference = MinimumJerkPath.point_to_point(robot, start, end, 0.5)(0.2)
+    kp, kd = rng.uniform(50.0, 500.0, robot.n_pose), rng.uniform(5.0, 50.0, robot.n_pose)
+    command = ComputedTorqueController(robot, inertia, kp=kp, kd=kd).compute(q, x, xdot, *reference)
+    acceleration = RobotDynamics(robot, inertia).forward_dynamics(q, x, xdot, command.tau)
+    wanted = reference.xddot + kd * (reference.xdot - xdot) + kp * robot.pose_difference(reference.x, x)
+    np.testing.assert_allclose(acceleration, wanted, rtol=1e-9, atol=1e-9 * np.abs(wanted).max())
+
+
 @pytest.mark.parametrize(("name", "factor"), [("3-RPR", 1.15), ("hexapod", 0.85), ("Delta", 0.8)])
 def test_mass_error_leaves_the_gravity_offset_of_a_pd(name, factor):
     """With every mass × ``factor`` in the model the robot settles at the sag (1/factor − 1) g / K_p of a PD.
