@@ -19,9 +19,10 @@ import math
 
 import numpy as np
 
+from envs.kernels import three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import _inverse_kinematics, _singularity, _work
-from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL, W_A
+from envs.kernels.constraints import _work
+from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL
 from envs.kernels.packing import THREE
 from envs.kernels.setup import _next_double, jit
 from envs.tasks.certificate import _safe
@@ -123,18 +124,25 @@ def _component_index(ws, x):
 
 
 @jit
-def _straight_min_k(c, start, target, n, w, strokes, point):
-    """Smallest k (Type II) at n points of the straight line start → target in pose space (ends included)."""
+def _straight_min_k(c, start, target, n):
+    """Smallest k (Type II) at n points of the straight line start → target in pose space (ends included).
+
+    In scalars (``envs.kernels.three``): the grid holds robots with three pose coordinates only.
+    """
     k_min = np.inf
+    legs = c[C_LEGS] != 0.0
     for s in range(n):
         f = s / (n - 1)
-        for j in range(3):
-            point[j] = start[j] + f * (target[j] - start[j])
-        _inverse_kinematics(c, point, w, strokes)
-        if c[C_LEGS] != 0.0:  # a zero-length leg (Type I) keeps J_q regular, as the grid's certification does
-            for j in range(3):
-                strokes[j] = max(strokes[j], 1e-9)
-        k, _ = _singularity(c, strokes, w, W_A)
+        x0 = start[0] + f * (target[0] - start[0])
+        x1 = start[1] + f * (target[1] - start[1])
+        x2 = start[2] + f * (target[2] - start[2])
+        q0, q1, q2 = three.inverse_kinematics(c, x0, x1, x2)
+        if legs:  # a zero-length leg (Type I) keeps J_q regular, as the grid's certification does
+            q0, q1, q2 = max(q0, 1e-9), max(q1, 1e-9), max(q2, 1e-9)
+            anchors = three.leg_anchors(c, q0, q1, q2)
+        else:
+            anchors = three.anchors(c, q0, q1, q2)
+        k, _, _ = three.singularity(c, anchors, three.rows(c, anchors, x0, x1, x2))
         if k < k_min or k != k:
             k_min = k
     return k_min
@@ -161,7 +169,7 @@ def _sample_reach(c, ws, streams, hard, min_distance, fixed_kind, fixed, o_start
         −1 on success, else the index of the first pair for which ``SAMPLER_TRIES`` candidates were rejected.
     """
     w = _work()
-    strokes, point = np.empty(6), np.empty(6)
+    strokes = np.empty(6)
     start, target, other = np.empty(3), np.empty(3), np.empty(3)
     fixed_j = -1
     if fixed_kind != 0:
@@ -188,7 +196,7 @@ def _sample_reach(c, ws, streams, hard, min_distance, fixed_kind, fixed, o_start
                     target[k] = other[k] if fixed_kind == 1 else fixed[k]
             if not _distance(c, start, target) >= min_distance:
                 continue
-            if hard and not _straight_min_k(c, start, target, SEGMENT_POINTS, w, strokes, point) < c[C_HARD]:
+            if hard and not _straight_min_k(c, start, target, SEGMENT_POINTS) < c[C_HARD]:
                 continue
             for k in range(3):
                 o_start[i, k], o_target[i, k] = start[k], target[k]
