@@ -6,6 +6,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 # The CPU build of torch must be installed before the project, or pip resolves a CUDA build of several GB.
+# --no-compile: Python compiles the modules it imports on first use instead of every file of every package.
 TORCH_SPEC ?= torch==2.13.0
 # Every extra (planner, train, sweep) and the test tools: `pip install parallel-robot-gym` alone installs only
 # what the environments need (pyproject.toml).
@@ -18,8 +19,8 @@ setup: $(STAMP)
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet "$(TORCH_SPEC)"
-	$(PY) -m pip install --quiet -e ".[$(EXTRAS)]"
+	$(PY) -m pip install --quiet --no-compile "$(TORCH_SPEC)"
+	$(PY) -m pip install --quiet --no-compile -e ".[$(EXTRAS)]"
 	touch $(STAMP)
 
 demo: $(STAMP)
