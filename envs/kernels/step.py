@@ -454,12 +454,13 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         phase,
         strokes,
         action,
-        out,
+        *outputs,
     ):
         # Flat, unlike the rest: the single env calls it at every step, and Numba types an array inside a tuple
-        # argument slower than a bare one (about 0.2 µs per array per call).
+        # argument slower than a bare one (about 0.2 µs per array per call), inside a named tuple slower still.
         if not _finite_actions(action):
             return True
+        out = StepArrays(*outputs)
         observation = Observation(low, high, with_velocity)
         state, reference = Motion(q, x, t, det_sign, residual), Reference(center, amplitude, phase, strokes)
         w = _work()
@@ -521,7 +522,7 @@ _PATH_KERNELS = {(path, space): _path_kernels(path, space) for path in ROW_PATHS
 
 
 def _step_serial(model, plant, *args):
-    """The one-thread step of ``step_batch`` (flat arguments: observation, state and reference unpacked)."""
+    """The one-thread step of ``step_batch`` (flat arguments: observation, state, reference and outputs unpacked)."""
     return path_kernels(plant).step_serial(model, plant, *args)
 
 
@@ -590,4 +591,4 @@ def step_batch(model, plant, observation, state, reference, action, out, kernels
         kernels = path_kernels(plant)
     if action.shape[0] >= PARALLEL_MIN_BATCH:
         return _step_parallel(model, plant, observation, state, reference, action, out)
-    return kernels.step_serial(model, plant, *observation, *state, *reference, action, out)
+    return kernels.step_serial(model, plant, *observation, *state, *reference, action, *out)

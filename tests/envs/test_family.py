@@ -155,7 +155,7 @@ def test_parallel_step_equals_serial_step_bit_for_bit(hexapod):
     outs = [fk.allocate_step(n, 6, low.shape[0]) for _ in range(2)]
     assert not step_kernels._step_parallel(hexapod.packed_rows, hexapod.packed_rows, *grouped, outs[0])
     assert not step_kernels._step_serial(
-        hexapod.packed_rows, hexapod.packed_rows, low, high, False, *motion, *state.reference, action, outs[1]
+        hexapod.packed_rows, hexapod.packed_rows, low, high, False, *motion, *state.reference, action, *outs[1]
     )
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
