@@ -231,11 +231,12 @@ def _outside(c, x):
 @jit_inline
 def _store(i, kq, kx, a, qr, res, jump, moved):
     """Write robot i's strokes, pose, applied action, stroke rates, residual and jump into ``moved`` (``Moved``)."""
+    o_q, o_x, o_a, o_qr = moved.q, moved.x, moved.action, moved.q_rate
     for j in range(len(kx)):
-        moved.q[i, j] = kq[j]
-        moved.x[i, j] = kx[j]
-        moved.action[i, j] = a[j]
-        moved.q_rate[i, j] = qr[j]
+        o_q[i, j] = kq[j]
+        o_x[i, j] = kx[j]
+        o_a[i, j] = a[j]
+        o_qr[i, j] = qr[j]
     moved.residual[i] = res
     moved.jump[i] = jump
 
@@ -243,14 +244,17 @@ def _store(i, kq, kx, a, qr, res, jump, moved):
 @jit_inline
 def _transition_rows(path, cs, state, action, start, count, w, moved):
     """Transition of robots start .. start + count − 1, one at a time: advance, measure, terminate."""
+    # The fields in locals, read once: a field read inside the loop costs a little on every robot.
+    q, x, residual, det_sign = state.q, state.x, state.residual, state.det_sign
+    o_k, o_k1, o_reason = moved.k, moved.k1, moved.reason
     for i in range(start, start + count):
         c = _row(cs, i)
-        q0, x0 = paths.vector(path, state.q[i]), paths.vector(path, state.x[i])
-        kq, kx, anchors, rows, a, qr, res, jump, failed = _advance(path, c, q0, x0, action[i], state.residual[i], w)
+        q0, x0 = paths.vector(path, q[i]), paths.vector(path, x[i])
+        kq, kx, anchors, rows, a, qr, res, jump, failed = _advance(path, c, q0, x0, action[i], residual[i], w)
         k, sign, k1 = paths.measure(path, c, kq, anchors, rows, w)
         _store(i, kq, kx, a, qr, res, jump, moved)
-        moved.k[i], moved.k1[i] = k, k1
-        moved.reason[i] = termination_reason(c, failed, jump, sign, state.det_sign[i], k, _outside(c, kx), k1)
+        o_k[i], o_k1[i] = k, k1
+        o_reason[i] = termination_reason(c, failed, jump, sign, det_sign[i], k, _outside(c, kx), k1)
 
 
 @jit_inline
@@ -365,8 +369,9 @@ def _step_block(path, space, model, plant, observation, state, reference, action
     """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``)."""
     moved = Moved(out.q, out.x, out.k, out.k1, out.residual, out.action, out.q_rate, out.reason, out.jump)
     _transition_block(path, plant, state, action, start, count, w, lanes, moved)
+    t, o_t = state.t, out.t
     for i in range(start, start + count):
-        out.t[i] = state.t[i] + 1
+        o_t[i] = t[i] + 1
     measured = Measured(out.q, out.x, out.t, out.k, out.k1, out.residual)
     outcome, written = Outcome(out.action, out.reason), (out.evaluation, out.observations)
     _evaluate_rows(path, space, model, observation, measured, reference, outcome, start, start + count, w, written)
