@@ -81,6 +81,17 @@ def batch_vector(name: str, value: Any, size: int, what: str) -> FloatArray:
     return arr
 
 
+def per_leg(name: str, value: Any, n: int) -> FloatArray:
+    """A scalar or a length-n array of finite reals, as a float64 array of shape (n,) (one value per leg)."""
+    arr = as_float_array(name, value)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must be a number or have shape ({n},), got shape {arr.shape}")
+    check_finite(name, arr)
+    return np.array(arr, dtype=np.float64)
+
+
 def point_set(name: str, value: Any, count: int, dim: int) -> FloatArray:
     """Validate a set of ``count`` points in ``dim`` dimensions: shape (count, dim), finite reals.
 

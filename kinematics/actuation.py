@@ -6,23 +6,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from kinematics._validation import FloatArray, as_float_array, check_finite
+from kinematics._validation import FloatArray, as_float_array, check_finite, per_leg
 
 __all__ = ["ACTUATOR_KINDS", "LegActuation", "leg_actuation"]
 
 #: Actuator kinds: extensible leg, rotary crank, linear slider (see ``kinematics.family``).
 ACTUATOR_KINDS = ("leg", "crank", "slider")
-
-
-def _per_leg(name: str, value: Any, n: int) -> FloatArray:
-    """A scalar or a length-n array of finite reals, as a float64 array of shape (n,)."""
-    arr = as_float_array(name, value)
-    if arr.ndim == 0:
-        arr = np.full(n, float(arr))
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must be a number or have shape ({n},), got shape {arr.shape}")
-    check_finite(name, arr)
-    return np.array(arr, dtype=np.float64)
 
 
 def _unit_vectors(name: str, value: Any, n: int, d: int) -> FloatArray:
@@ -103,19 +92,19 @@ def leg_actuation(
     if not leg.all():
         if link_lengths is None:
             raise ValueError("link_lengths are required for crank and slider legs")
-        lengths = _per_leg("link_lengths", link_lengths, n)
+        lengths = per_leg("link_lengths", link_lengths, n)
         if not (lengths[~leg] > 0).all():
             raise ValueError(f"link_lengths must be > 0 [m], got {lengths.tolist()}")
         ell[~leg] = lengths[~leg]
         if branches is not None:
-            signs = _per_leg("branches", branches, n)
+            signs = per_leg("branches", branches, n)
             if not np.isin(signs, (-1.0, 1.0)).all():
                 raise ValueError(f"branches must be +1 or −1, got {signs.tolist()}")
             branch = signs
     if crank.any():
         if radii is None:
             raise ValueError("crank_radii are required for crank legs")
-        a = _per_leg("crank_radii", radii, n)
+        a = per_leg("crank_radii", radii, n)
         if not (a[crank] > 0).all():
             raise ValueError(f"crank_radii must be > 0 [m], got {a.tolist()}")
         crank_radii[crank] = a[crank]

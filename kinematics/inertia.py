@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from kinematics._validation import FloatArray, as_float_array, check_finite
+from kinematics._validation import FloatArray, as_float_array, check_finite, per_leg
 from kinematics.delta import Delta
 from kinematics.family import DistanceConstraintMechanism
 from kinematics.planar_3rpr import Planar3RPR
@@ -41,18 +41,6 @@ __all__ = [
 STANDARD_GRAVITY = 9.80665
 
 _PER_LEG = ("actuator_mass", "actuator_com", "actuator_inertia", "distal_mass", "distal_com", "distal_inertia")
-
-
-def _per_leg(name: str, value: Any, n: int) -> FloatArray:
-    arr = as_float_array(name, value)
-    if arr.ndim == 0:
-        arr = np.full(n, float(arr))
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must be a number or have shape ({n},), got shape {arr.shape}")
-    check_finite(name, arr)
-    out = np.array(arr, dtype=np.float64)
-    out.setflags(write=False)
-    return out
 
 
 def _non_negative(name: str, arr: FloatArray, unit: str) -> None:
@@ -130,16 +118,16 @@ class InertialParameters:
         n = np.size(self.actuator_mass) if np.ndim(self.actuator_mass) else None
         if n is None:
             raise ValueError("actuator_mass must have shape (n,), one mass per leg, got a number")
-        per_leg = {name: _per_leg(name, getattr(self, name), n) for name in _PER_LEG}
-        _non_negative("actuator_mass", per_leg["actuator_mass"], "[kg]")
-        _non_negative("actuator_inertia", per_leg["actuator_inertia"], "[kg·m²]")
-        _non_negative("distal_mass", per_leg["distal_mass"], "[kg]")
-        _non_negative("distal_inertia", per_leg["distal_inertia"], "[kg·m²]")
+        legs = {name: per_leg(name, getattr(self, name), n) for name in _PER_LEG}
+        _non_negative("actuator_mass", legs["actuator_mass"], "[kg]")
+        _non_negative("actuator_inertia", legs["actuator_inertia"], "[kg·m²]")
+        _non_negative("distal_mass", legs["distal_mass"], "[kg]")
+        _non_negative("distal_inertia", legs["distal_inertia"], "[kg·m²]")
         gravity = as_float_array("gravity", self.gravity)
         if gravity.shape != (d,):
             raise ValueError(f"gravity must have shape ({d},) like platform_com, got shape {gravity.shape}")
         check_finite("gravity", gravity)
-        arrays = {"platform_com": com, "platform_inertia": inertia, "gravity": gravity, **per_leg}
+        arrays = {"platform_com": com, "platform_inertia": inertia, "gravity": gravity, **legs}
         for name, value in arrays.items():
             value = np.array(value, dtype=np.float64)
             value.setflags(write=False)

@@ -64,6 +64,17 @@ def _work():
 
 
 @jit_inline
+def _rotated_point(c, i, r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """R P_i, platform point i in {B} axes (R's entries row by row, as ``pose._frame`` gives them)."""
+    P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
+    return (
+        r00 * P0 + r01 * P1 + r02 * P2,
+        r10 * P0 + r11 * P1 + r12 * P2,
+        r20 * P0 + r21 * P1 + r22 * P2,
+    )
+
+
+@jit_inline
 def _rows_legs(c, q, x, w):
     """``_rows`` of a leg-actuated robot: the anchors are the B_i; ℓ_i = q_i and −(J_q)_ii / 2 = q_i."""
     n = int(c[C_N])
@@ -71,10 +82,7 @@ def _rows_legs(c, q, x, w):
     spatial = c[C_SPATIAL] != 0.0
     sq = w[W_SQ]
     for i in range(n):
-        P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
-        rp0 = r00 * P0 + r01 * P1 + r02 * P2
-        rp1 = r10 * P0 + r11 * P1 + r12 * P2
-        rp2 = r20 * P0 + r21 * P1 + r22 * P2
+        rp0, rp1, rp2 = _rotated_point(c, i, r00, r01, r02, r10, r11, r12, r20, r21, r22)
         d0 = p0 + rp0 - c[C_B + 3 * i]
         d1 = p1 + rp1 - c[C_B + 3 * i + 1]
         d2 = p2 + rp2 - c[C_B + 3 * i + 2]
@@ -101,10 +109,7 @@ def _rows_actuated(c, q, x, w):
     translational = c[C_TRANSLATIONAL] != 0.0
     sq = w[W_SQ]
     for i in range(n):
-        P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
-        rp0 = r00 * P0 + r01 * P1 + r02 * P2
-        rp1 = r10 * P0 + r11 * P1 + r12 * P2
-        rp2 = r20 * P0 + r21 * P1 + r22 * P2
+        rp0, rp1, rp2 = _rotated_point(c, i, r00, r01, r02, r10, r11, r12, r20, r21, r22)
         qi = q[i]
         if w[W_CQ, i] == qi:  # the cache (never equal while NaN)
             A0, A1, A2 = w[W_CA, i], w[W_CA + 1, i], w[W_CA + 2, i]

@@ -395,17 +395,13 @@ def _solve_work(wd, m, out):
 # -- the operations, per row path -------------------------------------------------------------------------
 
 
-def _compiled_only(*args):
-    raise NotImplementedError("compiled only (see its overload)")
-
-
 def equations(path, c, ci, q, x, xdot, tau, wd):
     """(M, c + G, J_iᵀ τ) of one robot at (q, x, ẋ) under the efforts τ.
 
     Register paths: M as a tuple of three rows, the others tuples of three; work path: an (m, m) and two (m,)
     views of the rows of ``wd`` (``_dynamics_work``), valid until its next use.
     """
-    return _compiled_only()
+    return paths._compiled_only()
 
 
 @overload(equations, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
@@ -428,7 +424,7 @@ def _equations(path, c, ci, q, x, xdot, tau, wd):
 
 def solve_acceleration(path, M, bias, force, wd, out):
     """ẍ = M⁻¹ (J_iᵀ τ − c − G) from ``equations``' values (the work path writes it to ``out``, a work row)."""
-    return _compiled_only()
+    return paths._compiled_only()
 
 
 @overload(solve_acceleration, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
@@ -456,7 +452,7 @@ def _solve_acceleration(path, M, bias, force, wd, out):
 
 def acceleration(path, c, ci, q, x, xdot, tau, wd, out):
     """The platform's twist rate ẍ = M⁻¹ (J_iᵀ τ − c − G) at (q, x, ẋ): a vector of the path (``out`` a work row)."""
-    return _compiled_only()
+    return paths._compiled_only()
 
 
 @overload(acceleration, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)

@@ -1,15 +1,11 @@
 """The compiled step of the family: transition (predict, correct, measure, terminate), then evaluation.
 
-The kernels take their arrays in the records of ``envs.kernels.records`` (named tuples, built by
-``envs.physics``) and ``c``, the robot's packed constants (``envs.kernels.packing``): the transition reads a
-``Motion`` and writes a ``Moved``; the evaluation reads an ``Observation``, a ``Measured``, a ``Reference`` and
-an ``Outcome``; the fused step writes a ``StepArrays``. One body steps every robot: ``_advance`` (predict,
-correct), then ``_transition_rows`` (measure, terminate), on the vectors of the robot's row path
-(``envs.kernels.paths``: registers for three actuators, work arrays otherwise).
-
-Compile time: the row path and the pose space are compile-time constants of the entry kernels (closures over
-them, ``path_kernels``), and overloads (``numba.extending.overload``) choose each path's and space's code by
-them, so a robot compiles its own path and pose space only, not every robot's.
+The entry kernels take their arrays flat and gather them in the records of ``envs.kernels.records``: the
+transition reads a ``Motion`` and writes a ``Moved``; the evaluation reads an ``Observation``, a ``Measured``, a
+``Reference`` and an ``Outcome``; the fused step writes a ``StepArrays``. One body steps every robot:
+``_advance`` (predict, correct), then ``_transition_rows`` (measure, terminate), on the vectors of its row path
+(``envs.kernels.paths``). The row path and the pose space are compile-time constants of the entry kernels
+(``path_kernels``), so a robot compiles its own path and pose space only.
 
 Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
 chunk of the parallel step, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD

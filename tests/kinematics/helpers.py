@@ -6,7 +6,17 @@ from collections.abc import Callable
 
 import numpy as np
 
-from kinematics import Planar3RPR
+from kinematics import Delta, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
+
+#: The presets of the dynamics tests, each with the half-width of its random poses around the home pose
+#: (translations [m], rotations [rad]).
+DYNAMICS_PRESETS = {
+    "3-RPR": (Planar3RPR, 0.1, 0.3),
+    "hexapod": (StewartGough, 0.05, 0.15),
+    "Delta": (Delta, 0.1, 0.0),
+    "3-RRR": (Planar3RRR, 0.02, 0.1),
+    "3-PRR": (Planar3PRR, 0.03, 0.1),
+}
 
 #: Seeds of the random geometries every geometry-parametrised test runs on (None is the lesson's).
 GEOMETRY_SEEDS = [None, 101, 202, 303]

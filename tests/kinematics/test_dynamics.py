@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
+from kinematics import Delta, DistanceConstraintMechanism, Planar3RPR, StewartGough
 from kinematics.dynamics import (
     STANDARD_GRAVITY,
     InertialParameters,
@@ -20,15 +20,9 @@ from kinematics.dynamics import (
     default_inertia,
     rod_from_end_masses,
 )
+from tests.kinematics.helpers import DYNAMICS_PRESETS
 
-#: Each preset with the half-width of its random poses around the home pose (translations [m], rotations [rad]).
-PRESETS = {
-    "3-RPR": (Planar3RPR, 0.1, 0.3),
-    "hexapod": (StewartGough, 0.05, 0.15),
-    "Delta": (Delta, 0.1, 0.0),
-    "3-RRR": (Planar3RRR, 0.02, 0.1),
-    "3-PRR": (Planar3PRR, 0.03, 0.1),
-}
+PRESETS = DYNAMICS_PRESETS
 
 #: Gravity for the tests: planar robots stood up, spatial ones with a tilt so that every component acts.
 GRAVITY = {2: np.array([0.0, -STANDARD_GRAVITY]), 3: np.array([1.0, -2.0, -9.5])}

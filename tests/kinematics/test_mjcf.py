@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from kinematics import Delta, DistanceConstraintMechanism, Planar3PRR, Planar3RPR, Planar3RRR, StewartGough
+from kinematics import Delta, DistanceConstraintMechanism, Planar3RPR, StewartGough
 from kinematics.dynamics import (
     STANDARD_GRAVITY,
     InertialParameters,
@@ -22,16 +22,9 @@ from kinematics.dynamics import (
     rod_from_end_masses,
 )
 from kinematics.mjcf import platform_pose, to_mjcf
+from tests.kinematics.helpers import DYNAMICS_PRESETS
 
-#: Each preset with the half-width of its random start poses around the home pose (translations [m], rotations
-#: [rad]).
-PRESETS = {
-    "3-RPR": (Planar3RPR, 0.1, 0.3),
-    "hexapod": (StewartGough, 0.05, 0.15),
-    "Delta": (Delta, 0.1, 0.0),
-    "3-RRR": (Planar3RRR, 0.02, 0.1),
-    "3-PRR": (Planar3PRR, 0.03, 0.1),
-}
+PRESETS = DYNAMICS_PRESETS
 
 #: The forced-motion scenarios: number of start poses, size of the random offsets to the holding forces (a
 #: fraction of the largest), and the least distance [m] every start must go from its start. The 3-RRR and the 3-PRR
