@@ -16,6 +16,7 @@ from envs.wrappers import (
 
 __all__ = [
     "ENV_IDS",
+    "FORCE_IDS",
     "PLANAR_3RPR_IDS",
     "ROBOT_PRESETS",
     "FamilyParams",
@@ -63,11 +64,20 @@ _SPECS = {
     "ParallelRobotReach-v0": (*_REACH, 200, {}),
     "ParallelRobotReachHard-v0": (*_REACH, 200, {"targets": "hard", "robot": "planar_3rpr"}),
     "ParallelRobotTrack-v0": (*_TRACK, 400, {}),
+    # Force control (``control="force"``): actions are drive efforts, offsets from the holding forces; the pose
+    # follows the rigid-body dynamics (``kinematics.dynamics``, ``envs.kernels.force``).
+    "Planar3RPRForceReach-v0": (*_REACH, 200, {"robot": "planar_3rpr", "control": "force"}),
+    "StewartGoughForceReach-v0": (*_REACH, 200, {"robot": "stewart_gough", "control": "force"}),
+    "DeltaForceReach-v0": (*_REACH, 200, {"robot": "delta", "control": "force"}),
+    "DeltaForceTrack-v0": (*_TRACK, 400, {"robot": "delta_track", "control": "force"}),
+    "ParallelRobotForceReach-v0": (*_REACH, 200, {"control": "force"}),
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)
-#: The ids of the lesson's planar 3-RPR (the robot the shipped residual and planner policies use).
-PLANAR_3RPR_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.startswith("Planar3RPR"))
+#: The rate-control ids of the lesson's planar 3-RPR (the robot the shipped residual and planner policies use).
+PLANAR_3RPR_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.startswith("Planar3RPR") and "Force" not in i)
+#: The force-control ids (``control="force"``).
+FORCE_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if "Force" in i)
 
 for _env_id, (_entry_point, _vector_entry_point, _steps, _kwargs) in _SPECS.items():
     if _env_id not in registry:

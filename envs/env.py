@@ -22,11 +22,13 @@ from envs.physics import (
     INFO_KEYS,
     TERMINATION_REASONS,
     TYPE_I_INFO,
+    FamilyOutcome,
     FamilyReference,
     FamilyState,
     StepBuffers,
     copy_state,
     evaluate,
+    force_info,
     initial_state,
     measurement_info,
     observation_bounds,
@@ -121,7 +123,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         )
         if self.render_mode == "human":
             self.render()
-        return observations[0], self._info(evaluation[:, 0], 0)
+        return observations[0], self._info(evaluation[:, 0], 0, None)
 
     def step(self, action: Any):
         """Apply normalised stroke rates for one period dt (see the class docstring)."""
@@ -145,7 +147,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         reason = int(outcome.reason[0])
         self._terminated = reason != 0
         row = evaluation[:, 0]
-        info = self._info(row, reason)
+        info = self._info(row, reason, outcome)
         if self.render_mode is not None:
             self._trail.append(self.params.robot.pose_space.position(info["pose"]).copy())
         if self.render_mode == "human":
@@ -184,7 +186,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         """A copy of the current batched state (N = 1), or None before the first reset."""
         return None if self._state is None else copy_state(self._state)
 
-    def _info(self, row: np.ndarray, reason: int) -> dict[str, Any]:
+    def _info(self, row: np.ndarray, reason: int, outcome: FamilyOutcome | None) -> dict[str, Any]:
         v = row.tolist()
         info = {name: v[index] for name, index in self._info_rows}
         info["is_success"] = info["is_success"] != 0.0
@@ -193,8 +195,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         info["target"] = row[self._target_rows].copy()
         for name in TYPE_I_INFO:
             info[name] = info.pop(name)
-        for name, value in measurement_info(self._state).items():
-            info[name] = float(value[0]) if value.ndim == 1 else value[0].copy()
+        for name, value in (measurement_info(self._state) | force_info(self.params, self._state, outcome)).items():
+            info[name] = (bool(value[0]) if value.dtype == bool else float(value[0])) if value.ndim == 1 else value[0]
         return info
 
     def start_episodes(
@@ -281,6 +283,15 @@ class FamilyReachEnv(FamilyEnvBase):
     `Box(-1, 1, (n,), float32)`: actuator rates q̇_i / max_rate (m/s for legs and sliders, rad/s for cranks);
     actuators stop at `stroke_limits` (the joint limits).
 
+    Under force control (`control="force"`, the `*ForceReach`/`*ForceTrack` ids) the action is each drive's
+    effort as an offset from the holding forces τ_h (J_iᵀ τ_h = G(x), gravity) at the pose the period starts at,
+    in units of the drive limits: τ = clip(τ_h + a τ_max, −τ_max, τ_max) [N for legs and sliders, N·m for cranks],
+    held for dt, so a zero action holds a platform at rest still. The platform moves by the rigid-body dynamics
+    M(x) ẍ + c(x, ẋ) + G(x) = J_iᵀ τ (``kinematics.dynamics``: masses and inertias `inertia`, `gravity`), integrated
+    by RKMK4 on the pose space with q from the closed-form inverse kinematics (Φ at round-off); episodes start at
+    rest. `info` adds `actuator_forces` (τ), `holding_forces` (τ_h) and `saturated` (a drive at its limit), and
+    the action penalty is on the applied efforts τ / τ_max.
+
     ## Observation Space
     `Box(low, high, (D,), float32)` with finite bounds; spatial robots (D = 33, or 39 with Track's velocity):
 
@@ -302,7 +313,9 @@ class FamilyReachEnv(FamilyEnvBase):
     19 with Track's velocity). With `geometry_variation` (`Planar3RPRReachFamily-v0`) the observation ends with the
     2 d² codes of the episode's robot in [−1, 1] (`envs.hardware.varied_plants`; D = 26 for planar robots), and the
     stroke errors and k are that robot's. With `observation_source="encoders"` the pose, strokes and k are the
-    measured and estimated ones (`envs.hardware`; the true pose is `info["pose"]`).
+    measured and estimated ones (`envs.hardware`; the true pose is `info["pose"]`). Under force control the
+    platform twist ẋ (m entries: (ẋ, ẏ, φ̇), ṗ, or (v, ω) in {B}) and the period's mean actuator rates (n) follow
+    k, each clipped to ±4 times its range per second (`envs.params.FAST`).
 
     ## Rewards
     r = −(w_p ‖p* − p‖ + w_o ℓ_c θ_err) − w_s ((k_safe − k)/k_safe)² [k < k_safe] − w_a ‖a‖² − P [terminated],
@@ -338,8 +351,10 @@ class FamilyReachEnv(FamilyEnvBase):
     ## Episode End
     Termination (penalty P), first applicable: `newton_failed`, `assembly_mode_change` (prediction and
     correction more than `jump_tolerance` apart), `singularity_crossed` (sign(det J_x) flipped),
-    `singular` (k < `hard_threshold`), `out_of_bounds`, and for cranks and sliders `actuator_singular` (the Type I
-    measure below `actuator_hard_threshold`). Truncation after the registered 200 steps.
+    `singular` (k < `hard_threshold`), `out_of_bounds` (under force control also a stroke past its hard stop),
+    and for cranks and sliders `actuator_singular` (the Type I measure below `actuator_hard_threshold`). Under
+    force control `newton_failed` means that the state stopped being finite (a link that cannot reach).
+    Truncation after the registered 200 steps.
     `info["is_success"]`: position error ≤ `success_position_tolerance` and orientation error ≤
     `success_orientation_tolerance`.
 

@@ -33,10 +33,13 @@ from envs.arguments import (
 )
 from envs.hardware import OBSERVATION_SOURCES
 from envs.kernels import generic as fk
+from envs.kernels.dynamics_layout import pack_inertia
 from envs.tasks.grid import WorkspaceMap, WorkspaceSpec, certify_workspace, restore_read_only
 from kinematics import DistanceConstraintMechanism, StewartGough
+from kinematics.dynamics import RobotDynamics, default_inertia
 
 __all__ = [
+    "CONTROLS",
     "HARD_KINDS",
     "INTEGRATORS",
     "RENDER_MODE",
@@ -58,6 +61,7 @@ HARD_KINDS = ("detour", "ill_conditioned", "crossing")
 TASK_REGIONS = ("box", "grid")
 TRACK_SHAPES = ("sinusoid", "circle")
 INTEGRATORS = ("euler", "rk4")
+CONTROLS = ("rate", "force")
 #: The fields of ``FamilyParams`` that change the reward only (weights, termination penalty, success bonus).
 REWARD_FIELDS = (
     "position_weight",
@@ -237,6 +241,32 @@ class FamilyParams:
         Vector("n", POSITIVE, per_actuator=True),
     )
     action_delay: int = documented(0, "control steps between an action and its effect", check=NON_NEGATIVE_INT)
+    control: str = documented(
+        "rate", '"rate" (actions: stroke rates) or "force" (actions: efforts; rigid-body dynamics)',
+        check=Choice(CONTROLS),
+        note=(
+            '"force": τ = clip(τ_h(x) + a τ_max, ±τ_max), an offset a from the holding forces τ_h at the period\'s '
+            "start, held for dt; (x, ẋ) integrated by RKMK4 (``envs.kernels.force``); the observation adds ẋ and "
+            "the actuator rates."
+        ),
+    )  # fmt: skip
+    force_limits: tuple[float, ...] = documented(
+        (), "drive limits τ_max of force control (() derived: ``envs.presets.force_limits``)", "N, N·m for cranks",
+        Vector("n", POSITIVE, per_actuator=True),
+    )  # fmt: skip
+    dynamics_substeps: int = documented(
+        2, "least RKMK4 steps per control period of force control", check=POSITIVE_INT,
+        note="More at speed: each step moves at most ``max_substep`` (at most ``max_substeps`` steps).",
+    )  # fmt: skip
+    gravity: tuple[float, ...] = documented(
+        (), "gravity g in {B} of force control (() the robot's: −z, 0 in a planar robot's plane)", "m/s²",
+        Vector("d", per_actuator=True),
+        note="A planar robot lies in a horizontal plane; ``gravity=(0, -9.80665)`` stands it up.",
+    )  # fmt: skip
+    inertia: Any = documented(  # noqa: RUF009 (an immutable InertialParameters or None, as every field's default)
+        None, "masses and inertias (None: ``kinematics.default_inertia(robot)``)",
+        type="InertialParameters, dict or None",
+    )  # fmt: skip
 
     def __setstate__(self, state: dict) -> None:
         restore_read_only(self, state)  # the kernels' constants stay read-only: one compiled signature
@@ -287,6 +317,22 @@ class FamilyParams:
         return 1 + self.action_delay, self.robot.n_actuators
 
     @functools.cached_property
+    def dynamics(self) -> RobotDynamics:
+        """The robot's equations of motion (``kinematics.RobotDynamics``) with ``inertia`` and ``gravity``."""
+        inertia = default_inertia(self.robot) if self.inertia is None else self.inertia
+        if self.gravity:
+            inertia = inertia.replace(gravity=self.gravity)
+        return RobotDynamics(self.robot, inertia)
+
+    @functools.cached_property
+    def packed_inertia(self) -> np.ndarray | None:
+        """The kernels' inertia and drive limits of force control (``pack_inertia``), (1, C_INERTIA_SIZE), or None."""
+        if self.control != "force":
+            return None
+        packed = pack_inertia(self.robot, self.dynamics.inertia, self.force_limits, self.dynamics_substeps)
+        return fk.read_only(packed[None])
+
+    @functools.cached_property
     def evaluation_rows(self) -> dict[str, int | slice]:
         """Rows of ``evaluate`` / ``step``'s evaluation array."""
         return fk.evaluation_rows(self.robot.n_pose)
@@ -295,6 +341,11 @@ class FamilyParams:
     def observation_bounds(self) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
         """``observation_bounds`` without (index 0) and with (index 1) the target velocity."""
         return _observation_bounds(self, False), _observation_bounds(self, True)
+
+
+#: Force control's observation clips ẋ_j to ± FAST (pose_high_j − pose_low_j) and the actuator rates to ± FAST times
+#: the stroke range [1/s].
+FAST = 4.0
 
 
 def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -315,6 +366,11 @@ def _observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.n
     pose_hi = [*high_p[:d], *code_hi]
     low = [*pose_lo, *pose_lo, *(-span), *(-np.array(rot_err)), *[-1.0] * (2 * n), 0.0]
     high = [*pose_hi, *pose_hi, *span, *rot_err, *[1.0] * (2 * n), 1.0]
+    if params.control == "force":  # ẋ and the actuator rates, each clipped to ± its range crossed in 1 / FAST s
+        twist = FAST * (high_p - low_p)
+        rate = FAST * (params.stroke_limits[1] - params.stroke_limits[0])
+        low += [*(-twist), *[-rate] * n]
+        high += [*twist, *[rate] * n]
     if with_velocity:
         # |ẋ*_j| ≤ a_j ω; coordinates that do not move keep a small non-empty range (Gymnasium's checker).
         v_max = np.maximum(_track_speed_bounds(params), 1e-3)

@@ -29,6 +29,7 @@ __all__ = [
     "check_state",
     "copy_state",
     "evaluate",
+    "force_info",
     "initial_state",
     "measurement_info",
     "observation_bounds",
@@ -153,6 +154,8 @@ class FamilyState(NamedTuple):
             shape (N, 1 + action_delay, n), or None for ideal drives.
         geometry: The codes of each robot's known geometry (``geometry_variation``: ``envs.hardware.varied_plants``,
             whose constants are then ``plant``), shape (N, 2 d²), or None.
+        twist: The platform twists ẋ under force control (``kinematics.dynamics``' convention), shape (N, m), or
+            None under rate control.
     """
 
     q: np.ndarray
@@ -167,11 +170,13 @@ class FamilyState(NamedTuple):
     sensed: Measurement | None = None
     drive: np.ndarray | None = None
     geometry: np.ndarray | None = None
+    twist: np.ndarray | None = None
 
 
 #: The fields of ``FamilyState`` that hold one array each, in order (``reference`` and ``sensed`` are records).
 STATE_ARRAYS = (
     "q", "x", "t", "det_sign", "inverse_condition", "actuator_condition", "residual", "plant", "drive", "geometry",
+    "twist",
 )  # fmt: skip
 
 
@@ -189,13 +194,18 @@ class FamilyOutcome(NamedTuple):
         action: The applied (clipped) action, shape (N, n).
         q_rate: Achieved stroke rates [m/s], shape (N, n).
         reason: Termination reason codes (``TERMINATION_REASONS``), shape (N,).
-        jump: Largest prediction–correction gap ‖(δp, ℓ_c δθ)‖ [m], shape (N,).
+        jump: Largest prediction–correction gap ‖(δp, ℓ_c δθ)‖ [m], shape (N,) (0 under force control).
+        effort: Under force control, the applied efforts τ [N, N·m for cranks], shape (N, n) (``action`` is then
+            τ / τ_max and ``q_rate`` the period's mean actuator rates); else None.
+        hold: Under force control, the holding forces τ_h at the period's start, shape (N, n); else None.
     """
 
     action: np.ndarray
     q_rate: np.ndarray
     reason: np.ndarray
     jump: np.ndarray
+    effort: np.ndarray | None = None
+    hold: np.ndarray | None = None
 
 
 def observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -241,7 +251,12 @@ def check_state(params: FamilyParams, state: FamilyState) -> int:
         "plant": (state.plant, (n_rows, fk.C_SIZE)),
         "drive": (state.drive, (n_rows, *(params.drive_shape or (0, n)))),
         "geometry": (state.geometry, (n_rows, 2 * params.robot.base.shape[1] ** 2)),
+        "twist": (state.twist, pose),
     }
+    if (state.twist is None) != (params.control != "force"):
+        raise ValueError(
+            f"a state under control={params.control!r} must {'' if state.twist is None else 'not '}hold twists"
+        )
     if state.sensed is not None:
         optional.update(
             {
@@ -285,6 +300,11 @@ def _with_codes(state: FamilyState, observations: np.ndarray) -> np.ndarray:
 def _motion(state: FamilyState) -> tuple[np.ndarray, ...]:
     """The state arrays the transition kernels take: (q, x, t, det_sign, residual)."""
     return state.q, state.x, state.t, state.det_sign, state.residual
+
+
+def _force(params: FamilyParams, state: FamilyState) -> tuple[np.ndarray, ...]:
+    """What the kernels take for force control: (packed inertia, twists), or () under rate control."""
+    return () if state.twist is None else (params.packed_inertia, state.twist)
 
 
 def initial_state(
@@ -332,7 +352,8 @@ def initial_state(
             )
     drive = None if params.drive_shape is None else np.zeros((n, *params.drive_shape))
     t = np.zeros(n, dtype=np.int64)
-    state = FamilyState(q, x, t, det_sign, k, k1, residual, reference, plant, None, drive, codes)
+    twist = np.zeros((n, params.robot.n_pose)) if params.control == "force" else None
+    state = FamilyState(q, x, t, det_sign, k, k1, residual, reference, plant, None, drive, codes, twist)
     if params.observation_source == "encoders":
         state = state._replace(sensed=hardware.sense(params, q, start, streams, _model(params, state)))
     return state
@@ -341,7 +362,9 @@ def initial_state(
 def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> tuple[FamilyState, FamilyOutcome]:
     """Advance N robots by one control period: predict, correct, measure, terminate.
 
-    Strokes advance by the clipped action (through the drives, if limited or delayed) · max_rate · dt, clamped
+    Under force control, the efforts of the action move (x, ẋ) by the equations of motion instead
+    (``envs.kernels.force``). Under rate control, strokes advance by the clipped action (through the drives, if
+    limited or delayed) · max_rate · dt, clamped
     to the hard stops (of each robot as built, with a geometry tolerance); the step is split into
     substeps of at most ``max_substep`` of predicted motion; each predicts the pose with the twist
     J_f(q, x) q̇ (Euler or RK4, on the rotation group) and corrects it onto Φ = 0 by Newton's method. A robot
@@ -365,17 +388,26 @@ def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> 
     drive = state.drive
     if drive is not None:
         action, drive = hardware.drive(params, drive, action)
-    q, x, k, k1, residual, a, q_rate, reason, jump = fk.transition_batch(
-        _plant(params, state.plant), _motion(state), action
-    )
+    force = _force(params, state)
+    moved = fk.transition_batch(_plant(params, state.plant), _motion(state), action, force)
+    twist = effort = hold = None
+    if force:
+        moved, (twist, effort, hold) = moved
+    q, x, k, k1, residual, a, q_rate, reason, jump = moved
     new = FamilyState(
-        q, x, state.t + 1, state.det_sign, k, k1, residual, state.reference, state.plant, None, drive, state.geometry
-    )
-    return new, FamilyOutcome(a, q_rate, reason, jump)
+        q, x, state.t + 1, state.det_sign, k, k1, residual, state.reference, state.plant, None, drive, state.geometry,
+        twist,
+    )  # fmt: skip
+    return new, FamilyOutcome(a, q_rate, reason, jump, effort, hold)
 
 
 def evaluate(
-    params: FamilyParams, state: FamilyState, action: np.ndarray, reason: np.ndarray, with_velocity: bool
+    params: FamilyParams,
+    state: FamilyState,
+    action: np.ndarray,
+    reason: np.ndarray,
+    with_velocity: bool,
+    rates: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Reward terms, errors, success, cost, targets and observations of a state, in one compiled pass.
 
@@ -385,6 +417,7 @@ def evaluate(
         action: The applied actions, shape (N, n).
         reason: Termination reason codes, shape (N,).
         with_velocity: Whether the observation ends with the target velocity.
+        rates: Under force control, the actuator rates the observation holds, shape (N, n) (None: at rest).
 
     Returns:
         (evaluation (rows of ``params.evaluation_rows``, N) float64, observations (N, D) float32). The evaluation
@@ -400,6 +433,8 @@ def evaluate(
     ref = with_strokes(params, state.reference)
     measured = (state.q, state.x, state.t, state.inverse_condition, state.actuator_condition, state.residual)
     outcome = (action, reason)
+    if state.twist is not None:
+        outcome += (state.twist, np.zeros_like(state.q) if rates is None else _rows(rates, state.q.shape[1], "rates"))
     observation = (low, high, bool(with_velocity))
     model = _model(params, state)
     evaluation, observations = fk.evaluate_batch(model, observation, measured, tuple(ref), outcome)
@@ -448,7 +483,8 @@ def reward_terms(
     k1 = np.ones(n) if actuator_condition is None else np.asarray(actuator_condition, dtype=np.float64).reshape(n)
     ref = FamilyReference(target, np.zeros((n, m)), np.zeros((n, m)))
     strokes = np.full((n, m), np.mean(params.stroke_limits))
-    state = FamilyState(strokes, x, np.zeros(n, dtype=np.int64), np.ones(n), k, k1, np.zeros(n), ref)
+    twist = np.zeros((n, m)) if params.control == "force" else None
+    state = FamilyState(strokes, x, np.zeros(n, dtype=np.int64), np.ones(n), k, k1, np.zeros(n), ref, twist=twist)
     evaluation, _ = evaluate(params, state, action, reason, False)
     rows = params.evaluation_rows
     return {name: evaluation[rows[name]].copy() for name in REWARD_TERMS}
@@ -466,6 +502,10 @@ class StepBuffers:
         self.fields = (q, x, t, k, k1, residual)
         self.shape = (n, params.robot.n_pose, obs_dim)
         self.kernels = fk.path_kernels(params.packed)  # the compiled step of the robot's row path
+        #: Force control's outputs (twists, efforts, holding forces), or ().
+        self.force = () if params.control != "force" else tuple(np.empty((n, params.robot.n_pose)) for _ in range(3))
+        if self.force:
+            self.outcome = self.outcome._replace(effort=self.force[1], hold=self.force[2])
 
 
 def step(
@@ -483,7 +523,8 @@ def step(
     Args:
         params: Environment constants.
         state: The robots' state.
-        action: Normalised stroke rates, shape (N, n), float64.
+        action: Normalised stroke rates (force control: offsets from the holding forces in units of the drive
+            limits), shape (N, n), float64.
         with_velocity: Whether the observation ends with the target velocity.
         out: Buffers to write into (none of them may hold ``state``), or None.
         validate: Check the state's and the buffers' shapes (``check_state``). The envs pass False for the
@@ -515,10 +556,12 @@ def step(
             _non_finite(action)
         action, drive = hardware.drive(params, drive, action)
     plant, model = _plant(params, state.plant), _model(params, state)
-    if fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays, out.kernels):
+    force = _force(params, state) + out.force
+    if fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays, out.kernels, force):
         _non_finite(action)
     q, x, t, k, k1, residual = out.fields
-    new = FamilyState(q, x, t, state.det_sign, k, k1, residual, ref, state.plant, None, drive, state.geometry)
+    twist = out.force[0] if out.force else None
+    new = FamilyState(q, x, t, state.det_sign, k, k1, residual, ref, state.plant, None, drive, state.geometry, twist)
     if params.observation_source == "encoders":
         if streams is None:
             raise ValueError("step needs the robots' random streams (streams=) with observation_source='encoders'")
@@ -571,13 +614,37 @@ def measurement_info(state: FamilyState) -> dict[str, np.ndarray]:
     }
 
 
+def force_info(params: FamilyParams, state: FamilyState, outcome: FamilyOutcome | None) -> dict[str, np.ndarray]:
+    """The info entries of force control, per robot (empty under rate control).
+
+    ``actuator_forces`` (N, n): the applied efforts τ; ``holding_forces`` (N, n): τ_h at the period's start (at the
+    start pose when ``outcome`` is None: an episode's start, at rest, τ = 0); ``saturated`` (N,): whether a drive
+    was at its limit.
+    """
+    if state.twist is None:
+        return {}
+    if outcome is None:
+        hold = params.dynamics.holding_forces(state.q, state.x)
+        return {"actuator_forces": np.zeros_like(hold), "holding_forces": hold, "saturated": np.zeros(len(hold), bool)}
+    limits = np.asarray(params.force_limits)
+    return {
+        "actuator_forces": outcome.effort.copy(),
+        "holding_forces": outcome.hold.copy(),
+        "saturated": (np.abs(outcome.effort) >= limits).any(axis=-1),
+    }
+
+
 def step_info(
-    params: FamilyParams, evaluation: np.ndarray, reason: np.ndarray, state: FamilyState | None = None
+    params: FamilyParams,
+    evaluation: np.ndarray,
+    reason: np.ndarray,
+    state: FamilyState | None = None,
+    outcome: FamilyOutcome | None = None,
 ) -> dict[str, np.ndarray]:
     """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order.
 
     ``INFO_KEYS`` in order (``is_success`` as bools, the reasons as names, pose and target as (N, m)), the Type I
-    entries last, then ``measurement_info(state)`` if a state is given.
+    entries last, then ``measurement_info(state)`` and ``force_info(params, state, outcome)`` if a state is given.
     """
     rows = params.evaluation_rows
     info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS if name not in TYPE_I_INFO}
@@ -589,4 +656,5 @@ def step_info(
         info[name] = evaluation[rows[name]].copy()
     if state is not None:
         info.update(measurement_info(state))
+        info.update(force_info(params, state, outcome))
     return info

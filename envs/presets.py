@@ -8,6 +8,7 @@ from its size and home pose, ``derived_defaults``).
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import PurePath
 from typing import Any
 
@@ -25,14 +26,17 @@ from kinematics import (
     StewartGough,
     load_mechanism,
 )
+from kinematics.dynamics import InertialParameters, RobotDynamics
 
 __all__ = [
     "ADEPT_CYCLE",
+    "FORCE_ACCELERATION",
     "REFERENCE_REACH",
     "ROBOTS",
     "ROBOT_PRESETS",
     "build_family_params",
     "derived_defaults",
+    "force_limits",
     "reach",
 ]
 
@@ -344,6 +348,42 @@ def certificate_spacing(
     return margin / slope if slope > 0.0 else np.inf
 
 
+#: The platform acceleration [m/s² along each position coordinate, /ℓ_c rad/s² about each angle] the derived drive
+#: limits of force control afford on top of holding the platform (``force_limits``).
+FORCE_ACCELERATION = 2.0
+
+
+def _round_up(value: float) -> float:
+    """``value`` > 0 rounded up to two significant digits."""
+    unit = 10.0 ** (np.floor(np.log10(value)) - 1)
+    return float(np.ceil(value / unit - 1e-9) * unit)
+
+
+def force_limits(dynamics: RobotDynamics) -> tuple[float, ...]:
+    """Drive limits of force control derived from the robot's dynamics at its home pose.
+
+    Per actuator, 2 |τ_h,i| + Σ_k |(J_fᵀ M e_k)_i| a_k at ``home_pose()``: twice the holding force against gravity,
+    plus enough to accelerate the platform by ``FORCE_ACCELERATION`` along every pose coordinate at once
+    (a_k = 2 m/s², or 2/ℓ_c rad/s² about an angle); rounded up to two significant digits. Near a Type II
+    singularity the holding forces grow as 1/k and pass these limits: the drives saturate.
+
+    Args:
+        dynamics: The robot's equations of motion.
+
+    Returns:
+        τ_max, n values > 0 [N for legs and sliders, N·m for cranks].
+    """
+    robot = dynamics.mechanism
+    x = robot.home_pose()
+    q = robot.inverse_kinematics(x)
+    hold = dynamics.holding_forces(q, x)
+    M = dynamics.mass_matrix(q, x)
+    accelerate = np.zeros_like(hold)
+    for k, scale in enumerate(np.asarray(robot.pose_scale, dtype=np.float64) * FORCE_ACCELERATION):
+        accelerate += np.abs(robot.actuator_forces(q, x, M[:, k] * scale))
+    return tuple(_round_up(float(v)) for v in 2.0 * np.abs(hold) + accelerate)
+
+
 def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwargs: Any) -> FamilyParams:
     """Validate constructor arguments into ``FamilyParams``; a robot without bounds gets ones around its home pose.
 
@@ -398,7 +438,8 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
     if unknown:
         raise TypeError(f"unknown argument(s) {sorted(unknown)}")
     args = {name: spec.default for name, spec in defaults.items()} | kwargs  # the given values, else the defaults
-    values = check_fields(args, {"m": m, "n": robot.n_actuators})  # each value in its range (``FamilyParams`` docs)
+    sizes = {"m": m, "n": robot.n_actuators, "d": robot.pose_space.point_dim}
+    values = check_fields(args, sizes)  # each value in its range (``FamilyParams`` docs)
     lo, hi = values["stroke_limits"]
     has_legs = "leg" in robot.actuator_kinds
     if not (0 < lo < hi if has_legs else lo < hi):
@@ -452,6 +493,27 @@ def build_family_params(robot: DistanceConstraintMechanism | None = None, **kwar
             values["segment_spacing"],
             certificate_spacing(certificate, robot, values["sample_low"], values["sample_high"], margin),
         )
+    _check_force_control(robot, values)
     params = FamilyParams(robot=robot, **values)
     hardware.check_tolerance(params)
+    if params.control == "force" and not params.force_limits:
+        limits = force_limits(params.dynamics)
+        params = dataclasses.replace(params, force_limits=limits)
     return params
+
+
+def _check_force_control(robot: DistanceConstraintMechanism, values: dict[str, Any]) -> None:
+    """Make ``values["inertia"]`` (a dict) ``InertialParameters`` fitting ``robot``; refuse what force control lacks."""
+    inertia = values["inertia"]
+    if isinstance(inertia, dict):
+        inertia = InertialParameters.from_dict(inertia)
+    if inertia is not None:
+        if not isinstance(inertia, InertialParameters):
+            raise TypeError(f"inertia must be a kinematics.InertialParameters, its dict or None, got {inertia!r}")
+        RobotDynamics(robot, inertia)  # raises if the data do not fit the robot
+    values["inertia"] = inertia
+    if values["control"] == "force" and (values["observation_source"] != "pose" or values["max_acceleration"]):
+        raise ValueError(
+            "control='force' supports observation_source='pose' without max_acceleration, got observation_source="
+            f"{values['observation_source']!r}, max_acceleration={values['max_acceleration']}"
+        )

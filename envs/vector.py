@@ -289,7 +289,7 @@ class FamilyVectorEnv(VectorEnv):
             ) from None
         self._next ^= 1
         self._state = state
-        info = step_info(self.params, evaluation, outcome.reason, state)
+        info = step_info(self.params, evaluation, outcome.reason, state, outcome)
         rewards = evaluation[self.params.evaluation_rows["reward"]].copy()
         terminations = outcome.reason != 0
         truncations = state.t >= self.max_episode_steps

@@ -184,6 +184,13 @@ class InertialParameters:
         """Hash of the plain data, consistent with ``__eq__``."""
         return hash(repr(self.to_dict()))
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickle with the arrays read-only again, as the constructor leaves them."""
+        for value in state.values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+        self.__dict__.update(state)
+
 
 def uniform_rod(mass: float, length: float) -> tuple[float, float, float]:
     """A uniform slender rod as a distal body: (mass [kg], centre of mass from the platform end [m], I [kg·m²]).

@@ -1,4 +1,4 @@
-"""Classical controllers: resolved-rate, singularity-aware resolved-rate and the planner (NumPy only).
+"""Classical controllers: resolved-rate, singularity-aware resolved-rate, the planner and computed torque (NumPy).
 
 They read only the observation (as a policy does) and are batched: observations (N, D) → actions (N, n), for
 any robot of the family.
@@ -20,6 +20,7 @@ from robot_control.planner import PathFollower
 __all__ = [
     "CONTROLLERS",
     "DAMPING_FLOOR",
+    "ComputedTorqueAgent",
     "PlannerController",
     "ResolvedRateController",
     "SingularityAwareController",
@@ -108,6 +109,8 @@ class ResolvedRateController:
     name = "resolved-rate"
 
     def __init__(self, params: FamilyParams, gain: float = 2.0, max_speed: float = 0.25) -> None:
+        if params.control != "rate":
+            raise ValueError(f"{self.name} commands stroke rates (control='rate'); use computed-torque under force")
         self.params = params
         self.gain = float(gain)
         self.max_speed = float(max_speed)
@@ -356,5 +359,67 @@ class PlannerController(ResolvedRateController):
         return self.follower.last_plan_metrics(row)
 
 
+def _decode_pose(space: str, code: np.ndarray) -> np.ndarray:
+    """Poses (N, m) from the observation's pose codes (N, ·): spatial (p, quaternion), planar (x, y, cos, sin)."""
+    from scipy.spatial.transform import Rotation
+
+    if space == "spatial":
+        return np.concatenate([code[:, :3], Rotation.from_quat(code[:, [4, 5, 6, 3]]).as_rotvec()], axis=-1)
+    if space == "translational":
+        return code.copy()
+    return np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
+
+
+class ComputedTorqueAgent:
+    """Computed torque (``robot_control.computed_torque``) on a force-control env, from its observations alone.
+
+    The pose, the target, the twist ẋ and (Track) the target's velocity are read from the observation; the
+    efforts are those of ``ComputedTorqueController`` with the env's model and drive limits,
+    K_p = ω², K_d = 2 ω, and the action is their offset from the holding forces in units of the limits,
+    a = (τ − τ_h) / τ_max, clipped to [−1, 1]. The reference acceleration is zero (a fixed target, or the Track
+    target's velocity fed forward).
+
+    Args:
+        params: Environment constants of a force-control env.
+        bandwidth: ω [rad/s] of the error dynamics.
+    """
+
+    name = "computed-torque"
+
+    def __init__(self, params: FamilyParams, bandwidth: float = 4.0) -> None:
+        from robot_control.computed_torque import ComputedTorqueController
+
+        if params.control != "force":
+            raise ValueError("computed-torque commands efforts (control='force'), not stroke rates")
+        self.params = params
+        self.controller = ComputedTorqueController.critically_damped(
+            params.robot, params.dynamics.inertia, bandwidth=bandwidth, force_limits=params.force_limits
+        )
+        robot = params.robot
+        self._layout = observation_layout(robot.pose_space.name, robot.n_actuators, True, force=True)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Normalised efforts in [−1, 1] for a batch of observations (N, D): shape (N, n), float32."""
+        params, layout = self.params, self._layout
+        robot = params.robot
+        obs = np.asarray(obs, dtype=np.float64)
+        space = robot.pose_space.name
+        pose = _decode_pose(space, obs[:, layout["pose"]])
+        target = _decode_pose(space, obs[:, layout["target"]])
+        twist = obs[:, layout["twist"]]
+        codes = 2 * robot.base.shape[1] ** 2 if params.geometry_variation else 0
+        velocity_slice = layout["target_velocity"]
+        with_velocity = obs.shape[1] - codes >= velocity_slice.stop
+        velocity = obs[:, velocity_slice] if with_velocity else np.zeros_like(pose)
+        q = robot.inverse_kinematics(pose, validate=False)
+        command = self.controller.compute(q, pose, twist, target, velocity)
+        limits = np.asarray(params.force_limits)
+        hold = params.dynamics.holding_forces(q, pose)
+        return np.clip((command.tau - hold) / limits, -1.0, 1.0).astype(np.float32)
+
+
 #: Controllers by command-line name.
-CONTROLLERS = {cls.name: cls for cls in (ResolvedRateController, SingularityAwareController, PlannerController)}
+CONTROLLERS = {
+    cls.name: cls
+    for cls in (ResolvedRateController, SingularityAwareController, PlannerController, ComputedTorqueAgent)
+}

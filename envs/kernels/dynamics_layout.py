@@ -37,6 +37,8 @@ INERTIA: tuple[tuple[str, int, str], ...] = (
     ("WU", _LEGS, "weight of |u̇_i|² [kg·m²]"),
     ("DMASS", _LEGS, "distal rod masses m_d [kg]"),
     ("DCOM", _LEGS, "distal rod centres of mass from P_i along the rod [m]"),
+    ("LIMIT", _LEGS, "drive limits |τ_i| ≤ τ_max,i of force control [N, N·m for cranks]"),
+    ("SUBSTEPS", _ONE, "RKMK4 steps per control period of force control"),
 )
 
 INERTIA_OFFSETS, C_INERTIA_SIZE = offsets(INERTIA, "I_")
@@ -50,25 +52,43 @@ DYNAMICS_WORK: tuple[tuple[str, int, str], ...] = (
     ("FORCE", 1, "J_iᵀ τ"),
     ("RHS", 1, "J_iᵀ τ − c − G"),
     ("ACC", 1, "ẍ"),
+    # force control (``envs.kernels.force``)
+    ("ZERO", 1, "zeros (ẋ = 0, τ = 0 of the holding forces)"),
+    ("JT", 6, "J_iᵀ, column i = K_iᵀ g_i"),
+    ("HOLD", 1, "holding forces τ_h"),
+    ("TAU", 1, "applied efforts τ"),
+    ("APPLIED", 1, "τ / τ_max"),
+    ("XD", 1, "platform twist ẋ at the substep's start"),
+    ("NU", 1, "a stage's twist"),
+    ("POSE", 1, "a stage's pose"),
+    ("Q", 1, "a stage's actuator coordinates"),
+    ("XI", 4, "the stages' chart rates ξ̇ (the first is ẋ itself: rows 1–3 used)"),
+    ("STAGE", 4, "the stages' twist rates ẍ"),
+    ("MEAN", 2, "the mean chart rate and the mean twist rate"),
+    ("NEXT", 2, "the pose and the twist at the substep's end"),
+    ("RATE", 1, "mean actuator rates of the period"),
 )
 DYNAMICS_ROWS, D_SIZE = offsets(DYNAMICS_WORK, "D_")
 globals().update(DYNAMICS_ROWS)  # D_M, D_LU, …
 
 
-def pack_inertia(mechanism, inertia) -> np.ndarray:
+def pack_inertia(mechanism, inertia, limits=None, substeps: int = 1) -> np.ndarray:
     """The inertial data of a robot as the kernels' float64 vector, shape (C_INERTIA_SIZE,).
 
     Args:
         mechanism: The robot, a ``kinematics.DistanceConstraintMechanism`` (its actuator kinds and crank radii
             enter the per-leg weights).
         inertia: Its ``kinematics.inertia.InertialParameters``.
+        limits: The drive limits τ_max of force control, shape (n,) [N, N·m for cranks], > 0; None: infinite.
+        substeps: RKMK4 steps per control period of force control, ≥ 1.
 
     Returns:
         Read-only vector indexed by the ``I_*`` offsets (``INERTIA``).
 
     Raises:
         TypeError: If ``inertia`` is not an ``InertialParameters``.
-        ValueError: If its number of legs or point dimension differ from the mechanism's.
+        ValueError: If its number of legs or point dimension differ from the mechanism's, or if ``limits`` or
+            ``substeps`` are not as above.
     """
     from kinematics.inertia import InertialParameters
 
@@ -80,6 +100,12 @@ def pack_inertia(mechanism, inertia) -> np.ndarray:
             f"inertial parameters for {inertia.n_legs} legs with {inertia.point_dim}-D points do not fit a robot "
             f"with {n} legs and {d}-D points"
         )
+    if limits is not None:
+        limits = np.asarray(limits, dtype=np.float64)
+        if limits.shape != (n,) or not (limits > 0).all():
+            raise ValueError(f"limits must be {n} drive limits > 0, got {limits.tolist()}")
+    if not (isinstance(substeps, (int, np.integer)) and substeps >= 1):
+        raise ValueError(f"substeps must be an integer ≥ 1, got {substeps!r}")
     kinds = np.array(mechanism.actuator_kinds)
     leg, crank, slider = ((kinds == kind).astype(np.float64) for kind in ("leg", "crank", "slider"))
     radii = np.where(mechanism.crank_radii > 0, mechanism.crank_radii, 1.0)
@@ -98,6 +124,8 @@ def pack_inertia(mechanism, inertia) -> np.ndarray:
         "WU": leg * (mass_a * com_a**2 + inertia_a) + inertia.distal_inertia,
         "DMASS": inertia.distal_mass,
         "DCOM": inertia.distal_com,
+        "LIMIT": np.full(n, np.inf) if limits is None else np.asarray(limits, dtype=np.float64),
+        "SUBSTEPS": [substeps],
     }
     ci = np.zeros(C_INERTIA_SIZE)
     for name, value in blocks.items():

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba.core import types
 from numba.extending import overload
 
 from envs.kernels import paths
@@ -234,8 +235,30 @@ def _stroke_errors(target_q, q, m, span, o_obs, i, col, low, high):
         _clip32(o_obs, i, col + j, (target_q[j] - q[j]) / span, low, high)
 
 
+def _encode_motion(motion, o_obs, i, col, low, high):
+    """Observation columns of force control from col: row i's twist ẋ (m) and actuator rates (n); the next column."""
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_encode_motion, jit_options=_OVERLOAD_OPTIONS)
+def _encode_motion_of(motion, o_obs, i, col, low, high):
+    if isinstance(motion, types.NoneType):
+        return lambda motion, o_obs, i, col, low, high: col
+
+    def encode(motion, o_obs, i, col, low, high):
+        twist, rate = motion
+        m = twist.shape[1]
+        for j in range(m):
+            _clip32(o_obs, i, col + j, twist[i, j], low, high)
+        for j in range(m):
+            _clip32(o_obs, i, col + m + j, rate[i, j], low, high)
+        return col + 2 * m
+
+    return encode
+
+
 @jit_inline
-def _evaluate_row(path, space, c, observation, measured, reference, outcome, i, w, out):
+def _evaluate_row(path, space, c, observation, measured, reference, outcome, motion, i, w, out):
     """``_evaluate_rows``' row i: the target, the reward terms, the errors, success, the cost and the observation."""
     low, high = observation.low, observation.high
     q, x, k, k1 = measured.q, measured.x, measured.k, measured.k1
@@ -306,18 +329,19 @@ def _evaluate_row(path, space, c, observation, measured, reference, outcome, i, 
         _stroke_errors(target_q, q[i], m, span, o_obs, i, col, low, high)
     col += m
     _clip32(o_obs, i, col, ki, low, high)
-    col += 1
+    col = _encode_motion(motion, o_obs, i, col + 1, low, high)
     if observation.with_velocity:
         for j in range(m):
             _clip32(o_obs, i, col + j, vel[j], low, high)
 
 
-def _evaluate_rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+def _evaluate_rows(path, space, cs, observation, measured, reference, outcome, motion, start, stop, w, out):
     """Target, reward terms, errors, success, cost and observation of robots start .. stop − 1.
 
     See ``envs.physics.evaluate``. Robot i has the row of constants ``_row(cs, i)``; the other args as
-    ``evaluate_batch``; ``out`` is (evaluation, observations). ``path`` is the row path and ``space`` the pose
-    space, compile-time constants: the overloads of the target's inverse kinematics, the pose comparison and the
+    ``evaluate_batch``; ``motion`` is None (rate control) or force control's (twists ẋ (N, m), actuator rates
+    (N, n)), which the observation holds after k; ``out`` is (evaluation, observations). ``path`` is the row path
+    and ``space`` the pose space, compile-time constants: the overloads of the target's inverse kinematics, the pose comparison and the
     pose code compile that path's and that space's code only. One compiled call
     per block of robots, the row's code inlined in it.
     """
@@ -325,11 +349,11 @@ def _evaluate_rows(path, space, cs, observation, measured, reference, outcome, s
 
 
 @overload(_evaluate_rows, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _evaluate_rows_of_space(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+def _evaluate_rows_of_space(path, space, cs, observation, measured, reference, outcome, motion, start, stop, w, out):
     _literal_path(path), _literal_space(space)
 
-    def rows(path, space, cs, observation, measured, reference, outcome, start, stop, w, out):
+    def rows(path, space, cs, observation, measured, reference, outcome, motion, start, stop, w, out):
         for i in range(start, stop):
-            _evaluate_row(path, space, _row(cs, i), observation, measured, reference, outcome, i, w, out)
+            _evaluate_row(path, space, _row(cs, i), observation, measured, reference, outcome, motion, i, w, out)
 
     return rows

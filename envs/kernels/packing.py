@@ -213,21 +213,24 @@ def evaluation_rows(m: int) -> dict[str, int | slice]:
 POSE_CODES = {"planar": (4, 3), "spatial": (7, 6), "translational": (3, 3)}
 
 
-def observation_layout(pose_space: str, n: int, with_velocity: bool) -> dict[str, slice]:
+def observation_layout(pose_space: str, n: int, with_velocity: bool, force: bool = False) -> dict[str, slice]:
     """Slices of the observation vector (see ``envs.FamilyReachEnv``).
 
     Args:
         pose_space: "planar", "spatial" or "translational" (a ``PoseSpace.name``).
         n: Number of actuators.
         with_velocity: Whether the observation ends with the target velocity (Track).
+        force: Whether the robot is under force control (the platform twist and the actuator rates follow k).
 
     Returns:
-        name → slice: pose, target, error, strokes, stroke_error, k (and target_velocity).
+        name → slice: pose, target, error, strokes, stroke_error, k (and twist, actuator_rates; target_velocity).
     """
     if pose_space not in POSE_CODES:
         raise ValueError(f"pose_space must be one of {sorted(POSE_CODES)}, got {pose_space!r}")
     pose, m = POSE_CODES[pose_space]
     names = [("pose", pose), ("target", pose), ("error", m), ("strokes", n), ("stroke_error", n), ("k", 1)]
+    if force:
+        names += [("twist", m), ("actuator_rates", n)]
     if with_velocity:
         names.append(("target_velocity", m))
     out, start = {}, 0

@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Measured", "Motion", "Moved", "Observation", "Outcome", "Reference", "StepArrays"]
+__all__ = ["Dynamics", "Measured", "Motion", "Moved", "Observation", "Outcome", "Reference", "StepArrays"]
 
 
 class Motion(NamedTuple):
@@ -89,3 +89,14 @@ class StepArrays(NamedTuple):
     jump: np.ndarray  #: largest Newton corrections [m], (N,)
     evaluation: np.ndarray  #: evaluation rows (``packing.evaluation_rows``), (E_FIXED + 3m, N)
     observations: np.ndarray  #: observations, (N, D) float32
+
+
+class Dynamics(NamedTuple):
+    """Force control (``envs.kernels.force``): what the transition reads and writes of N robots besides ``Motion``."""
+
+    inertia: np.ndarray  #: packed inertia and drive limits (``pack_inertia``), (N or 1, C_INERTIA_SIZE)
+    twist: np.ndarray  #: platform twists at the period's start, (N, m)
+    o_twist: np.ndarray  #: platform twists at its end, (N, m)
+    effort: np.ndarray  #: applied efforts τ [N, N·m for cranks], (N, n)
+    hold: np.ndarray  #: holding forces τ_h at the period's start, (N, n)
+    work: np.ndarray  #: the dynamics work array of one thread (``dynamics._dynamics_work``)

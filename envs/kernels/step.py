@@ -26,7 +26,9 @@ from numba.extending import overload
 from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
+from envs.kernels.dynamics import _dynamics_work
 from envs.kernels.evaluation import _evaluate_rows
+from envs.kernels.force import advance_force
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
@@ -39,6 +41,8 @@ from envs.kernels.layout import (
     C_HARD1,
     C_HIGH,
     C_JUMP,
+    C_LMAX,
+    C_LMIN,
     C_LOW,
     C_MAX_SUBSTEP,
     C_MAX_SUBSTEPS,
@@ -72,7 +76,7 @@ from envs.kernels.layout import (
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
 from envs.kernels.pose import _all_finite
-from envs.kernels.records import Measured, Motion, Moved, Observation, Outcome, Reference, StepArrays
+from envs.kernels.records import Dynamics, Measured, Motion, Moved, Observation, Outcome, Reference, StepArrays
 from envs.kernels.setup import PARALLEL_MIN_BATCH, jit, jit_inline, jit_parallel
 
 __all__ = [
@@ -89,6 +93,8 @@ drop_stale_caches(__file__)
 
 
 N_LANE_ROWS = len(LANES_ROWS)
+#: Arrays of ``StepArrays``: the fused step's outputs; force control's arrays follow them (``step_batch``).
+N_STEP_ARRAYS = len(StepArrays._fields)
 
 #: Robots per chunk of a batch: each chunk allocates its work arrays once (a multiple of ``LANES``).
 CHUNK = 64
@@ -214,12 +220,108 @@ def _advance(path, c, q0, x0, action, residual, w):
     return kq, kx, anchors, rows, a, qr, res, jump, failed
 
 
+def _advance_of(path, c, dynamics, i, q0, x0, action, residual, w):
+    """``_advance`` (rate control: ``dynamics`` None) or ``force.advance_force`` (a ``Dynamics`` record) of robot i."""
+    return paths._compiled_only()
+
+
+@overload(_advance_of, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _advance_of_control(path, c, dynamics, i, q0, x0, action, residual, w):
+    if isinstance(dynamics, types.NoneType):
+        return lambda path, c, dynamics, i, q0, x0, action, residual, w: _advance(path, c, q0, x0, action, residual, w)
+    return lambda path, c, dynamics, i, q0, x0, action, residual, w: advance_force(
+        path, c, dynamics, i, q0, x0, action, w
+    )
+
+
+def _own_work(dynamics):
+    """``dynamics`` with a dynamics work array of its own (one per thread; None stays None)."""
+    return paths._compiled_only()
+
+
+@overload(_own_work, jit_options=_OVERLOAD_OPTIONS)
+def _own_work_of(dynamics):
+    if isinstance(dynamics, types.NoneType):
+        return lambda dynamics: None
+
+    def own(dynamics):
+        d = dynamics
+        return Dynamics(d.inertia, d.twist, d.o_twist, d.effort, d.hold, _dynamics_work())
+
+    return own
+
+
+def _from_extra(extra, n, m):
+    """The ``Dynamics`` of a batch from an entry kernel's extra arguments.
+
+    () for rate control (None); (inertia, twist), its outputs allocated here, or (inertia, twist, o_twist, effort,
+    hold) for force control.
+    """
+    return paths._compiled_only()
+
+
+@overload(_from_extra, jit_options=_OVERLOAD_OPTIONS)
+def _from_extra_of(extra, n, m):
+    if len(extra) == 0:
+        return lambda extra, n, m: None
+    if len(extra) == 2:
+
+        def allocated(extra, n, m):
+            inertia, twist = extra
+            return Dynamics(inertia, twist, np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), _dynamics_work())
+
+        return allocated
+
+    def given(extra, n, m):
+        inertia, twist, o_twist, effort, hold = extra
+        return Dynamics(inertia, twist, o_twist, effort, hold, _dynamics_work())
+
+    return given
+
+
+def _motion_from(extra):
+    """The evaluation's force-control columns from an entry kernel's extra arguments: None, or (ẋ, actuator rates)."""
+    return paths._compiled_only()
+
+
+@overload(_motion_from, jit_options=_OVERLOAD_OPTIONS)
+def _motion_from_of(extra):
+    if len(extra) == 0:
+        return lambda extra: None
+    return lambda extra: (extra[0], extra[1])
+
+
+def _motion_of(dynamics, q_rate):
+    """What force control adds to the observation: None, or (twists (N, m), actuator rates (N, n))."""
+    return paths._compiled_only()
+
+
+@overload(_motion_of, jit_options=_OVERLOAD_OPTIONS)
+def _motion_of_control(dynamics, q_rate):
+    if isinstance(dynamics, types.NoneType):
+        return lambda dynamics, q_rate: None
+    return lambda dynamics, q_rate: (dynamics.o_twist, q_rate)
+
+
+def _with_dynamics(result, dynamics):
+    """``result``, and with force control the twists, efforts and holding forces: (result, (ẋ, τ, τ_h))."""
+    return paths._compiled_only()
+
+
+@overload(_with_dynamics, jit_options=_OVERLOAD_OPTIONS)
+def _with_dynamics_of(result, dynamics):
+    if isinstance(dynamics, types.NoneType):
+        return lambda result, dynamics: result
+    return lambda result, dynamics: (result, (dynamics.o_twist, dynamics.effort, dynamics.hold))
+
+
 @jit_inline
-def _outside(c, x):
-    """Whether the pose x (m,) left its bounds."""
+def _outside(c, q, x):
+    """Whether the pose x (m,) left its bounds or a stroke of q (n,) its hard stops (force control: a crash)."""
     out = False
+    lo, hi = c[C_LMIN], c[C_LMAX]
     for j in range(len(x)):
-        if x[j] < c[C_LOW + j] or x[j] > c[C_HIGH + j]:
+        if x[j] < c[C_LOW + j] or x[j] > c[C_HIGH + j] or q[j] < lo or q[j] > hi:
             out = True
     return out
 
@@ -238,7 +340,7 @@ def _store(i, kq, kx, a, qr, res, jump, moved):
 
 
 @jit_inline
-def _transition_rows(path, cs, state, action, start, count, w, moved):
+def _transition_rows(path, cs, state, action, start, count, w, moved, dynamics):
     """Transition of robots start .. start + count − 1, one at a time: advance, measure, terminate."""
     # The fields in locals, read once: a field read inside the loop costs a little on every robot.
     q, x, residual, det_sign = state.q, state.x, state.residual, state.det_sign
@@ -246,15 +348,17 @@ def _transition_rows(path, cs, state, action, start, count, w, moved):
     for i in range(start, start + count):
         c = _row(cs, i)
         q0, x0 = paths.vector(path, q[i]), paths.vector(path, x[i])
-        kq, kx, anchors, rows, a, qr, res, jump, failed = _advance(path, c, q0, x0, action[i], residual[i], w)
+        kq, kx, anchors, rows, a, qr, res, jump, failed = _advance_of(
+            path, c, dynamics, i, q0, x0, action[i], residual[i], w
+        )
         k, sign, k1 = paths.measure(path, c, kq, anchors, rows, w)
         _store(i, kq, kx, a, qr, res, jump, moved)
         o_k[i], o_k1[i] = k, k1
-        o_reason[i] = termination_reason(c, failed, jump, sign, det_sign[i], k, _outside(c, kx), k1)
+        o_reason[i] = termination_reason(c, failed, jump, sign, det_sign[i], k, _outside(c, kq, kx), k1)
 
 
 @jit_inline
-def _transition_lanes(cs, state, action, start, count, w, lanes, moved):
+def _transition_lanes(cs, state, action, start, count, w, lanes, moved, dynamics):
     """``_transition_rows`` of spatial robots (m = 6) in SIMD lanes: each robot advanced, then their k at once.
 
     The k of all of them comes from one ``inverse_condition6_lanes`` call over the block (vectorised across
@@ -265,10 +369,12 @@ def _transition_lanes(cs, state, action, start, count, w, lanes, moved):
         i = start + r
         c = _row(cs, i)
         q0, x0, residual = state.q[i], state.x[i], state.residual[i]
-        kq, kx, _, _, a, qr, res, jump, failed = _advance(WORK_ARRAYS, c, q0, x0, action[i], residual, w)
+        kq, kx, _, _, a, qr, res, jump, failed = _advance_of(
+            WORK_ARRAYS, c, dynamics, i, q0, x0, action[i], residual, w
+        )
         _store(i, kq, kx, a, qr, res, jump, moved)
         lane[L_SIGN, r] = _homogeneous_lane(c, kq, w, W_A, H, r)
-        lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if _outside(c, kx) else 0.0)
+        lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if _outside(c, kq, kx) else 0.0)
         lane[L_K1, r] = _actuator_condition(c, w)
     inverse_condition6_lanes(H, count, lane[L_K], lane[L_WORST], lane[L_ACTIVE])
     for r in range(count):
@@ -282,7 +388,7 @@ def _transition_lanes(cs, state, action, start, count, w, lanes, moved):
         )
 
 
-def _transition_block(path, cs, state, action, start, count, w, lanes, moved):
+def _transition_block(path, cs, state, action, start, count, w, lanes, moved, dynamics):
     """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
 
     The algorithm of ``envs.physics.transition``: predict and correct (``_advance``), measure (k and k_I at the
@@ -291,24 +397,25 @@ def _transition_block(path, cs, state, action, start, count, w, lanes, moved):
     With work arrays for SIMD lanes (``allocate_lanes``; None: robot by robot), spatial robots (m = 6) in blocks
     of more than one are measured together (``_transition_lanes``). ``cs`` holds one row of constants per robot
     or one row for all (the robots of one batch share their pose space and actuator kinds, not their geometry).
+    ``dynamics``: None (rate control) or the batch's ``Dynamics`` (force control, ``envs.kernels.force``).
     """
     raise NotImplementedError("compiled only (see its overload)")
 
 
 @overload(_transition_block, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, moved):
+def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, moved, dynamics):
     if _literal_path(path) != WORK_ARRAYS or isinstance(lanes, types.NoneType):
 
-        def rows(path, cs, state, action, start, count, w, lanes, moved):
-            _transition_rows(path, cs, state, action, start, count, w, moved)
+        def rows(path, cs, state, action, start, count, w, lanes, moved, dynamics):
+            _transition_rows(path, cs, state, action, start, count, w, moved, dynamics)
 
         return rows
 
-    def block(path, cs, state, action, start, count, w, lanes, moved):
+    def block(path, cs, state, action, start, count, w, lanes, moved, dynamics):
         if count == 1 or cs[0][C_N] != 6.0:  # one robot (the plain Jacobi is cheaper) or m = 3
-            _transition_rows(path, cs, state, action, start, count, w, moved)
+            _transition_rows(path, cs, state, action, start, count, w, moved, dynamics)
         else:
-            _transition_lanes(cs, state, action, start, count, w, lanes, moved)
+            _transition_lanes(cs, state, action, start, count, w, lanes, moved, dynamics)
 
     return block
 
@@ -321,7 +428,7 @@ def _allocate_moved(n, m):
     return Moved(q, x, k, k1, residual, action, q_rate, np.empty(n, dtype=np.int64), jump)
 
 
-def transition_batch(cs, state, action):
+def transition_batch(cs, state, action, force=()):
     """Advance N robots by one control period (the algorithm of ``envs.physics.transition``).
 
     Args:
@@ -329,12 +436,17 @@ def transition_batch(cs, state, action):
             (1, C_SIZE), one geometry for all.
         state: (q, x, t, det_sign, residual): strokes [m] (N, n), poses (N, m), steps (N,) int (not read), the
             working mode sign(det J_x) of each episode (N,), the constraint residual at (q, x) [m²] (N,).
-        action: Normalised stroke rates, shape (N, n), finite.
+        action: Normalised stroke rates, shape (N, n), finite (force control: offsets from the holding forces in
+            units of the drive limits).
+        force: () for rate control, or (inertia, twist) for force control (``envs.kernels.force``): the packed
+            inertia and drive limits (``pack_inertia``), (N or 1, C_INERTIA_SIZE), and the twists ẋ (N, m).
 
     Returns:
-        (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]).
+        (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]); with
+        force control, that and (ẋ' (N, m), efforts τ (N, n), holding forces τ_h (N, n)), the applied action
+        being τ / τ_max and the rates the period's mean.
     """
-    return path_kernels(cs).transition(cs, *state, action)
+    return path_kernels(cs).transition(cs, *state, action, *force)
 
 
 def evaluate_batch(cs, observation, measured, reference, outcome):
@@ -351,7 +463,8 @@ def evaluate_batch(cs, observation, measured, reference, outcome):
         reference: (center, amplitude, phase, strokes) of the targets (``envs.physics.FamilyReference``), each
             (N, m); strokes, the actuator coordinates of the centres (``strokes_batch``, (N, n)), are read for the
             robots whose target is fixed (a = 0, C_PATH = 0) instead of solving the inverse kinematics again.
-        outcome: (action, reason): applied actions (N, n) and termination reason codes (N,).
+        outcome: (action, reason): applied actions (N, n) and termination reason codes (N,); with force control
+            also (twists ẋ (N, m), actuator rates (N, n)), which the observation then holds after k.
 
     Returns:
         (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
@@ -360,16 +473,21 @@ def evaluate_batch(cs, observation, measured, reference, outcome):
 
 
 @jit_inline
-def _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out):
+def _step_block(
+    path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
+):
     """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``)."""
     moved = Moved(out.q, out.x, out.k, out.k1, out.residual, out.action, out.q_rate, out.reason, out.jump)
-    _transition_block(path, plant, state, action, start, count, w, lanes, moved)
+    _transition_block(path, plant, state, action, start, count, w, lanes, moved, dynamics)
     t, o_t = state.t, out.t
     for i in range(start, start + count):
         o_t[i] = t[i] + 1
     measured = Measured(out.q, out.x, out.t, out.k, out.k1, out.residual)
     outcome, written = Outcome(out.action, out.reason), (out.evaluation, out.observations)
-    _evaluate_rows(path, space, model, observation, measured, reference, outcome, start, start + count, w, written)
+    motion = _motion_of(dynamics, out.q_rate)
+    _evaluate_rows(
+        path, space, model, observation, measured, reference, outcome, motion, start, start + count, w, written
+    )
 
 
 @jit_inline
@@ -382,7 +500,7 @@ def _finite_actions(action):
 
 
 @jit
-def _step_range(path, space, model, plant, observation, state, reference, action, span, out):
+def _step_range(path, space, model, plant, observation, state, reference, action, span, out, dynamics):
     """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
 
     Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's parfor analysis
@@ -390,10 +508,13 @@ def _step_range(path, space, model, plant, observation, state, reference, action
     """
     w = _work()
     lanes = allocate_lanes()
+    dynamics = _own_work(dynamics)
     begin, end = span
     for start in range(begin, end, LANES):
         count = min(LANES, end - start)
-        _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out)
+        _step_block(
+            path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
+        )
 
 
 class PathKernels(NamedTuple):
@@ -420,26 +541,27 @@ def _path_kernels(path: int, space: int) -> PathKernels:
     """
 
     # The entry kernels take their arrays flat: Numba types a named tuple argument about 0.8 µs slower per call.
-    def transition(cs, q, x, t, det_sign, residual, action):
+    def transition(cs, q, x, t, det_sign, residual, action, *force):
         state = Motion(q, x, t, det_sign, residual)
         n, m = action.shape
         moved = _allocate_moved(n, m)
+        dynamics = _from_extra(force, n, m)
         w = _work()
         lanes = allocate_lanes()
         for start in range(0, n, LANES):
-            _transition_block(path, cs, state, action, start, min(LANES, n - start), w, lanes, moved)
-        return moved
+            _transition_block(path, cs, state, action, start, min(LANES, n - start), w, lanes, moved, dynamics)
+        return _with_dynamics(moved, dynamics)
 
     def evaluate(cs, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, strokes, *outcome):
         observation, measured = Observation(low, high, with_velocity), Measured(q, x, t, k, k1, residual)
-        reference, outcome = Reference(center, amplitude, phase, strokes), Outcome(*outcome)
+        reference, motion = Reference(center, amplitude, phase, strokes), _motion_from(outcome[2:])
+        outcome = Outcome(outcome[0], outcome[1])
         n, m = measured.x.shape
         out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation.low.shape[0]), dtype=np.float32))
         w = _work()
         for start in range(0, n, LANES):  # the step's blocks: one compiled _evaluate_rows for both
-            _evaluate_rows(
-                path, space, cs, observation, measured, reference, outcome, start, min(start + LANES, n), w, out
-            )
+            stop = min(start + LANES, n)
+            _evaluate_rows(path, space, cs, observation, measured, reference, outcome, motion, start, stop, w, out)
         return out
 
     def step_serial(
@@ -464,25 +586,28 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         # argument slower than a bare one (about 0.2 µs per array per call), inside a named tuple slower still.
         if not _finite_actions(action):
             return True
-        out = StepArrays(*outputs)
+        out = StepArrays(*outputs[:N_STEP_ARRAYS])
+        n = q.shape[0]
+        dynamics = _from_extra(outputs[N_STEP_ARRAYS:], n, q.shape[1])
         observation = Observation(low, high, with_velocity)
         state, reference = Motion(q, x, t, det_sign, residual), Reference(center, amplitude, phase, strokes)
         w = _work()
         lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
-        n = q.shape[0]
         for start in range(0, n, LANES):
             count = min(LANES, n - start)
-            _step_block(path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out)
+            _step_block(
+                path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
+            )
         return False
 
-    def step_parallel(model, plant, observation, state, reference, action, out):
+    def step_parallel(model, plant, observation, state, reference, action, out, dynamics):
         if not _finite_actions(action):
             return True
         n = action.shape[0]
         chunks = (n + CHUNK - 1) // CHUNK
         for chunk in numba.prange(chunks):
             span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
-            _step_range(path, space, model, plant, observation, state, reference, action, span, out)
+            _step_range(path, space, model, plant, observation, state, reference, action, span, out, dynamics)
         return False
 
     def initial(c, x):
@@ -530,10 +655,11 @@ def _step_serial(model, plant, *args):
     return path_kernels(plant).step_serial(model, plant, *args)
 
 
-def _step_parallel(model, plant, observation, state, reference, action, out):
+def _step_parallel(model, plant, observation, state, reference, action, out, force=()):
     """The multi-core step of ``step_batch`` (records as tuples or ``envs.kernels.records``)."""
     records = Observation(*observation), Motion(*state), Reference(*reference)
-    return path_kernels(plant).step_parallel(model, plant, *records, action, out)
+    dynamics = Dynamics(*force, _dynamics_work()) if force else None
+    return path_kernels(plant).step_parallel(model, plant, *records, action, out, dynamics)
 
 
 def initial_batch(c, x):
@@ -576,7 +702,7 @@ def path_kernels(cs) -> PathKernels:
     return _PATH_KERNELS[row_path(cs), pose_space_code(cs)]
 
 
-def step_batch(model, plant, observation, state, reference, action, out, kernels=None):
+def step_batch(model, plant, observation, state, reference, action, out, kernels=None, force=()):
     """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite.
 
     Args:
@@ -587,12 +713,16 @@ def step_batch(model, plant, observation, state, reference, action, out, kernels
         observation: (low, high, with_velocity), as ``evaluate_batch``.
         state: (q, x, t, det_sign, residual), as ``transition_batch``.
         reference: (center, amplitude, phase, strokes), as ``evaluate_batch``.
-        action: Normalised stroke rates, shape (N, n).
+        action: Normalised stroke rates, shape (N, n) (force control: offsets from the holding forces in units
+            of the drive limits).
         out: The arrays of ``allocate_step`` (a ``StepArrays``).
         kernels: ``path_kernels(plant)``, if the caller keeps them (the single env's step saves finding them).
+        force: () for rate control, or for force control (inertia (N or 1, C_INERTIA_SIZE), twists ẋ (N, m) and
+            the arrays the step writes: ẋ' (N, m), efforts τ (N, n), holding forces τ_h (N, n)); the observation
+            then holds ẋ' and the period's mean actuator rates after k, and ``out.action`` is τ / τ_max.
     """
     if kernels is None:
         kernels = path_kernels(plant)
     if action.shape[0] >= PARALLEL_MIN_BATCH:
-        return _step_parallel(model, plant, observation, state, reference, action, out)
-    return kernels.step_serial(model, plant, *observation, *state, *reference, action, *out)
+        return _step_parallel(model, plant, observation, state, reference, action, out, force)
+    return kernels.step_serial(model, plant, *observation, *state, *reference, action, *out, *force)

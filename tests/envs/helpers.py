@@ -29,6 +29,11 @@ MAX_EPISODE_STEPS = {
     "ParallelRobotReach-v0": 200,
     "ParallelRobotReachHard-v0": 200,
     "ParallelRobotTrack-v0": 400,
+    "Planar3RPRForceReach-v0": 200,
+    "StewartGoughForceReach-v0": 200,
+    "DeltaForceReach-v0": 200,
+    "DeltaForceTrack-v0": 400,
+    "ParallelRobotForceReach-v0": 200,
 }
 
 #: The reward terms, whose sum is the reward (the Type I term is 0 for legs; the success term 0 by default).

@@ -62,7 +62,7 @@ def test_registry_matches_expected_ids():
     """ENV_IDS is exactly the documented set of ids, each registered; PLANAR_3RPR_IDS are its 3-RPR ones."""
     assert len(ENV_IDS) == len(set(ENV_IDS))
     assert set(ENV_IDS) == set(MAX_EPISODE_STEPS)
-    assert set(PLANAR_3RPR_IDS) == {i for i in MAX_EPISODE_STEPS if i.startswith("Planar3RPR")}
+    assert set(PLANAR_3RPR_IDS) == {i for i in MAX_EPISODE_STEPS if i.startswith("Planar3RPR") and "Force" not in i}
     assert len(PLANAR_3RPR_IDS) == 5
     for env_id in ENV_IDS:
         assert env_id in gym.registry, env_id
@@ -114,6 +114,7 @@ def test_spaces(env_id, make_env):
     assert isinstance(space, gym.spaces.Box)
     assert space.dtype == np.float32
     reach_size = {"spatial": 33, "planar": 18, "translational": 16}[robot.pose_space.name]  # Observation Space
+    reach_size += 2 * robot.n_pose if "Force" in env_id else 0  # the twist and the actuator rates
     codes = 2 * robot.base.shape[1] ** 2 if env.unwrapped.params.geometry_variation else 0  # a known geometry's
     assert space.shape == ((reach_size + robot.n_pose,) if "Track" in env_id else (reach_size + codes,))
     assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
@@ -203,8 +204,11 @@ def test_returned_arrays_are_fresh(env_id, make_env, rng):
             previous = None
 
 
-def _documented_observation(env: gym.Env) -> np.ndarray:
-    """The observation the Observation Space table describes for a planar robot, rebuilt from the state."""
+def _documented_observation(env: gym.Env, previous_q: np.ndarray | None = None) -> np.ndarray:
+    """The observation the Observation Space table describes for a planar robot, rebuilt from the state.
+
+    Under force control it holds ẋ and the actuator rates (q − ``previous_q``) / dt (0 without ``previous_q``).
+    """
     unwrapped = env.unwrapped
     params, state = unwrapped.params, unwrapped.state
     q, x = state.q[0], state.x[0]
@@ -227,11 +231,14 @@ def _documented_observation(env: gym.Env) -> np.ndarray:
         (robot.inverse_kinematics(target) - q) / (hi - lo),
         [robot.inverse_condition_number(q, x)],
     ]
+    force = params.control == "force"
+    if force:
+        parts += [state.twist[0], np.zeros(3) if previous_q is None else (q - previous_q) / params.dt]
     if unwrapped.with_velocity:
         parts.append(velocity)
     codes = [] if state.geometry is None else list(state.geometry[0])
     parts.append(codes)
-    assert env.observation_space.shape[0] == (21 if unwrapped.with_velocity else 18) + len(codes)
+    assert env.observation_space.shape[0] == (21 if unwrapped.with_velocity else 18) + 6 * force + len(codes)
     expected = np.concatenate([np.asarray(p, dtype=np.float64) for p in parts])
     return np.clip(expected, env.observation_space.low, env.observation_space.high)
 
@@ -252,9 +259,12 @@ def test_observation_matches_documented_layout(env_id, make_env, rng):
     env = make_env(env_id)
     obs, _ = env.reset(seed=6)
     np.testing.assert_allclose(obs, _documented_observation(env), rtol=0, atol=2e-6)
+    scale = 0.05 if env.unwrapped.params.control == "force" else 1.0  # efforts: small offsets keep episodes going
     for step in range(100):
-        obs, _, terminated, truncated, _ = env.step(rng.uniform(-1.0, 1.0, size=3).astype(np.float32))
-        np.testing.assert_allclose(obs, _documented_observation(env), rtol=0, atol=2e-6, err_msg=f"step {step}")
+        previous_q = env.unwrapped.state.q[0].copy()
+        obs, _, terminated, truncated, _ = env.step(rng.uniform(-scale, scale, size=3).astype(np.float32))
+        expected = _documented_observation(env, previous_q)
+        np.testing.assert_allclose(obs, expected, rtol=1e-6, atol=2e-6, err_msg=f"step {step}")
         if terminated or truncated:
             obs, _ = env.reset()
 

@@ -136,7 +136,7 @@ def _outside(check: Range | Choice | Vector) -> tuple[object, str]:
     if isinstance(check, Choice):
         return "nonsense", re.escape(f"must be one of {check.values}, got 'nonsense'")
     if isinstance(check, Vector):
-        size = {"m": 6, "n": 6}.get(check.size, check.size)  # the hexapod's
+        size = {"m": 6, "n": 6, "d": 3}.get(check.size, check.size)  # the hexapod's
         if check.element is None:
             return (0.0,) * (size + 1), re.escape(f"must be {size} finite numbers, got {(0.0,) * (size + 1)}")
         bad = check.element.low - (0.0 if check.element.low_open else 1.0)

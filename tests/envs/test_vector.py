@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
-from envs import ENV_IDS, FamilyReachEnv, FamilyReachVectorEnv, FamilyTrackVectorEnv, FamilyVectorEnv
+from envs import ENV_IDS, FORCE_IDS, FamilyReachEnv, FamilyReachVectorEnv, FamilyTrackVectorEnv, FamilyVectorEnv
 from tests.envs.helpers import INFO_KEYS, MAX_EPISODE_STEPS
 
 #: Short episodes, so that a few dozen steps hold several autoresets.
@@ -27,6 +27,7 @@ RARELY_TERMINATING = {
     "DeltaReachHard-v0",
     "ParallelRobotReach-v0",
     "ParallelRobotTrack-v0",
+    *FORCE_IDS,  # small efforts (the platforms drift slowly)
 }
 
 
@@ -138,7 +139,9 @@ def test_equals_sync_vector_env_of_single_envs(env_id, mode):
     assert_close(info_a, info_b, "reset")
     terminated = truncated = 0
     width = native.single_action_space.shape[0]
+    scale = 0.005 if "Force" in env_id else 1.0  # efforts: small offsets, or the platform flies off at once
     for step, actions in enumerate(large_actions(steps, N, hold=hold, width=width)):
+        actions = (actions * scale).astype(np.float32)
         result = native.step(actions)
         assert_step_close(result, sync.step(actions), f"{env_id} {mode.value}, step {step}")
         terminated += int(result[2].sum())

@@ -1,0 +1,213 @@
+"""Force control (``control="force"``): the compiled step against the NumPy dynamics, statics, the observation,
+the info, the vector env and the refusals.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from envs import physics
+from envs.kernels import generic as fk
+from envs.presets import build_family_params
+
+#: The force ids and the robots of the family behind them (and two crank/slider robots by name).
+FORCE_IDS = (
+    "Planar3RPRForceReach-v0",
+    "StewartGoughForceReach-v0",
+    "DeltaForceReach-v0",
+    "DeltaForceTrack-v0",
+    "ParallelRobotForceReach-v0",
+)
+ROBOTS = ("planar_3rpr", "stewart_gough", "delta", "planar_3rrr", "planar_3prr")
+
+
+def keep_rows(mask: np.ndarray) -> list[int]:
+    """The indices where ``mask`` is set."""
+    return np.flatnonzero(mask).tolist()
+
+
+def _starts(params, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """N poses of the task box the robot reaches with k ≥ safe_threshold, strokes inside the stops, and the strokes."""
+    rng = np.random.default_rng(seed)
+    m = params.robot.n_pose
+    poses = rng.uniform(params.sample_low, params.sample_high, size=(40 * n, m))
+    q, k, _, _, _ = fk.initial_batch(params.packed, poses)
+    lo, hi = params.stroke_limits
+    inside = ((q > lo + params.stroke_margin) & (q < hi - params.stroke_margin)).all(axis=1)
+    kept = np.isfinite(q).all(axis=1) & (k >= params.safe_threshold) & inside
+    assert kept.sum() >= n
+    return poses[kept][:n], q[kept][:n]
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_the_compiled_step_is_the_numpy_dynamics(robot):
+    """Against ``RobotDynamics.step`` (NumPy, its own RKMK4): efforts, poses, twists, strokes, residual ≤ 1e-10.
+
+    Random starts of the task box with random twists and actions (some saturating), ten periods in a row, the
+    efforts rebuilt from the NumPy holding forces: τ = clip(τ_h + a τ_max, ±τ_max).
+    """
+    params = build_family_params(robot, control="force", dynamics_substeps=3)
+    dynamics, limits = params.dynamics, np.asarray(params.force_limits)
+    x, q = _starts(params, 6, seed=1)
+    n, m = q.shape
+    rng = np.random.default_rng(2)
+    reference = physics.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = physics.initial_state(params, x, reference)
+    state = state._replace(twist=0.005 * rng.normal(size=(n, m)) / params.pose_metric)
+    for period in range(10):
+        action = rng.uniform(-0.05, 0.05, size=(len(state.q), m))
+        if period == 0:
+            action[0, 0] = 3.0  # clipped to 1, then τ to the limit
+        live = state.twist.copy(), state.x.copy()
+        new, outcome = physics.transition(params, state, action)
+        hold = dynamics.holding_forces(state.q, state.x)
+        tau = np.clip(hold + np.clip(action, -1.0, 1.0) * limits, -limits, limits)
+        np.testing.assert_allclose(outcome.hold, hold, rtol=1e-9, atol=1e-9 * limits.max())
+        np.testing.assert_allclose(outcome.effort, tau, rtol=1e-9, atol=1e-9 * limits.max())
+        np.testing.assert_allclose(outcome.action, tau / limits, atol=1e-12)
+        ok = outcome.reason == 0
+        assert ok.sum() >= 3, [physics.TERMINATION_REASONS[r] for r in outcome.reason]
+        # the documented substeps: at least 3, each moving at most max_substep at the period's starting speed
+        speed = np.linalg.norm(live[0] * params.pose_metric, axis=1)
+        count = np.clip(np.ceil(speed * params.dt / params.max_substep), 3, max(3, params.max_substeps)).astype(int)
+        rows = [dynamics.step(live[1][i], live[0][i], tau[i], params.dt, substeps=int(count[i])) for i in keep_rows(ok)]
+        want = type(rows[0])(*(np.array(field) for field in zip(*rows)))
+        np.testing.assert_allclose(new.x[ok], want.x, atol=1e-10)
+        np.testing.assert_allclose(new.twist[ok], want.xdot, atol=1e-7)
+        np.testing.assert_allclose(new.q[ok], want.q, atol=1e-10)
+        np.testing.assert_allclose(outcome.q_rate[ok], (want.q - state.q[ok]) / params.dt, atol=1e-8)
+        assert (new.residual[ok] <= 1e-10).all()
+        keep = np.flatnonzero(ok)
+        state = physics.FamilyState(
+            *(None if a is None else a[keep] for a in (new.q, new.x, new.t, new.det_sign)),
+            new.inverse_condition[keep], new.actuator_condition[keep], new.residual[keep],
+            physics.FamilyReference(*(a[keep] for a in reference[:3])), twist=new.twist[keep],
+        )  # fmt: skip
+        reference = state.reference
+
+
+@pytest.mark.parametrize("env_id", ["StewartGoughForceReach-v0", "DeltaForceReach-v0"])
+def test_a_zero_action_holds_the_platform_against_gravity(env_id):
+    """Zero action = the holding forces: from rest the platform stays put (statics τ = J_fᵀ G, gravity on)."""
+    env = gym.make(env_id)
+    env.reset(seed=3)
+    unwrapped = env.unwrapped
+    x0 = unwrapped.state.x[0].copy()
+    for _ in range(40):
+        _, _, terminated, _, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+        assert not terminated
+    np.testing.assert_allclose(unwrapped.state.x[0], x0, atol=1e-9)
+    np.testing.assert_allclose(unwrapped.state.twist[0], 0.0, atol=1e-8)
+    assert np.abs(info["holding_forces"]).max() > 0.1  # gravity is on
+    np.testing.assert_allclose(info["actuator_forces"], info["holding_forces"])
+
+
+def test_without_gravity_and_efforts_the_kinetic_energy_is_kept():
+    """τ = 0, g = 0 (a free mechanism): T = ½ ẋᵀ M ẋ (NumPy) drifts ≤ 1e-6 relative over 100 periods."""
+    params = build_family_params("stewart_gough", control="force", gravity=(0.0, 0.0, 0.0), dynamics_substeps=4)
+    x, _ = _starts(params, 1, seed=4)
+    reference = physics.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
+    state = physics.initial_state(params, x, reference)
+    state = state._replace(twist=np.array([[0.01, -0.02, 0.005, 0.05, -0.03, 0.04]]))
+    dynamics = params.dynamics
+    energy = [float(dynamics.kinetic_energy(state.q, state.x, state.twist)[0])]
+    for _ in range(100):
+        state, outcome = physics.transition(params, state, np.zeros((1, 6)))
+        assert outcome.reason[0] == 0 or physics.TERMINATION_REASONS[outcome.reason[0]] == "out_of_bounds"
+        np.testing.assert_array_equal(outcome.effort, 0.0)
+        energy.append(float(dynamics.kinetic_energy(state.q, state.x, state.twist)[0]))
+    energy = np.array(energy)
+    assert np.abs(energy / energy[0] - 1.0).max() <= 1e-6
+
+
+def test_the_observation_holds_the_twist_and_the_actuator_rates(make_env):
+    """The observation's ``twist`` and ``actuator_rates`` columns are ẋ and (q' − q) / dt, clipped to their bounds."""
+    env = make_env("DeltaForceReach-v0")
+    unwrapped = env.unwrapped
+    params = unwrapped.params
+    layout = fk.observation_layout("translational", 3, False, force=True)
+    obs, _ = env.reset(seed=5)
+    np.testing.assert_array_equal(obs[layout["twist"]], 0.0)
+    low, high = env.observation_space.low, env.observation_space.high
+    for action in ([0.3, -0.2, 0.1], [0.0, 0.0, 0.0], [-0.1, 0.2, 0.05]):
+        q0 = unwrapped.state.q[0].copy()
+        obs, _, terminated, _, _ = env.step(np.array(action, dtype=np.float32))
+        assert not terminated
+        twist, q1 = unwrapped.state.twist[0], unwrapped.state.q[0]
+        want_twist = np.clip(twist, low[layout["twist"]], high[layout["twist"]]).astype(np.float32)
+        want_rates = np.clip((q1 - q0) / params.dt, low[layout["actuator_rates"]], high[layout["actuator_rates"]])
+        np.testing.assert_allclose(obs[layout["twist"]], want_twist, rtol=1e-6)
+        np.testing.assert_allclose(obs[layout["actuator_rates"]], want_rates.astype(np.float32), rtol=1e-5, atol=1e-7)
+    assert obs.shape == (layout["actuator_rates"].stop,)
+
+
+def test_the_effort_penalty_and_the_saturation_info():
+    """reward_action = −w_a ‖τ / τ_max‖²; ``saturated`` is set exactly when a drive sits at its limit."""
+    env = gym.make("DeltaForceReach-v0")
+    _, info = env.reset(seed=6)
+    params = env.unwrapped.params
+    push = 1.0 if info["holding_forces"][0] >= 0.0 else -1.0  # towards the limit the holding force is on the side of
+    _, _, _, _, info = env.step(np.array([push, 0.0, 0.0], dtype=np.float32))
+    limits = np.asarray(params.force_limits)
+    np.testing.assert_allclose(
+        info["reward_action"], -params.action_weight * np.sum((info["actuator_forces"] / limits) ** 2)
+    )
+    assert info["saturated"] and abs(info["actuator_forces"][0]) == limits[0]
+    _, _, _, _, info = env.step(np.array([0.1, 0.0, 0.0], dtype=np.float32))
+    assert not info["saturated"]
+
+
+def test_the_vector_env_is_the_single_env():
+    """N single envs and the native vector env under force control: equal observations, rewards and infos."""
+    env_id, n = "StewartGoughForceReach-v0", 3
+    vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+    singles = [gym.make(env_id) for _ in range(n)]
+    obs, _ = vec.reset(seed=7)
+    for i, env in enumerate(singles):
+        np.testing.assert_array_equal(env.reset(seed=7 + i)[0], obs[i])
+    rng = np.random.default_rng(8)
+    for _ in range(6):
+        actions = rng.uniform(-0.05, 0.05, size=(n, 6)).astype(np.float32)
+        obs, rewards, terminations, _, info = vec.step(actions)
+        for i, env in enumerate(singles):
+            o, r, term, _, single = env.step(actions[i])
+            np.testing.assert_array_equal(o, obs[i])
+            assert r == rewards[i] and term == terminations[i]
+            np.testing.assert_array_equal(single["actuator_forces"], info["actuator_forces"][i])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", FORCE_IDS)
+def test_gymnasium_checks_every_force_id(env_id):
+    """Gymnasium's own ``check_env`` passes; the action space is the normalised efforts (n,)."""
+    env = gym.make(env_id)
+    check_env(env.unwrapped, skip_render_check=True)
+    assert env.action_space.shape == (env.unwrapped.params.robot.n_actuators,)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"force_limits": (1.0, -2.0, 3.0)}, "force_limits must be 3 numbers > 0"),
+        ({"gravity": (0.0, 0.0, -9.8)}, "gravity must be 2 finite numbers"),
+        ({"dynamics_substeps": 0}, "dynamics_substeps"),
+        ({"control": "torque"}, "control must be one of"),
+        ({"observation_source": "encoders"}, "control='force' supports observation_source='pose'"),
+        ({"inertia": {"platform_mass": -1.0}}, "inertial data needs"),
+    ],
+)
+def test_bad_force_arguments_are_refused(kwargs, match):
+    """Bad force-control arguments raise errors that name them (3-RPR: n = 3, planar points d = 2)."""
+    with pytest.raises((ValueError, TypeError), match=match):
+        build_family_params("planar_3rpr", **{"control": "force", **kwargs})
+
+
+def test_rate_control_is_unchanged_by_the_force_fields():
+    """The default stays rate control: no twist in the state, the observation without the force columns."""
+    env = gym.make("DeltaReach-v0")
+    obs, info = env.reset(seed=0)
+    assert env.unwrapped.state.twist is None and "actuator_forces" not in info
+    assert obs.shape == (fk.observation_layout("translational", 3, False)["k"].stop,)
