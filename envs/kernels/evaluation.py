@@ -341,9 +341,9 @@ def _evaluate_rows(path, space, cs, observation, measured, reference, outcome, m
     See ``envs.physics.evaluate``. Robot i has the row of constants ``_row(cs, i)``; the other args as
     ``evaluate_batch``; ``motion`` is None (rate control) or force control's (twists ẋ (N, m), actuator rates
     (N, n)), which the observation holds after k; ``out`` is (evaluation, observations). ``path`` is the row path
-    and ``space`` the pose space, compile-time constants: the overloads of the target's inverse kinematics, the pose comparison and the
-    pose code compile that path's and that space's code only. One compiled call
-    per block of robots, the row's code inlined in it.
+    and ``space`` the pose space, compile-time constants: the overloads of the target's inverse kinematics, the
+    pose comparison and the pose code compile that path's and that space's code only. One compiled call per block
+    of robots, the row's code inlined in it.
     """
     raise NotImplementedError("compiled only (see its overload)")
 

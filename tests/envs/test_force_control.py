@@ -1,5 +1,6 @@
-"""Force control (``control="force"``): the compiled step against the NumPy dynamics, statics, the observation,
-the info, the vector env and the refusals.
+"""Force control (``control="force"``): the compiled step against the NumPy dynamics, and the env around it.
+
+Statics, the observation, the info, the vector env and the refusals.
 """
 
 from __future__ import annotations
