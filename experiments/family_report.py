@@ -6,7 +6,7 @@ has its 95 % interval (``training.intervals``: rliable's stratified bootstrap ov
 are not resampled) beside its mean ± std over runs. Evaluations of
 the planner (``--controller planner``) also get a table of its plans: how often a certified path was found,
 its length against the straight line, its smallest k and the planning time per episode; Track evaluations a
-table of their tracking errors.
+table of their tracking errors; force-control evaluations a table of their drive efforts.
 """
 
 from __future__ import annotations
@@ -117,6 +117,29 @@ def tracking_table(groups: dict[str, list[dict]]) -> str:
     return "\n".join(lines) + f"\n\nAfter a settling time of {settling:g} s.\n"
 
 
+def effort_table(groups: dict[str, list[dict]]) -> str:
+    """A Markdown table of the drive efforts of the groups under force control (``peak_effort``); "" if none.
+
+    Peak effort: the largest |τ_i| / τ_max,i of an episode (1: a drive at its limit); saturation: the fraction of
+    its steps with a drive at its limit. Means over the group's episodes (runs weighted by their episodes).
+    """
+    rows = {label: ms for label, ms in groups.items() if all("peak_effort" in m for m in ms)}
+    if not rows:
+        return ""
+    lines = [
+        "| agent @ targets | episodes | peak effort abs(τ) / τ_max (mean / median / max) | saturated steps (mean) |",
+        "|---|---|---|---|",
+    ]
+    for label, ms in rows.items():
+        episodes = sum(m["episodes"] for m in ms)
+        mean = sum(m["peak_effort"]["mean"] * m["episodes"] for m in ms) / episodes
+        median = statistics.mean(m["peak_effort"]["median"] for m in ms)
+        peak = max(m["peak_effort"]["max"] for m in ms)
+        saturated = sum(m["saturation_fraction"]["mean"] * m["episodes"] for m in ms) / episodes
+        lines.append(f"| {label} | {episodes} | {mean:.2f} / {median:.2f} / {peak:.2f} | {100 * saturated:.1f} % |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Group the evaluations by agent and target set (their label without the run name) and write the table."""
     parser = argparse.ArgumentParser(prog="python -m experiments.family_report", description=__doc__.split("\n")[0])
@@ -146,11 +169,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.by_env:
             label = f"{agent}{' + shield' if shielded else ''} @ {metrics.get('env_id')} ({targets})"
         groups.setdefault(label, []).append(metrics)
-    plans, tracking = planner_table(groups), tracking_table(groups)
+    plans, tracking, efforts = planner_table(groups), tracking_table(groups), effort_table(groups)
     Path(args.out).write_text(
         table(groups, args.with_return)
         + (f"\nThe planner's plans:\n\n{plans}" if plans else "")
         + (f"\nTracking:\n\n{tracking}" if tracking else "")
+        + (f"\nDrive efforts (force control):\n\n{efforts}" if efforts else "")
     )
     return 0
 

@@ -115,6 +115,7 @@ def _episode_record(
     series: dict[str, np.ndarray],
     costs: np.ndarray,
     planner: dict[str, float] | None,
+    efforts: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> EpisodeRecord:
     """The record of one finished episode.
 
@@ -127,6 +128,7 @@ def _episode_record(
             "is_success" (T + 1,): from the reset to the last step.
         costs: ``cost`` per step, shape (T,).
         planner: The planning agent's ``episode_metrics``, or None.
+        efforts: Under force control, (largest |τ_i| / τ_max,i, saturated) per step, each shape (T,); else None.
     """
     reason = last["termination_reason"]
     tracking = None
@@ -156,7 +158,17 @@ def _episode_record(
         tracking=tracking,
         planner=planner,
         time_to_target_s=float(reached[0] * dt) if reached.size and dt is not None else None,
+        peak_effort=None if efforts is None or not efforts[0].size else float(np.max(efforts[0])),
+        saturation_fraction=None if efforts is None or not efforts[1].size else float(np.mean(efforts[1])),
     )
+
+
+def _efforts(base: Any, info: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
+    """(largest |τ_i| / τ_max,i, saturated) of a step's info (single env: scalars; vector: (N,)); None for rates."""
+    if "actuator_forces" not in info:
+        return None
+    limits = np.asarray(base.params.force_limits)
+    return np.max(np.abs(np.asarray(info["actuator_forces"])) / limits, axis=-1), np.asarray(info["saturated"])
 
 
 #: The per-step info entries an episode record keeps.
@@ -193,6 +205,7 @@ def evaluate_agent(
         obs, info = env.reset(seed=seed + episode, options=options)
         series = {key: [info[key]] for key in _SERIES}
         costs: list[float] = []
+        efforts: list[tuple[np.ndarray, np.ndarray]] = []
         total, done = 0.0, False
         film = frames is not None and episode < video_episodes
         if film:
@@ -206,11 +219,17 @@ def evaluate_agent(
             for key in _SERIES:
                 series[key].append(info[key])
             costs.append(info["cost"])
+            effort = _efforts(env.unwrapped, info)
+            if effort is not None:
+                efforts.append(effort)
             if film:
                 frames.append(env.render())
         planner = agent.episode_metrics() if hasattr(agent, "episode_metrics") else None
         arrays = {key: np.array(values) for key, values in series.items()}
-        records.append(_episode_record(env.unwrapped, episode, info, total, arrays, np.array(costs), planner))
+        effort_series = tuple(np.array(column) for column in zip(*efforts)) if efforts else None
+        records.append(
+            _episode_record(env.unwrapped, episode, info, total, arrays, np.array(costs), planner, effort_series)
+        )
     return records
 
 
@@ -250,6 +269,7 @@ def evaluate_vector(
     obs, info = venv.reset(seed=seed, options=options)
     series = {key: [np.array(info[key])] for key in _SERIES}
     costs: list[np.ndarray] = []
+    efforts: list[tuple[np.ndarray, np.ndarray]] = []
     totals = np.zeros(n)
     active = np.ones(n, dtype=bool)
     ends: dict[int, tuple[int, dict[str, Any], dict[str, float] | None]] = {}
@@ -259,6 +279,9 @@ def evaluate_vector(
         for key in _SERIES:
             series[key].append(np.array(info[key]))
         costs.append(np.array(info["cost"]))
+        effort = _efforts(venv.unwrapped, info)
+        if effort is not None:
+            efforts.append(effort)
         for i in np.flatnonzero(active & (terminated | truncated)):
             last = {
                 "is_success": bool(info["is_success"][i]),
@@ -271,12 +294,16 @@ def evaluate_vector(
             active[i] = False
     stacked = {key: np.stack(values) for key, values in series.items()}
     cost_steps = np.stack(costs)
+    peaks, saturated = (np.stack(column) for column in zip(*efforts)) if efforts else (None, None)
     records = []
     for i in range(n):
         length, last, planner = ends[i]
         row = {key: np.ascontiguousarray(values[: length + 1, i]) for key, values in stacked.items()}
+        effort = None if peaks is None else (peaks[:length, i], saturated[:length, i])
         records.append(
-            _episode_record(venv.unwrapped, i, last, float(totals[i]), row, cost_steps[:length, i].copy(), planner)
+            _episode_record(
+                venv.unwrapped, i, last, float(totals[i]), row, cost_steps[:length, i].copy(), planner, effort
+            )
         )
     return records
 
@@ -359,6 +386,12 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
         }
     reached = [r.time_to_target_s for r in records if r.time_to_target_s is not None]
     time_to_target = {"time_to_target_s": {**stats(reached), "episodes": len(reached)}} if reached else {}
+    force = {}
+    if records and all(r.peak_effort is not None for r in records):
+        force = {
+            "peak_effort": {**stats([r.peak_effort for r in records]), "max": max(r.peak_effort for r in records)},
+            "saturation_fraction": stats([r.saturation_fraction for r in records]),
+        }
     return {
         "episodes": len(records),
         "success_rate": float(np.mean([r.success for r in records])),
@@ -376,4 +409,5 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
         **tracking,
         **planner,
         **time_to_target,
+        **force,
     }

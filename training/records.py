@@ -35,6 +35,8 @@ class EpisodeRecord:
             smallest k and the planning time [s]; None otherwise.
         time_to_target_s: Time from the reset to the end of the first step within the success tolerances [s]
             (steps × dt); None if no step was, or if the env has no ``params.dt``.
+        peak_effort: Under force control, the largest |τ_i| / τ_max,i of the episode; else None.
+        saturation_fraction: Under force control, the fraction of steps with a drive at its limit; else None.
     """
 
     episode: int
@@ -53,6 +55,8 @@ class EpisodeRecord:
     tracking: dict[str, float] | None = field(default=None, repr=False)
     planner: dict[str, float] | None = field(default=None, repr=False)
     time_to_target_s: float | None = None
+    peak_effort: float | None = None
+    saturation_fraction: float | None = None
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, for ``episodes.csv`` (the tracking metrics go to ``metrics.json``)."""

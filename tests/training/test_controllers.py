@@ -9,13 +9,20 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from envs import PLANAR_3RPR_IDS
-from robot_control.controllers import CONTROLLERS, PlannerController, ResolvedRateController, SingularityAwareController
+from envs import FORCE_IDS, PLANAR_3RPR_IDS
+from robot_control.controllers import (
+    CONTROLLERS,
+    ComputedTorqueAgent,
+    PlannerController,
+    ResolvedRateController,
+    SingularityAwareController,
+)
 from tests.training.conftest import REACH
 from training import evaluate
 from training.evaluate import EvaluationError, aggregate, evaluate_agent, load_controller
 
-NAMES = sorted(CONTROLLERS)
+#: The rate-control controllers (computed torque drives force control: ``test_computed_torque_*``).
+NAMES = sorted(name for name in CONTROLLERS if name != ComputedTorqueAgent.name)
 EPISODES = 5
 
 
@@ -31,11 +38,16 @@ def hard_results() -> dict[str, dict]:
         env.close()
 
 
-def _observations(make_env, env_id: str, count: int, rng: np.random.Generator) -> np.ndarray:
-    """Real observations of ``env_id``: resets (standard and, for Reach, hard targets) and random-action steps."""
+def _observations(
+    make_env, env_id: str, count: int, rng: np.random.Generator, with_hard: bool = True, scale: float = 1.0
+) -> np.ndarray:
+    """Real observations of ``env_id``: resets (standard and, for Reach, hard targets) and random-action steps.
+
+    ``with_hard=False``: standard targets only; ``scale``: the random actions' size.
+    """
     env = make_env(env_id)
     env.action_space.seed(int(rng.integers(1 << 31)))
-    hard = "targets" in type(env.unwrapped).reset_options
+    hard = with_hard and "targets" in type(env.unwrapped).reset_options
     obs_list = []
     episode = 0
     while len(obs_list) < count:
@@ -43,7 +55,7 @@ def _observations(make_env, env_id: str, count: int, rng: np.random.Generator) -
         obs, _ = env.reset(seed=int(rng.integers(1 << 31)), options=options)
         obs_list.append(obs)
         for _ in range(int(rng.integers(0, 40))):
-            obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            obs, _, terminated, truncated, _ = env.step(scale * env.action_space.sample())
             obs_list.append(obs)
             if terminated or truncated:
                 break
@@ -52,8 +64,9 @@ def _observations(make_env, env_id: str, count: int, rng: np.random.Generator) -
 
 
 def test_registry_names():
-    """The command-line names map to the three controller classes."""
+    """The command-line names map to the four controller classes."""
     assert CONTROLLERS == {
+        "computed-torque": ComputedTorqueAgent,
         "planner": PlannerController,
         "resolved-rate": ResolvedRateController,
         "singularity-aware": SingularityAwareController,
@@ -105,7 +118,10 @@ def test_unknown_controller_lists_choices(make_env):
     """load_controller with an unknown name raises EvaluationError listing the valid names."""
     with pytest.raises(
         EvaluationError,
-        match=r"unknown controller 'pid'; valid choices: \['planner', 'resolved-rate', 'singularity-aware'\]",
+        match=(
+            r"unknown controller 'pid'; valid choices: "
+            r"\['computed-torque', 'planner', 'resolved-rate', 'singularity-aware'\]"
+        ),
     ):
         load_controller("pid", make_env(REACH))
 
@@ -269,3 +285,33 @@ def test_singularity_aware_control_at_the_edge_of_a_crank_robots_reach():
     assert np.isfinite(k[0]) and np.isnan(k[1])
     velocity = controller.desired_velocity(pose[None], np.array([[0.01, 0.0, 0.0]]), np.zeros((1, 3)))
     assert np.all(np.isfinite(velocity))
+
+
+@pytest.mark.parametrize("env_id", FORCE_IDS)
+def test_computed_torque_actions_are_bounded_and_batched(env_id, make_env):
+    """On real force-control observations: finite float32 in [-1, 1], a batch equal to one-row calls stacked."""
+    env = make_env(env_id)
+    agent = load_controller("computed-torque", env)
+    obs = _observations(make_env, env_id, 40, np.random.default_rng(3), with_hard=False, scale=0.1)
+    actions = agent(obs)
+    n = env.action_space.shape[0]
+    assert actions.shape == (len(obs), n) and actions.dtype == np.float32
+    assert np.all(np.isfinite(actions)) and np.all(np.abs(actions) <= 1.0)
+    stacked = np.concatenate([agent(obs[i : i + 1]) for i in range(5)])
+    np.testing.assert_allclose(actions[:5], stacked, rtol=0, atol=1e-6)
+
+
+def test_computed_torque_reaches_standard_targets_of_the_delta(make_env):
+    """Computed torque on DeltaForceReach-v0: 5 of 5 standard targets, no singularity termination."""
+    env = make_env("DeltaForceReach-v0")
+    metrics = aggregate(evaluate_agent(load_controller("computed-torque", env), env, EPISODES, 0, "standard"))
+    assert metrics["success_rate"] == 1.0 and metrics["singularity_terminations"] == 0
+    assert 0.0 < metrics["peak_effort"]["max"] <= 1.0
+
+
+def test_each_controller_refuses_the_other_control_mode(make_env):
+    """Rate controllers refuse a force-control env and computed torque a rate-control one, saying why."""
+    with pytest.raises(EvaluationError, match=r"resolved-rate commands stroke rates \(control='rate'\)"):
+        load_controller("resolved-rate", make_env("DeltaForceReach-v0"))
+    with pytest.raises(EvaluationError, match=r"computed-torque commands efforts \(control='force'\)"):
+        load_controller("computed-torque", make_env("DeltaReach-v0"))

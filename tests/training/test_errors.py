@@ -121,7 +121,8 @@ def test_evaluate_missing_or_corrupt_normalisation(make_run_folder, tmp_path, ca
 def test_evaluate_unknown_controller(tmp_path, capsys, name):
     """An unknown controller name lists the valid ones."""
     err = _exit_message(evaluate.main, ["--controller", name, "--episodes", "1", "--out", str(tmp_path)], capsys)
-    assert f"unknown controller {name!r}; valid choices: ['planner', 'resolved-rate', 'singularity-aware']" in err
+    valid = "['computed-torque', 'planner', 'resolved-rate', 'singularity-aware']"
+    assert f"unknown controller {name!r}; valid choices: {valid}" in err
 
 
 @pytest.mark.parametrize("value", ["0", "1.5", "-0.1"])
