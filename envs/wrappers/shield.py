@@ -10,7 +10,11 @@ leave the robot below a guard level of the inverse condition number:
 
     a, a/2, a/4, a/8, 0 — the first candidate that does not terminate and ends with k' ≥ min(k_guard, k).
 
-The zero action leaves strokes and pose unchanged, so a safe candidate always exists. The dynamics,
+The zero action leaves strokes and pose unchanged, so a safe candidate always exists. Under force control
+(``control="force"``) the candidates are tried with the equations of motion one period ahead, and the last resort is
+the braking effort instead (``brake_actions``: the computed-torque effort that would stop the platform within one
+period, clipped to the drive limits), since a zero offset holds a platform at rest but does not stop a moving one.
+That is not a guarantee: momentum can carry a fast platform past the guard before the drives stop it. The dynamics,
 rewards and termination rules are those of the environment; the cost is one to four extra
 ``core.transition`` calls per step (the accepted candidate is computed again by ``env.step``).
 ``shield_actions`` is the filter on a batch of robots; ``SingularityShield`` applies it to the single env and
@@ -26,8 +30,9 @@ import gymnasium as gym
 import numpy as np
 
 from envs.physics import transition
+from kinematics import SingularConfigurationError
 
-__all__ = ["SHIELD_SCALES", "SingularityShield", "VectorSingularityShield", "shield_actions"]
+__all__ = ["SHIELD_SCALES", "SingularityShield", "VectorSingularityShield", "brake_actions", "shield_actions"]
 
 #: Action scales tried in order; the last (zero) is always safe.
 SHIELD_SCALES = (1.0, 0.5, 0.25, 0.125, 0.0)
@@ -44,7 +49,8 @@ def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[
 
     Returns:
         (actions (N, n) float32: row i is its proposal times the first scale of ``SHIELD_SCALES`` whose step does
-        not terminate and ends with k' ≥ min(k_guard, k), else zero; the scales (N,) float64).
+        not terminate and ends with k' ≥ min(k_guard, k), else zero (under force control the braking effort,
+        ``brake_actions``); the scales (N,) float64).
     """
     proposed = np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0)
     k_now = np.asarray(state.inverse_condition, dtype=np.float64)
@@ -57,7 +63,40 @@ def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[
         open_rows &= ~accept
         if not open_rows.any():
             break
-    return (proposed * scales[:, None]).astype(np.float32), scales
+    actions = proposed * scales[:, None]
+    if params.control == "force" and open_rows.any():
+        actions[open_rows] = brake_actions(params, state)[open_rows]
+    return actions.astype(np.float32), scales
+
+
+def brake_actions(params, state) -> np.ndarray:
+    """Force control: the actions whose efforts would stop each platform within one period, clipped.
+
+    τ_b = J_fᵀ (M(x) (−ẋ / dt) + c(x, ẋ) + G(x)) (``kinematics.dynamics``, the nominal model), as an offset from
+    the holding forces τ_h = J_fᵀ G in units of the drive limits, clipped to [−1, 1]; 0 where J_x is singular.
+
+    Args:
+        params: The environment's ``FamilyParams`` (``control="force"``).
+        state: The robots' ``FamilyState`` (N rows, with twists).
+
+    Returns:
+        Actions, shape (N, n) float64.
+    """
+    dynamics, robot = params.dynamics, params.robot
+    q, x, twist = state.q, state.x, state.twist
+    M = dynamics.mass_matrix(q, x)
+    wrench = np.einsum("Nij,Nj->Ni", M, -twist / params.dt) + dynamics.bias_forces(q, x, twist)
+    offset = wrench - dynamics.gravity_forces(q, x)  # τ_b − τ_h = J_fᵀ (M (−ẋ / dt) + c)
+    try:
+        effort = robot.actuator_forces(q, x, offset, validate=False)
+    except SingularConfigurationError:  # a row at a singularity (an ended episode): row by row, 0 there
+        effort = np.zeros_like(q)
+        for i in range(len(q)):
+            try:
+                effort[i] = robot.actuator_forces(q[i], x[i], offset[i], validate=False)
+            except SingularConfigurationError:
+                continue
+    return np.clip(np.nan_to_num(effort / np.asarray(params.force_limits)), -1.0, 1.0)
 
 
 def _guard(k_guard: Any) -> float:

@@ -212,3 +212,47 @@ def test_rate_control_is_unchanged_by_the_force_fields():
     obs, info = env.reset(seed=0)
     assert env.unwrapped.state.twist is None and "actuator_forces" not in info
     assert obs.shape == (fk.observation_layout("translational", 3, False)["k"].stop,)
+
+
+def _moving_delta(twist: tuple[float, float, float]):
+    """A DeltaForceReach-v0 env after reset, its platform given the twist ``twist`` [m/s]."""
+    env = gym.make("DeltaForceReach-v0")
+    env.reset(seed=9)
+    unwrapped = env.unwrapped
+    unwrapped._state = unwrapped._state._replace(twist=np.array([twist], dtype=np.float64))
+    return env, unwrapped
+
+
+def test_the_brake_stops_a_moving_platform():
+    """``brake_actions``: one period of its efforts takes ‖ẋ‖ down by ≥ 90 %; a zero offset keeps ≥ 90 % of it."""
+    from envs.wrappers.shield import brake_actions
+
+    speeds = []
+    for use_brake in (True, False):
+        env, unwrapped = _moving_delta((0.05, -0.03, 0.02))
+        before = np.linalg.norm(unwrapped.state.twist[0])
+        action = brake_actions(unwrapped.params, unwrapped.state)[0] if use_brake else np.zeros(3)
+        _, _, terminated, _, info = env.step(action.astype(np.float32))
+        assert not terminated and not info["saturated"]
+        speeds.append(np.linalg.norm(unwrapped.state.twist[0]) / before)
+    assert speeds[0] <= 0.1 and speeds[1] >= 0.9, speeds
+
+
+def test_the_shield_falls_back_on_the_brake_under_force_control():
+    """When every scaled candidate ends the episode, the shield applies the braking effort, not a zero offset."""
+    from envs.wrappers.shield import brake_actions, shield_actions
+
+    env, unwrapped = _moving_delta((0.0, 0.0, 0.0))
+    params = unwrapped.params
+    gap = unwrapped.state.x[0, 2] - params.pose_low[2]
+    env, unwrapped = _moving_delta((0.0, 0.0, -1.5 * gap / params.dt))  # falling: past the lower bound in a period
+    state = unwrapped.state
+    proposed = np.array([[-1.0, -1.0, -1.0]])
+    _, outcome = physics.transition(params, state, proposed)
+    assert outcome.reason[0] != 0  # the proposal ends the episode
+    actions, scales = shield_actions(params, state, proposed, 0.05)
+    if scales[0] == 0.0:
+        np.testing.assert_allclose(actions[0], brake_actions(params, state)[0].astype(np.float32))
+        assert np.abs(actions[0]).max() > 0.1
+    else:  # a smaller push was safe after all: it must then be one of the scaled proposals
+        assert scales[0] in (0.5, 0.25, 0.125)
