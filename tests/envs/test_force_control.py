@@ -242,10 +242,10 @@ def test_the_shield_falls_back_on_the_brake_under_force_control():
     """When every scaled candidate ends the episode, the shield applies the braking effort, not a zero offset."""
     from envs.wrappers.shield import brake_actions, shield_actions
 
-    env, unwrapped = _moving_delta((0.0, 0.0, 0.0))
+    _, unwrapped = _moving_delta((0.0, 0.0, 0.0))
     params = unwrapped.params
     gap = unwrapped.state.x[0, 2] - params.pose_low[2]
-    env, unwrapped = _moving_delta((0.0, 0.0, -1.5 * gap / params.dt))  # falling: past the lower bound in a period
+    _, unwrapped = _moving_delta((0.0, 0.0, -1.5 * gap / params.dt))  # falling: past the lower bound in a period
     state = unwrapped.state
     proposed = np.array([[-1.0, -1.0, -1.0]])
     _, outcome = physics.transition(params, state, proposed)
