@@ -48,12 +48,10 @@ from envs.kernels.dynamics_layout import (
     D_ACC,
     D_BIAS,
     D_FORCE,
-    D_JT,
     D_LU,
     D_M,
     D_RHS,
     D_SIZE,
-    D_ZERO,
     I_AMASS,
     I_ARM,
     I_COM,
@@ -78,10 +76,8 @@ __all__ = [
     "C_INERTIA_SIZE",
     "acceleration",
     "bias_batch",
-    "dexp_inverse",
     "equations",
     "forward_dynamics_batch",
-    "holding",
     "mass_matrix_batch",
     "pack_inertia",
     "path_kernels",
@@ -480,122 +476,6 @@ def _acceleration(path, c, ci, q, x, xdot, tau, wd, out):
         return solve_acceleration(path, M, bias, force, wd, out)
 
     return of
-
-
-@jit
-def _column3(c, i, q, p0, p1, p2, cs, sn, translational):
-    """K_iᵀ g_i, column i of J_iᵀ, of three actuators on the planar (cs, sn of φ) or translational pose space."""
-    P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
-    r0, r1 = cs * P0 - sn * P1, sn * P0 + cs * P1
-    g0, g1, g2 = _direction(c, i, q[i], p0 + r0, p1 + r1, p2 + P2)
-    return _wrench3(translational, r0, r1, g0, g1, g2)
-
-
-@jit
-def _holding3(c, ci, q, x):
-    """τ_h with J_iᵀ τ_h = G of three actuators, planar or translational (a tuple; NaN where J_i is singular)."""
-    zero = (0.0, 0.0, 0.0)
-    _, G, _ = _terms3(c, ci, q, x, zero, zero)
-    translational = c[C_TRANSLATIONAL] != 0.0
-    if translational:
-        cs, sn, p2 = 1.0, 0.0, x[2]
-    else:
-        cs, sn, p2 = math.cos(x[2]), math.sin(x[2]), 0.0
-    a = _column3(c, 0, q, x[0], x[1], p2, cs, sn, translational)
-    b = _column3(c, 1, q, x[0], x[1], p2, cs, sn, translational)
-    d = _column3(c, 2, q, x[0], x[1], p2, cs, sn, translational)
-    t0, t1, t2, _ = solve3(a[0], b[0], d[0], a[1], b[1], d[1], a[2], b[2], d[2], G[0], G[1], G[2])
-    return t0, t1, t2
-
-
-@jit
-def _holding_work(c, ci, q, x, wd, out):
-    """τ_h with J_iᵀ τ_h = G into out, on any pose space (J_iᵀ in rows D_JT, G in row D_BIAS of wd)."""
-    m = int(c[C_N])
-    zero = wd[D_ZERO, :m]
-    _terms_work(c, ci, q, x, zero, zero, wd)
-    spatial = c[C_SPATIAL] != 0.0
-    translational = c[C_TRANSLATIONAL] != 0.0
-    p0, p1, p2, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _frame(c, x)
-    for i in range(m):
-        P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
-        r0 = r00 * P0 + r01 * P1 + r02 * P2
-        r1 = r10 * P0 + r11 * P1 + r12 * P2
-        r2 = r20 * P0 + r21 * P1 + r22 * P2
-        g0, g1, g2 = _direction(c, i, q[i], p0 + r0, p1 + r1, p2 + r2)
-        G = _wrench(spatial, translational, r0, r1, r2, g0, g1, g2)
-        for j in range(m):
-            wd[D_JT + j, i] = G[j]
-    if m == 3:
-        a, b, d, G = wd[D_JT], wd[D_JT + 1], wd[D_JT + 2], wd[D_BIAS]
-        out[0], out[1], out[2], _ = solve3(a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], G[0], G[1], G[2])
-    else:
-        solve6(wd[D_JT : D_JT + 6], wd[D_BIAS], wd[D_LU : D_LU + 6], out)
-
-
-def holding(path, c, ci, q, x, wd, out):
-    """The holding forces τ_h, J_iᵀ τ_h = G(x): the efforts that hold the platform still at (q, x) against gravity.
-
-    NaN where J_i is singular. A vector of the path (the work path writes it to ``out``, a row of ``wd``).
-    """
-    return paths._compiled_only()
-
-
-@overload(holding, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _holding(path, c, ci, q, x, wd, out):
-    if _literal_path(path) == WORK_ARRAYS:
-
-        def work(path, c, ci, q, x, wd, out):
-            out = out[: x.shape[0]]
-            _holding_work(c, ci, q, x, wd, out)
-            return out
-
-        return work
-    return lambda path, c, ci, q, x, wd, out: _holding3(c, ci, q, x)
-
-
-@jit
-def _dexp_inverse6(direction, scale, nu, out):
-    """ξ̇ of the spatial twist ν in the chart x = retract(x_0, ξ), ξ = scale · direction (``RobotDynamics``).
-
-    ξ̇ = ω − ½ ξ × ω + (1/θ² − (1 + cos θ) / (2 θ sin θ)) ξ × (ξ × ω) on the rotation, θ = |ξ|; v unchanged.
-    """
-    for j in range(6):
-        out[j] = nu[j]
-    t0, t1, t2 = scale * direction[3], scale * direction[4], scale * direction[5]
-    o0, o1, o2 = nu[3], nu[4], nu[5]
-    angle = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-    if angle < 1e-4:
-        coefficient = 1.0 / 12.0 + angle * angle / 720.0
-    else:
-        coefficient = 1.0 / (angle * angle) - (1.0 + math.cos(angle)) / (2.0 * angle * math.sin(angle))
-    c0, c1, c2 = t1 * o2 - t2 * o1, t2 * o0 - t0 * o2, t0 * o1 - t1 * o0
-    out[3] = o0 - 0.5 * c0 + coefficient * (t1 * c2 - t2 * c1)
-    out[4] = o1 - 0.5 * c1 + coefficient * (t2 * c0 - t0 * c2)
-    out[5] = o2 - 0.5 * c2 + coefficient * (t0 * c1 - t1 * c0)
-
-
-def dexp_inverse(path, c, direction, scale, nu, out):
-    """ξ̇ from the twist ν at ξ = scale · direction in the chart ξ ↦ retract(x_0, ξ): ν but for spatial rotations."""
-    return paths._compiled_only()
-
-
-@overload(dexp_inverse, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _dexp_inverse(path, c, direction, scale, nu, out):
-    if _literal_path(path) == WORK_ARRAYS:
-
-        def work(path, c, direction, scale, nu, out):
-            m = nu.shape[0]
-            out = out[:m]
-            if c[C_SPATIAL] != 0.0:
-                _dexp_inverse6(direction, scale, nu, out)
-            else:
-                for j in range(m):
-                    out[j] = nu[j]
-            return out
-
-        return work
-    return lambda path, c, direction, scale, nu, out: nu
 
 
 # -- the batches ----------------------------------------------------------------------------------------------

@@ -3,9 +3,11 @@
 The entry kernels take their arrays flat and gather them in the records of ``envs.kernels.records``: the
 transition reads a ``Motion`` and writes a ``Moved``; the evaluation reads an ``Observation``, a ``Measured``, a
 ``Reference`` and an ``Outcome``; the fused step writes a ``StepArrays``. One body steps every robot:
-``_advance`` (predict, correct), then ``_transition_rows`` (measure, terminate), on the vectors of its row path
-(``envs.kernels.paths``). The row path and the pose space are compile-time constants of the entry kernels
-(``path_kernels``), so a robot compiles its own path and pose space only.
+``force.advance`` (predict, correct: ``rate.advance_rate`` under rate control, ``force.advance_force`` under force
+control, chosen at compile time by whether the step has a ``Dynamics`` record), then ``_transition_rows``
+(measure, terminate), on the vectors of its row path (``envs.kernels.paths``). The row path and the pose space
+are compile-time constants of the entry kernels (``path_kernels``), so a robot compiles its own path and pose
+space only.
 
 Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
 chunk of the parallel step, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD
@@ -28,7 +30,7 @@ from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
 from envs.kernels.dynamics import _dynamics_work
 from envs.kernels.evaluation import _evaluate_rows
-from envs.kernels.force import advance_force
+from envs.kernels.force import advance, from_extra, motion_from, motion_of, own_work, with_dynamics
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
@@ -36,7 +38,6 @@ from envs.kernels.layout import (
     _OUT_OF_BOUNDS,
     _SINGULAR,
     _SINGULARITY_CROSSED,
-    C_DT,
     C_HARD,
     C_HARD1,
     C_HIGH,
@@ -44,12 +45,7 @@ from envs.kernels.layout import (
     C_LMAX,
     C_LMIN,
     C_LOW,
-    C_MAX_SUBSTEP,
-    C_MAX_SUBSTEPS,
     C_N,
-    C_NEWTON_IT,
-    C_NEWTON_TOL,
-    C_RK4,
     E_FIXED,
     L_ACTIVE,
     L_FLAGS,
@@ -59,23 +55,10 @@ from envs.kernels.layout import (
     L_WORST,
     LANES_ROWS,
     W_A,
-    W_ACT,
-    W_K1,
-    W_K2,
-    W_K3,
     W_KQ,
-    W_KX,
-    W_NQ,
-    W_PRED,
-    W_QM,
-    W_QR,
-    W_T,
-    W_V,
-    W_XM,
 )
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
-from envs.kernels.pose import _all_finite
 from envs.kernels.records import Dynamics, Measured, Motion, Moved, Observation, Outcome, Reference, StepArrays
 from envs.kernels.setup import PARALLEL_MIN_BATCH, jit, jit_inline, jit_parallel
 
@@ -136,186 +119,6 @@ def termination_reason(c, failed, jump, sign, mode, k, out, k1):
 
 
 @jit_inline
-def _substeps(c, motion):
-    """Substeps of a period whose predicted motion is ``motion`` [m]: each moves at most ``max_substep``."""
-    count = np.ceil(motion * c[C_DT] / c[C_MAX_SUBSTEP])
-    cap = c[C_MAX_SUBSTEPS]
-    if not math.isfinite(count):
-        return int(cap)
-    return int(min(max(count, 1.0), cap))
-
-
-@jit_inline
-def _advance(path, c, q0, x0, action, residual, w):
-    """Predict and correct: move one robot through one control period (``envs.physics.transition``).
-
-    The strokes move at the commanded rates; each of the substeps predicts the pose by Euler or RK4 on
-    ẋ = J_f q̇ and corrects it onto Φ = 0 by Newton's method at the substep's strokes. If a prediction is not
-    finite or a correction fails, the robot stays where it was.
-
-    Args:
-        path: The row path, a compile-time constant (``envs.kernels.paths``).
-        c: The robot's packed constants.
-        q0: Its strokes (n,), a vector of the path.
-        x0: Its pose (m,), a vector of the path.
-        action: Its normalised stroke rates (n,).
-        residual: The constraint residual at (q0, x0) [m²].
-        w: Its work array (``constraints._work``).
-
-    Returns:
-        (q, x, anchors, rows, applied action, stroke rates, residual, jump [m], failed): the strokes and the pose
-        at the end of the period and the anchors and rows there (``envs.kernels.paths``).
-    """
-    dt = c[C_DT]
-    a, nq, qr = paths.commanded(path, c, q0, action, w[W_ACT], w[W_NQ], w[W_QR])
-    kq = paths.keep(path, q0, w[W_KQ])
-    kx = paths.keep(path, x0, w[W_KX])
-    start_anchors = paths.anchors_at(path, c, kq)
-    start_rows = paths.rows_at(path, c, kq, start_anchors, kx, w)
-    anchors, rows = start_anchors, start_rows
-    v = paths.pose_rate(path, c, kq, rows, qr, w, w[W_V])
-    count = _substeps(c, paths.metric(path, c, v))
-    h = dt / count
-    rk4 = c[C_RK4] != 0.0
-    tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])
-    res = residual
-    jump = 0.0
-    failed = False
-    for s in range(count):
-        if s > 0:  # at the pose Newton's method just returned, whose rows it left
-            v = paths.pose_rate(path, c, kq, rows, qr, w, w[W_V])
-        if rk4:
-            qm = paths.axpy(path, kq, 0.5 * h, qr, w[W_QM])
-            mid = paths.anchors_at(path, c, qm)
-            xm = paths.retract(path, c, kx, v, 0.5 * h, w[W_XM])
-            k1 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, mid, xm, w), qr, w, w[W_K1])
-            xm = paths.retract(path, c, kx, k1, 0.5 * h, w[W_XM])
-            k2 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, mid, xm, w), qr, w, w[W_K2])
-            qm = paths.axpy(path, kq, h, qr, w[W_QM])
-            end = paths.anchors_at(path, c, qm)
-            xm = paths.retract(path, c, kx, k2, h, w[W_XM])
-            k3 = paths.pose_rate(path, c, qm, paths.rows_at(path, c, qm, end, xm, w), qr, w, w[W_K3])
-            pred = paths.retract(path, c, kx, paths.rk4_mean(path, v, k1, k2, k3, w[W_K3]), h, w[W_PRED])
-        else:
-            pred = paths.retract(path, c, kx, v, h, w[W_PRED])
-        if not _all_finite(pred, len(pred)):
-            failed = True
-            break
-        t = paths.lerp(path, q0, nq, (s + 1) / count, w[W_T])
-        anchors = paths.anchors_at(path, c, t)
-        y, fres, rows = paths.newton(path, c, t, anchors, pred, w, tolerance, iterations)
-        if not fres <= tolerance:
-            failed = True
-            break
-        jump = max(jump, paths.jump(path, c, y, pred, w))
-        kq = paths.keep(path, t, w[W_KQ])
-        kx = paths.keep(path, y, w[W_KX])
-        res = fres
-    if failed:  # back at the start (rare)
-        kq = paths.keep(path, q0, w[W_KQ])
-        kx = paths.keep(path, x0, w[W_KX])
-        res = residual
-        anchors = start_anchors  # the strokes are q0 again
-        rows = paths.rows_at(path, c, kq, anchors, kx, w)
-    return kq, kx, anchors, rows, a, qr, res, jump, failed
-
-
-def _advance_of(path, c, dynamics, i, q0, x0, action, residual, w):
-    """``_advance`` (rate control: ``dynamics`` None) or ``force.advance_force`` (a ``Dynamics`` record) of robot i."""
-    return paths._compiled_only()
-
-
-@overload(_advance_of, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _advance_of_control(path, c, dynamics, i, q0, x0, action, residual, w):
-    if isinstance(dynamics, types.NoneType):
-        return lambda path, c, dynamics, i, q0, x0, action, residual, w: _advance(path, c, q0, x0, action, residual, w)
-    return lambda path, c, dynamics, i, q0, x0, action, residual, w: advance_force(
-        path, c, dynamics, i, q0, x0, action, w
-    )
-
-
-def _own_work(dynamics):
-    """``dynamics`` with a dynamics work array of its own (one per thread; None stays None)."""
-    return paths._compiled_only()
-
-
-@overload(_own_work, jit_options=_OVERLOAD_OPTIONS)
-def _own_work_of(dynamics):
-    if isinstance(dynamics, types.NoneType):
-        return lambda dynamics: None
-
-    def own(dynamics):
-        d = dynamics
-        return Dynamics(d.inertia, d.twist, d.o_twist, d.effort, d.hold, _dynamics_work())
-
-    return own
-
-
-def _from_extra(extra, n, m):
-    """The ``Dynamics`` of a batch from an entry kernel's extra arguments.
-
-    () for rate control (None); (inertia, twist), its outputs allocated here, or (inertia, twist, o_twist, effort,
-    hold) for force control.
-    """
-    return paths._compiled_only()
-
-
-@overload(_from_extra, jit_options=_OVERLOAD_OPTIONS)
-def _from_extra_of(extra, n, m):
-    if len(extra) == 0:
-        return lambda extra, n, m: None
-    if len(extra) == 2:
-
-        def allocated(extra, n, m):
-            inertia, twist = extra
-            return Dynamics(inertia, twist, np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), _dynamics_work())
-
-        return allocated
-
-    def given(extra, n, m):
-        inertia, twist, o_twist, effort, hold = extra
-        return Dynamics(inertia, twist, o_twist, effort, hold, _dynamics_work())
-
-    return given
-
-
-def _motion_from(extra):
-    """The evaluation's force-control columns from an entry kernel's extra arguments: None, or (ẋ, actuator rates)."""
-    return paths._compiled_only()
-
-
-@overload(_motion_from, jit_options=_OVERLOAD_OPTIONS)
-def _motion_from_of(extra):
-    if len(extra) == 0:
-        return lambda extra: None
-    return lambda extra: (extra[0], extra[1])
-
-
-def _motion_of(dynamics, q_rate):
-    """What force control adds to the observation: None, or (twists (N, m), actuator rates (N, n))."""
-    return paths._compiled_only()
-
-
-@overload(_motion_of, jit_options=_OVERLOAD_OPTIONS)
-def _motion_of_control(dynamics, q_rate):
-    if isinstance(dynamics, types.NoneType):
-        return lambda dynamics, q_rate: None
-    return lambda dynamics, q_rate: (dynamics.o_twist, q_rate)
-
-
-def _with_dynamics(result, dynamics):
-    """``result``, and with force control the twists, efforts and holding forces: (result, (ẋ, τ, τ_h))."""
-    return paths._compiled_only()
-
-
-@overload(_with_dynamics, jit_options=_OVERLOAD_OPTIONS)
-def _with_dynamics_of(result, dynamics):
-    if isinstance(dynamics, types.NoneType):
-        return lambda result, dynamics: result
-    return lambda result, dynamics: (result, (dynamics.o_twist, dynamics.effort, dynamics.hold))
-
-
-@jit_inline
 def _outside(c, q, x):
     """Whether the pose x (m,) left its bounds or a stroke of q (n,) its hard stops (force control: a crash)."""
     out = False
@@ -348,7 +151,7 @@ def _transition_rows(path, cs, state, action, start, count, w, moved, dynamics):
     for i in range(start, start + count):
         c = _row(cs, i)
         q0, x0 = paths.vector(path, q[i]), paths.vector(path, x[i])
-        kq, kx, anchors, rows, a, qr, res, jump, failed = _advance_of(
+        kq, kx, anchors, rows, a, qr, res, jump, failed = advance(
             path, c, dynamics, i, q0, x0, action[i], residual[i], w
         )
         k, sign, k1 = paths.measure(path, c, kq, anchors, rows, w)
@@ -369,7 +172,7 @@ def _transition_lanes(cs, state, action, start, count, w, lanes, moved, dynamics
         i = start + r
         c = _row(cs, i)
         q0, x0, residual = state.q[i], state.x[i], state.residual[i]
-        kq, kx, _, _, a, qr, res, jump, failed = _advance_of(
+        kq, kx, _, _, a, qr, res, jump, failed = advance(
             WORK_ARRAYS, c, dynamics, i, q0, x0, action[i], residual, w
         )
         _store(i, kq, kx, a, qr, res, jump, moved)
@@ -391,7 +194,7 @@ def _transition_lanes(cs, state, action, start, count, w, lanes, moved, dynamics
 def _transition_block(path, cs, state, action, start, count, w, lanes, moved, dynamics):
     """Advance robots start .. start + count − 1 (count ≤ ``LANES``) by one control period; writes their rows.
 
-    The algorithm of ``envs.physics.transition``: predict and correct (``_advance``), measure (k and k_I at the
+    The algorithm of ``envs.physics.transition``: predict and correct (``force.advance``), measure (k and k_I at the
     new pose), terminate (``termination_reason``). ``path`` is the row path, a compile-time constant: the
     overload below compiles that path's block only. Args as ``transition_batch``; ``moved`` holds its outputs.
     With work arrays for SIMD lanes (``allocate_lanes``; None: robot by robot), spatial robots (m = 6) in blocks
@@ -484,7 +287,7 @@ def _step_block(
         o_t[i] = t[i] + 1
     measured = Measured(out.q, out.x, out.t, out.k, out.k1, out.residual)
     outcome, written = Outcome(out.action, out.reason), (out.evaluation, out.observations)
-    motion = _motion_of(dynamics, out.q_rate)
+    motion = motion_of(dynamics, out.q_rate)
     _evaluate_rows(
         path, space, model, observation, measured, reference, outcome, motion, start, start + count, w, written
     )
@@ -508,7 +311,7 @@ def _step_range(path, space, model, plant, observation, state, reference, action
     """
     w = _work()
     lanes = allocate_lanes()
-    dynamics = _own_work(dynamics)
+    dynamics = own_work(dynamics)
     begin, end = span
     for start in range(begin, end, LANES):
         count = min(LANES, end - start)
@@ -545,16 +348,16 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         state = Motion(q, x, t, det_sign, residual)
         n, m = action.shape
         moved = _allocate_moved(n, m)
-        dynamics = _from_extra(force, n, m)
+        dynamics = from_extra(force, n, m)
         w = _work()
         lanes = allocate_lanes()
         for start in range(0, n, LANES):
             _transition_block(path, cs, state, action, start, min(LANES, n - start), w, lanes, moved, dynamics)
-        return _with_dynamics(moved, dynamics)
+        return with_dynamics(moved, dynamics)
 
     def evaluate(cs, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, strokes, *outcome):
         observation, measured = Observation(low, high, with_velocity), Measured(q, x, t, k, k1, residual)
-        reference, motion = Reference(center, amplitude, phase, strokes), _motion_from(outcome[2:])
+        reference, motion = Reference(center, amplitude, phase, strokes), motion_from(outcome[2:])
         outcome = Outcome(outcome[0], outcome[1])
         n, m = measured.x.shape
         out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation.low.shape[0]), dtype=np.float32))
@@ -588,7 +391,7 @@ def _path_kernels(path: int, space: int) -> PathKernels:
             return True
         out = StepArrays(*outputs[:N_STEP_ARRAYS])
         n = q.shape[0]
-        dynamics = _from_extra(outputs[N_STEP_ARRAYS:], n, q.shape[1])
+        dynamics = from_extra(outputs[N_STEP_ARRAYS:], n, q.shape[1])
         observation = Observation(low, high, with_velocity)
         state, reference = Motion(q, x, t, det_sign, residual), Reference(center, amplitude, phase, strokes)
         w = _work()

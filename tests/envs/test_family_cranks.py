@@ -143,7 +143,7 @@ REGISTER_ROBOTS = {
 def test_register_path_equals_the_work_array_path_bit_for_bit(space):
     """The step's register path (3 × 3 in scalars) gives exactly what its work-array path gives.
 
-    One step body (``envs.kernels.step._advance``) runs on both: the work-array path is what any pose space runs,
+    One step body (``envs.kernels.rate.advance_rate``) runs on both: the work-array path is what any pose space runs,
     the register path replaces it for three actuators (legs: the 3-RPR; cranks or sliders: the others); both
     integrators. Full-speed random actions, so some robots leave their bounds or meet a singularity and the
     failure branches are compared too.
