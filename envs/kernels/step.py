@@ -172,9 +172,7 @@ def _transition_lanes(cs, state, action, start, count, w, lanes, moved, dynamics
         i = start + r
         c = _row(cs, i)
         q0, x0, residual = state.q[i], state.x[i], state.residual[i]
-        kq, kx, _, _, a, qr, res, jump, failed = advance(
-            WORK_ARRAYS, c, dynamics, i, q0, x0, action[i], residual, w
-        )
+        kq, kx, _, _, a, qr, res, jump, failed = advance(WORK_ARRAYS, c, dynamics, i, q0, x0, action[i], residual, w)
         _store(i, kq, kx, a, qr, res, jump, moved)
         lane[L_SIGN, r] = _homogeneous_lane(c, kq, w, W_A, H, r)
         lane[L_FLAGS, r] = (1.0 if failed else 0.0) + (2.0 if _outside(c, kq, kx) else 0.0)
