@@ -6,7 +6,9 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 # The CPU build of torch must be installed before the project, or pip resolves a CUDA build of several GB.
-# --no-compile: Python compiles the modules it imports on first use instead of every file of every package.
+# --no-compile: Python compiles the modules it imports on first use instead of every file of every package, and
+# writes the bytecode it compiled (PYTHONDONTWRITEBYTECODE is cleared for the commands below: where it is set, every
+# process of the tests, each of their subprocesses and each Ray worker would compile torch's modules again, ~4 s each).
 TORCH_SPEC ?= torch==2.13.0
 # Every extra (planner, train, sweep) and the test tools: `pip install parallel-robot-gym` alone installs only
 # what the environments need (pyproject.toml).
@@ -24,10 +26,10 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	MPLBACKEND=Agg $(PY) -m experiments.demo
+	PYTHONDONTWRITEBYTECODE= MPLBACKEND=Agg $(PY) -m experiments.demo
 
 test: $(STAMP)
-	MPLBACKEND=Agg $(PY) -m pytest -n 2 --durations=15
+	PYTHONDONTWRITEBYTECODE= MPLBACKEND=Agg $(PY) -m pytest -n 2 --durations=15
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -14,15 +14,18 @@ def pytest_configure(config: pytest.Config) -> None:
     """In the controller of a ``pytest -n N`` run, fill the Numba cache before the workers start.
 
     The workers then load the kernels from ``__pycache__`` rather than each compiling them at the same time
-    (minutes on a fresh clone). Workers and runs without xdist skip this: they compile on first use. A
-    warm-up that fails only warns: the tests that reach the broken kernel then fail under their own names.
+    (minutes on a fresh clone). The warm-up runs in two processes at once (``tests.numba_warmup``), whose
+    saves into the cache, like the workers' own, are made exclusive by ``lock_numba_cache``. Workers and runs
+    without xdist skip the warm-up: they compile on first use. A warm-up that fails only warns: the tests that
+    reach the broken kernel then fail under their own names.
     """
+    from tests.numba_warmup import lock_numba_cache, warm_up_in_parallel
+
+    lock_numba_cache()
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
         return
-    from tests.numba_warmup import warm_up
-
     try:
-        warm_up()
+        warm_up_in_parallel()
     except Exception as exc:
         config.issue_config_time_warning(pytest.PytestWarning(f"Numba warm-up failed: {exc!r}"), stacklevel=2)
 

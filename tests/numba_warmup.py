@@ -1,14 +1,24 @@
 """Compile the environments' Numba kernels into their on-disk cache, in one pass over every code path.
 
-With ``pytest -n 2`` the conftest runs ``warm_up`` in the controller before the workers start, so on a fresh
-clone each kernel is compiled once and the workers load it from ``__pycache__`` instead of compiling it side
-by side. It only fills the cache: what a test asserts is unchanged, and a kernel it misses is compiled on
-first use as before.
+With ``pytest -n 2`` the conftest runs ``warm_up`` before the workers start, so on a fresh clone each kernel is
+compiled once and the workers load it from ``__pycache__`` instead of compiling it side by side. It only fills
+the cache: what a test asserts is unchanged, and a kernel it misses is compiled on first use as before.
+
+The warm-up comes in two ``PARTS`` of about equal compile time (the hexapod's kernels, and everyone else's),
+which ``warm_up_in_parallel`` runs in two processes at once. Processes that save into one Numba cache at the
+same time need ``lock_numba_cache``: Numba's save is a read-modify-write of the index file, and two processes
+saving different signatures of one function would each number its data file 1, so that the index of one
+pointed at the code of the other.
 """
 
 from __future__ import annotations
 
+import functools
+import os
 import pickle
+import subprocess
+import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -28,13 +38,86 @@ IDS = (
     "Planar3PRRReach-v0",
 )
 
+#: The ids of each part of the warm-up (about 45 s of compiling each on one core).
+PARTS = (
+    tuple(env_id for env_id in IDS if env_id.startswith("StewartGough")),
+    tuple(env_id for env_id in IDS if not env_id.startswith("StewartGough")),
+)
 
-def warm_up() -> None:
-    """Reset and step each id's env, a pickled copy of it, and its vector env (one robot, and a multi-core batch)."""
+#: The ids whose robot as built and as measured (``envs.hardware``) the warm-up compiles.
+HARDWARE_IDS = ("Planar3RPRReach-v0", "StewartGoughReach-v0", "DeltaReach-v0", "Planar3RRRReach-v0")
+
+
+def lock_numba_cache() -> bool:
+    """Make Numba's cache saves and loads exclusive between processes (``flock`` on the cache folder).
+
+    A save (read the index, number the data file, write both) and a load (read the index, then the data file)
+    then never interleave with another process's save. Idempotent; returns False where ``fcntl`` is missing
+    (the caller then must not compile in two processes at once).
+    """
+    try:
+        import fcntl
+    except ImportError:
+        return False
+    from numba.core.caching import IndexDataCacheFile
+
+    if getattr(IndexDataCacheFile, "_locked_between_processes", False):
+        return True
+
+    def locked(method):
+        @functools.wraps(method)
+        def wrapper(self, *args):
+            try:
+                folder = os.open(self._cache_path, os.O_RDONLY)
+            except OSError:  # no folder, so no index to share yet: Numba's own handling
+                return method(self, *args)
+            try:
+                fcntl.flock(folder, fcntl.LOCK_EX)
+                return method(self, *args)
+            finally:
+                os.close(folder)  # releases the lock
+
+        return wrapper
+
+    IndexDataCacheFile.save = locked(IndexDataCacheFile.save)
+    IndexDataCacheFile.load = locked(IndexDataCacheFile.load)
+    IndexDataCacheFile._locked_between_processes = True
+    return True
+
+
+def warm_up_in_parallel() -> None:
+    """``warm_up`` of each part at once: part 0 in a subprocess, the others here (serially where no lock).
+
+    Raises:
+        RuntimeError: If the subprocess failed (after this process's parts ran).
+    """
+    if not lock_numba_cache():
+        warm_up()
+        return
+    root = Path(__file__).resolve().parents[1]
+    other = subprocess.Popen(
+        [sys.executable, "-m", "tests.numba_warmup", "0"], cwd=root, stdout=subprocess.PIPE, stderr=subprocess.STDOUT
+    )
+    try:
+        for part in range(1, len(PARTS)):
+            warm_up(part)
+    finally:
+        output, _ = other.communicate()
+    if other.returncode:
+        raise RuntimeError(f"warm-up part 0 failed:\n{output.decode(errors='replace')[-3000:]}")
+
+
+def warm_up(part: int | None = None) -> None:
+    """Reset and step each id's env, a pickled copy of it, and its vector env (one robot, and a multi-core batch).
+
+    Args:
+        part: Only the ids of ``PARTS[part]``; default every id.
+    """
     import envs  # noqa: F401  (registers the ids)
     from envs.kernels.setup import PARALLEL_MIN_BATCH
 
-    for env_id in IDS:
+    ids = IDS if part is None else PARTS[part]
+    for env_id in ids:
         env = gym.make(env_id)
         env.reset(seed=0)
         env.action_space.seed(0)
@@ -54,16 +137,18 @@ def warm_up() -> None:
             vec.close()
     # the robot as built and as measured (``envs.hardware``): per-robot constants and the forward kinematics
     hardware = {"observation_source": "encoders", "geometry_tolerance": 0.001}
-    for env_id in ("Planar3RPRReach-v0", "StewartGoughReach-v0", "DeltaReach-v0", "Planar3RRRReach-v0"):
+    for env_id in (env_id for env_id in HARDWARE_IDS if env_id in ids):
         for n in (1, PARALLEL_MIN_BATCH + 1):
             vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **hardware)
             vec.reset(seed=0)
             vec.step(np.zeros(vec.action_space.shape, dtype=np.float32))
             vec.close()
-    family = gym.make("Planar3RPRReachFamily-v0")
-    family.reset(seed=0)
-    family.step(np.zeros(3, dtype=np.float32))
-    _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
+    if "Planar3RPRReach-v0" in ids:
+        family = gym.make("Planar3RPRReachFamily-v0")
+        family.reset(seed=0)
+        family.step(np.zeros(3, dtype=np.float32))
+    if "StewartGoughReach-v0" in ids:
+        _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
 
 
 def _batch_kernels(env: gym.Env) -> None:
@@ -81,5 +166,6 @@ def _batch_kernels(env: gym.Env) -> None:
     fk.singularity_batch(params.packed, state.q, start)
 
 
-if __name__ == "__main__":
-    warm_up()
+if __name__ == "__main__":  # python -m tests.numba_warmup [part]
+    lock_numba_cache()
+    warm_up(int(sys.argv[1]) if len(sys.argv) > 1 else None)
