@@ -36,6 +36,10 @@ IDS = (
     "DeltaTrack-v0",
     "Planar3RRRReach-v0",
     "Planar3PRRReach-v0",
+    # force control: the second integrator on each row path (the other force ids share these kernels)
+    "Planar3RPRForceReach-v0",
+    "StewartGoughForceReach-v0",
+    "DeltaForceReach-v0",
 )
 
 #: The ids of each part of the warm-up (about 45 s of compiling each on one core).
