@@ -325,6 +325,11 @@ class FamilyParams:
         return RobotDynamics(self.robot, inertia)
 
     @functools.cached_property
+    def force_limit_array(self) -> np.ndarray:
+        """``force_limits`` as a read-only float64 array, shape (n,) (empty under rate control without limits)."""
+        return fk.read_only(np.asarray(self.force_limits, dtype=np.float64))
+
+    @functools.cached_property
     def packed_inertia(self) -> np.ndarray | None:
         """The kernels' inertia and drive limits of force control (``pack_inertia``), (1, C_INERTIA_SIZE), or None."""
         if self.control != "force":

@@ -14,6 +14,7 @@ import numpy as np
 
 from envs import hardware
 from envs.hardware import Measurement
+from envs.kernels import force
 from envs.kernels import generic as fk
 from envs.params import FamilyParams
 
@@ -624,14 +625,11 @@ def force_info(params: FamilyParams, state: FamilyState, outcome: FamilyOutcome 
     if state.twist is None:
         return {}
     if outcome is None:
-        hold = params.dynamics.holding_forces(state.q, state.x)
+        hold = force.holding_batch(params.packed, params.packed_inertia, state.q, state.x)
         return {"actuator_forces": np.zeros_like(hold), "holding_forces": hold, "saturated": np.zeros(len(hold), bool)}
-    limits = np.asarray(params.force_limits)
-    return {
-        "actuator_forces": outcome.effort.copy(),
-        "holding_forces": outcome.hold.copy(),
-        "saturated": (np.abs(outcome.effort) >= limits).any(axis=-1),
-    }
+    effort = outcome.effort.copy()
+    saturated = (np.abs(effort) >= params.force_limit_array).any(axis=-1)
+    return {"actuator_forces": effort, "holding_forces": outcome.hold.copy(), "saturated": saturated}
 
 
 def step_info(

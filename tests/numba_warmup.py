@@ -139,6 +139,8 @@ def warm_up(part: int | None = None) -> None:
             for _ in range(2):
                 vec.step(vec.action_space.sample().astype(np.float32))
             vec.close()
+        if "Force" in env_id:  # the transition alone under force control (the oracle tests call it)
+            _force_transition(gym.make(env_id).unwrapped)
     # the robot as built and as measured (``envs.hardware``): per-robot constants and the forward kinematics
     hardware = {"observation_source": "encoders", "geometry_tolerance": 0.001}
     for env_id in (env_id for env_id in HARDWARE_IDS if env_id in ids):
@@ -153,6 +155,15 @@ def warm_up(part: int | None = None) -> None:
         family.step(np.zeros(3, dtype=np.float32))
     if "StewartGoughReach-v0" in ids:
         _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
+
+
+def _force_transition(env: gym.Env) -> None:
+    """``physics.transition`` of a force-control env (its entry kernel with the twists)."""
+    from envs import physics
+
+    start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(2)], {})
+    state = physics.initial_state(env.params, start, reference)
+    physics.transition(env.params, state, np.zeros_like(state.q))
 
 
 def _batch_kernels(env: gym.Env) -> None:

@@ -167,7 +167,7 @@ def _efforts(base: Any, info: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] |
     """(largest |τ_i| / τ_max,i, saturated) of a step's info (single env: scalars; vector: (N,)); None for rates."""
     if "actuator_forces" not in info:
         return None
-    limits = np.asarray(base.params.force_limits)
+    limits = base.params.force_limit_array
     return np.max(np.abs(np.asarray(info["actuator_forces"])) / limits, axis=-1), np.asarray(info["saturated"])
 
 

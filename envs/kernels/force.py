@@ -61,7 +61,7 @@ from envs.kernels.layout import (
     W_KX,
 )
 from envs.kernels.linalg import solve3, solve6
-from envs.kernels.packing import _OVERLOAD_OPTIONS, WORK_ARRAYS, _literal_path
+from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, row_path
 from envs.kernels.pose import _all_finite, _frame
 from envs.kernels.rate import advance_rate
 from envs.kernels.records import Dynamics
@@ -74,6 +74,7 @@ __all__ = [
     "efforts",
     "from_extra",
     "holding",
+    "holding_batch",
     "motion_from",
     "motion_of",
     "own_work",
@@ -454,3 +455,38 @@ def _with_dynamics_of(result, dynamics):
     if isinstance(dynamics, types.NoneType):
         return lambda result, dynamics: result
     return lambda result, dynamics: (result, (dynamics.o_twist, dynamics.effort, dynamics.hold))
+
+
+# -- the holding forces of N robots ---------------------------------------------------------------------------
+
+
+def _holding_kernel(path: int):
+    """The entry kernel of the row path ``path`` (a compile-time constant): τ_h of N robots at (q, x), (N, n)."""
+
+    def holding_rows(c, ci, q, x):
+        out = np.empty(q.shape)
+        wd = _dynamics_work()
+        for i in range(q.shape[0]):
+            hold = holding(path, c, _row(ci, 0), paths.vector(path, q[i]), paths.vector(path, x[i]), wd, wd[D_HOLD])
+            for j in range(q.shape[1]):
+                out[i, j] = hold[j]
+        return out
+
+    # One qualified name per path: Numba's on-disk cache keeps one index per name (see ``step._path_kernels``).
+    holding_rows.__qualname__ = holding_rows.__name__ = f"holding_path{path}"
+    return jit(holding_rows)
+
+
+_HOLDING = {path: _holding_kernel(path) for path in ROW_PATHS}
+
+
+def holding_batch(c, ci, q, x):
+    """The holding forces τ_h (J_iᵀ τ_h = G) of N robots of one geometry, shape (N, n); NaN where J_i is singular.
+
+    Args:
+        c: Packed constants, shape (C_SIZE,).
+        ci: Packed inertia (``pack_inertia``), shape (1, C_INERTIA_SIZE).
+        q: Actuator coordinates with Φ(q, x) = 0, shape (N, n).
+        x: Platform poses, shape (N, m).
+    """
+    return _HOLDING[row_path(c)](c, ci, q, x)
