@@ -16,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envs import hardware
+from envs.info import force_info, measurement_info
 from envs.kernels import generic as fk
 from envs.params import RENDER_MODE, ROBOT, TARGET_MODES, TARGETS, FamilyParams, Parameter, arguments_table
 from envs.physics import (
@@ -28,9 +29,7 @@ from envs.physics import (
     StepBuffers,
     copy_state,
     evaluate,
-    force_info,
     initial_state,
-    measurement_info,
     observation_bounds,
     put_rows,
     step,

@@ -15,8 +15,9 @@ from gymnasium.vector.utils import batch_space
 from envs import physics
 from envs.arguments import Parameter, Range, table
 from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv, render_frames
+from envs.info import step_info
 from envs.kernels.setup import random_streams
-from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate, step_info
+from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate
 
 __all__ = ["FamilyReachVectorEnv", "FamilyTrackVectorEnv", "FamilyVectorEnv", "episode_starts"]
 
@@ -73,7 +74,7 @@ class FamilyVectorEnv(VectorEnv):
     ``FamilyTrackEnv`` with that id's preset, see their docstrings); this class holds the state of the N robots
     as arrays with a leading dimension N and advances them with the very functions the single environment
     calls with N = 1 (``envs.physics.step`` and ``evaluate``, whose compiled kernels do the dynamics, reward and
-    observation robot by robot, on every core for large N; ``initial_state``, ``step_info``, and the single
+    observation robot by robot, on every core for large N; ``initial_state``, ``envs.info.step_info``, and the single
     environment's own task sampling). Nothing of the dynamics, reward, sampling or info is copied here, so the
     two cannot drift apart: sub-environment i of `reset(seed=s)` behaves exactly as `gym.make(id)` reset with
     seed s + i, to the last bit.

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from envs import physics, presets
+from envs.info import step_info
 from envs.kernels.step import initial_batch
 from envs.physics import TERMINATION_REASONS
 from kinematics import Delta, Planar3PRR, Planar3RRR
@@ -177,7 +178,7 @@ def test_the_type_one_penalty_and_cost_are_reported_apart_from_type_two() -> Non
     state = physics.initial_state(params, x, ref)
     zeros = np.zeros((len(x), 3))
     evaluation, _ = physics.evaluate(params, state, zeros, np.zeros(len(x), dtype=np.int64), False)
-    info = physics.step_info(params, evaluation, np.zeros(len(x), dtype=np.int64))
+    info = step_info(params, evaluation, np.zeros(len(x), dtype=np.int64))
     k1 = robot.actuator_condition_number(state.q, x)
     np.testing.assert_allclose(info["actuator_condition_number"], k1, rtol=1e-12)
     expected = np.where(k1 < 0.9, -2.0 * ((0.9 - k1) / 0.9) ** 2, 0.0)
