@@ -269,3 +269,31 @@ def test_the_compiled_holding_forces_are_the_numpy_ones():
         want = params.dynamics.holding_forces(q, x)
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
         assert np.abs(want).max() > 0.1
+
+
+@pytest.mark.parametrize("robot", ["stewart_gough", "delta"])
+def test_the_multi_core_step_is_the_one_thread_step(robot, monkeypatch):
+    """Under force control the prange step (the hexapod's in SIMD lanes) equals the one-thread step bit for bit."""
+    import numba
+
+    from envs.kernels import step as step_kernels
+
+    params = build_family_params(robot, control="force")
+    n = fk.PARALLEL_MIN_BATCH + 7
+    x, _ = _starts(params, n, seed=12)
+    rng = np.random.default_rng(13)
+    reference = physics.FamilyReference(x[::-1].copy(), np.zeros_like(x), np.zeros_like(x))
+    state = physics.initial_state(params, x, reference)
+    state = state._replace(twist=0.01 * rng.normal(size=x.shape) / params.pose_metric)
+    action = rng.uniform(-0.2, 0.2, size=state.q.shape)
+
+    def arrays(result):
+        new, outcome, evaluation, obs = result
+        return [a.copy() for a in (*physics.state_arrays(new), *(o for o in outcome if o is not None), evaluation, obs)]
+
+    parallel = arrays(physics.step(params, state, action, False))
+    assert numba.threading_layer() is not None
+    monkeypatch.setattr(step_kernels, "PARALLEL_MIN_BATCH", 10**9)
+    serial = arrays(physics.step(params, state, action, False))
+    for a, b in zip(parallel, serial, strict=True):
+        np.testing.assert_array_equal(a, b)
