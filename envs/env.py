@@ -194,7 +194,10 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         info["target"] = row[self._target_rows].copy()
         for name in TYPE_I_INFO:
             info[name] = info.pop(name)
-        for name, value in (measurement_info(self._state) | force_info(self.params, self._state, outcome)).items():
+        state = self._state
+        if state.sensed is None and state.twist is None:  # rate control from the true pose: nothing more
+            return info
+        for name, value in (measurement_info(state) | force_info(self.params, state, outcome)).items():
             info[name] = (bool(value[0]) if value.dtype == bool else float(value[0])) if value.ndim == 1 else value[0]
         return info
 

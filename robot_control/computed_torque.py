@@ -22,22 +22,13 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from kinematics._validation import as_float_array
 from kinematics.dynamics import InertialParameters, RobotDynamics
 from kinematics.family import DistanceConstraintMechanism
 
 __all__ = ["ComputedTorqueCommand", "ComputedTorqueController", "MinimumJerkPath", "Reference", "minimum_jerk"]
 
 FloatArray = NDArray[np.float64]
-
-
-def _real_array(name: str, value: Any) -> FloatArray:
-    """``value`` as float64, or a ``TypeError`` naming ``name``."""
-    arr = np.asarray(value)
-    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_):
-        raise TypeError(f"{name} must be an array of real numbers, got dtype {arr.dtype}")
-    if np.iscomplexobj(arr):
-        raise TypeError(f"{name} must be real, got complex dtype {arr.dtype}")
-    return arr.astype(np.float64, copy=False)
 
 
 def _finite(name: str, arr: FloatArray) -> FloatArray:
@@ -49,7 +40,7 @@ def _finite(name: str, arr: FloatArray) -> FloatArray:
 
 def _vector(name: str, value: Any, size: int, what: str) -> FloatArray:
     """A finite batch of vectors of shape (..., size)."""
-    arr = _real_array(name, value)
+    arr = as_float_array(name, value)
     if arr.ndim == 0 or arr.shape[-1] != size:
         raise ValueError(f"{name} must have shape (..., {size}) holding {what}, got shape {arr.shape}")
     return _finite(name, arr)
@@ -57,7 +48,7 @@ def _vector(name: str, value: Any, size: int, what: str) -> FloatArray:
 
 def _per_coordinate(name: str, value: Any, size: int, unit: str, allow_inf: bool = False) -> FloatArray:
     """A positive number or shape (size,) array of them, as a read-only array of shape (size,)."""
-    arr = _real_array(name, value)
+    arr = as_float_array(name, value)
     if arr.shape not in ((), (size,)):
         raise ValueError(f"{name} must be a number or have shape ({size},) [{unit}], got shape {arr.shape}")
     bad = np.isnan(arr) | (arr <= 0) | (np.isinf(arr) & (not allow_inf))

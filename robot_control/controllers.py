@@ -57,20 +57,10 @@ def decode_observation(params: FamilyParams, obs: np.ndarray) -> tuple[np.ndarra
         (pose (N, m); error (N, m): (p* − p, δθ) with δθ the rotation vector of R* Rᵀ in {B}, planar
         (x* − x, y* − y, wrap(φ* − φ)), translational p* − p; target velocity (N, m), zeros for Reach).
     """
-    from scipy.spatial.transform import Rotation
-
     robot = params.robot
-    layout = observation_layout(robot.pose_space.name, robot.n_actuators, True)
+    layout = observation_layout(robot.pose_space.name, robot.n_actuators, True, force=params.control == "force")
     obs = np.asarray(obs, dtype=np.float64)
-    code = obs[:, layout["pose"]]
-    space = robot.pose_space.name
-    if space == "spatial":
-        quat = code[:, [4, 5, 6, 3]]  # SciPy's (x, y, z, w)
-        pose = np.concatenate([code[:, :3], Rotation.from_quat(quat).as_rotvec()], axis=-1)
-    elif space == "translational":
-        pose = code.copy()
-    else:
-        pose = np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
+    pose = _decode_pose(robot.pose_space.name, obs[:, layout["pose"]])
     error = obs[:, layout["error"]]
     velocity_slice = layout["target_velocity"]
     codes = 2 * robot.base.shape[1] ** 2 if params.geometry_variation else 0  # a known geometry's codes end it
@@ -364,7 +354,8 @@ def _decode_pose(space: str, code: np.ndarray) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     if space == "spatial":
-        return np.concatenate([code[:, :3], Rotation.from_quat(code[:, [4, 5, 6, 3]]).as_rotvec()], axis=-1)
+        quat = code[:, [4, 5, 6, 3]]  # SciPy's (x, y, z, w)
+        return np.concatenate([code[:, :3], Rotation.from_quat(quat).as_rotvec()], axis=-1)
     if space == "translational":
         return code.copy()
     return np.stack([code[:, 0], code[:, 1], np.arctan2(code[:, 3], code[:, 2])], axis=-1)
@@ -403,19 +394,13 @@ class ComputedTorqueAgent:
         params, layout = self.params, self._layout
         robot = params.robot
         obs = np.asarray(obs, dtype=np.float64)
-        space = robot.pose_space.name
-        pose = _decode_pose(space, obs[:, layout["pose"]])
-        target = _decode_pose(space, obs[:, layout["target"]])
+        pose, _, velocity = decode_observation(params, obs)
+        target = _decode_pose(robot.pose_space.name, obs[:, layout["target"]])
         twist = obs[:, layout["twist"]]
-        codes = 2 * robot.base.shape[1] ** 2 if params.geometry_variation else 0
-        velocity_slice = layout["target_velocity"]
-        with_velocity = obs.shape[1] - codes >= velocity_slice.stop
-        velocity = obs[:, velocity_slice] if with_velocity else np.zeros_like(pose)
         q = robot.inverse_kinematics(pose, validate=False)
         command = self.controller.compute(q, pose, twist, target, velocity)
-        limits = np.asarray(params.force_limits)
         hold = params.dynamics.holding_forces(q, pose)
-        return np.clip((command.tau - hold) / limits, -1.0, 1.0).astype(np.float32)
+        return np.clip((command.tau - hold) / params.force_limit_array, -1.0, 1.0).astype(np.float32)
 
 
 #: Controllers by command-line name.

@@ -51,8 +51,6 @@ from envs.kernels.layout import (
     C_DT,
     C_LMAX,
     C_LMIN,
-    C_MAX_SUBSTEP,
-    C_MAX_SUBSTEPS,
     C_N,
     C_P,
     C_SPATIAL,
@@ -63,13 +61,14 @@ from envs.kernels.layout import (
 from envs.kernels.linalg import solve3, solve6
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, row_path
 from envs.kernels.pose import _all_finite, _frame
-from envs.kernels.rate import advance_rate
+from envs.kernels.rate import advance_rate, substeps
 from envs.kernels.records import Dynamics
 from envs.kernels.setup import jit, jit_inline
 
 __all__ = [
     "advance",
     "advance_force",
+    "beyond_stops",
     "dexp_inverse",
     "efforts",
     "from_extra",
@@ -262,22 +261,12 @@ def _mean_rate(path, q0, q1, dt, out):
 
 
 @jit
-def _beyond_stops(c, q):
+def beyond_stops(c, q):
     """Whether a stroke of q (n,) is beyond the hard stops [q_min, q_max]."""
     for j in range(len(q)):
         if q[j] < c[C_LMIN] or q[j] > c[C_LMAX]:
             return True
     return False
-
-
-@jit
-def _substeps(c, ci, speed):
-    """RKMK4 steps of a period that starts at ``speed`` ‖(v, ℓ_c ω)‖ [m/s].
-
-    At least ``SUBSTEPS``, more so that each moves at most ``max_substep`` at that speed, at most ``max_substeps``.
-    """
-    count = math.ceil(speed * c[C_DT] / c[C_MAX_SUBSTEP]) if math.isfinite(speed) else c[C_MAX_SUBSTEPS]
-    return int(min(max(count, ci[I_SUBSTEPS]), max(c[C_MAX_SUBSTEPS], ci[I_SUBSTEPS])))
 
 
 @jit_inline
@@ -327,7 +316,8 @@ def advance_force(path, c, dynamics, i, q0, x0, action, w):
     q = paths.keep(path, q0, w[W_KQ])
     x = paths.keep(path, x0, w[W_KX])
     v = paths.keep(path, paths.vector(path, dynamics.twist[i]), wd[D_XD])
-    count = _substeps(c, ci, paths.metric(path, c, v))
+    # at least SUBSTEPS; more at speed, each moving at most max_substep (at most max_substeps): rate's rule
+    count = max(substeps(c, paths.metric(path, c, v)), int(ci[I_SUBSTEPS]))
     h = dt / count
     failed = False
     for _ in range(count):
@@ -339,7 +329,7 @@ def advance_force(path, c, dynamics, i, q0, x0, action, w):
         if not (_all_finite(x, m) and _all_finite(v, m) and _all_finite(q, m)):
             failed = True
             break
-        if _beyond_stops(c, q):  # a drive hit its hard stop: the period (and the episode) ends here
+        if beyond_stops(c, q):  # a drive hit its hard stop: the period (and the episode) ends here
             break
     if failed:  # back at the start, at rest (rare: the episode then ends)
         q = paths.keep(path, q0, w[W_KQ])

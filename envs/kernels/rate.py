@@ -36,13 +36,13 @@ from envs.kernels.layout import (
 from envs.kernels.pose import _all_finite
 from envs.kernels.setup import jit_inline
 
-__all__ = ["advance_rate"]
+__all__ = ["advance_rate", "substeps"]
 
 drop_stale_caches(__file__)
 
 
 @jit_inline
-def _substeps(c, motion):
+def substeps(c, motion):
     """Substeps of a period whose predicted motion is ``motion`` [m]: each moves at most ``max_substep``."""
     count = np.ceil(motion * c[C_DT] / c[C_MAX_SUBSTEP])
     cap = c[C_MAX_SUBSTEPS]
@@ -80,7 +80,7 @@ def advance_rate(path, c, q0, x0, action, residual, w):
     start_rows = paths.rows_at(path, c, kq, start_anchors, kx, w)
     anchors, rows = start_anchors, start_rows
     v = paths.pose_rate(path, c, kq, rows, qr, w, w[W_V])
-    count = _substeps(c, paths.metric(path, c, v))
+    count = substeps(c, paths.metric(path, c, v))
     h = dt / count
     rk4 = c[C_RK4] != 0.0
     tolerance, iterations = c[C_NEWTON_TOL], int(c[C_NEWTON_IT])

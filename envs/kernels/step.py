@@ -30,7 +30,7 @@ from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
 from envs.kernels.dynamics import _dynamics_work
 from envs.kernels.evaluation import _evaluate_rows
-from envs.kernels.force import advance, from_extra, motion_from, motion_of, own_work, with_dynamics
+from envs.kernels.force import advance, beyond_stops, from_extra, motion_from, motion_of, own_work, with_dynamics
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
@@ -42,8 +42,6 @@ from envs.kernels.layout import (
     C_HARD1,
     C_HIGH,
     C_JUMP,
-    C_LMAX,
-    C_LMIN,
     C_LOW,
     C_N,
     E_FIXED,
@@ -121,12 +119,10 @@ def termination_reason(c, failed, jump, sign, mode, k, out, k1):
 @jit_inline
 def _outside(c, q, x):
     """Whether the pose x (m,) left its bounds or a stroke of q (n,) its hard stops (force control: a crash)."""
-    out = False
-    lo, hi = c[C_LMIN], c[C_LMAX]
     for j in range(len(x)):
-        if x[j] < c[C_LOW + j] or x[j] > c[C_HIGH + j] or q[j] < lo or q[j] > hi:
-            out = True
-    return out
+        if x[j] < c[C_LOW + j] or x[j] > c[C_HIGH + j]:
+            return True
+    return beyond_stops(c, q)
 
 
 @jit_inline
