@@ -26,7 +26,14 @@ from kinematics._validation import as_float_array
 from kinematics.dynamics import InertialParameters, RobotDynamics
 from kinematics.family import DistanceConstraintMechanism
 
-__all__ = ["ComputedTorqueCommand", "ComputedTorqueController", "MinimumJerkPath", "Reference", "minimum_jerk"]
+__all__ = [
+    "ComputedTorqueCommand",
+    "ComputedTorqueController",
+    "MinimumJerkPath",
+    "Reference",
+    "TimeOptimalPath",
+    "minimum_jerk",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -300,3 +307,91 @@ class MinimumJerkPath:
         step = self.steps[..., k, :]
         x = self.mechanism.retract(self.waypoints[..., k, :], s * step, validate=False)
         return Reference(x, (ds / T) * step, (dds / T**2) * step)
+
+
+class TimeOptimalPath:
+    """Rest-to-rest time-optimal motion along the geodesics through waypoints under actuator force limits (TOPP-RA).
+
+    Segment k follows x_k ⊕ s Δ_k (s from 0 to 1, Δ_k = x_{k+1} ⊖ x_k, as ``MinimumJerkPath``), so the twist is ṡ Δ_k
+    and its rate s̈ Δ_k, and the efforts τ(s, ṡ, s̈) of the inverse dynamics J_iᵀ τ = M ẍ + c + G are those of the
+    model ``dynamics``. Each segment is parametrised time-optimally from rest to rest with every |τ_i| ≤ τ_max,i
+    by TOPP-RA (``toppra``, the ``planner`` extra; H. Pham and Q.-C. Pham, "A new approach to time-optimal path
+    parameterization based on reachability analysis", IEEE T-RO 34(3), 2018) on ``grid`` + 1 points per segment,
+    with constant s̈ between them (the limits hold exactly at the grid points, to ~1e-5 between them). The
+    platform stops at every waypoint.
+
+    Args:
+        dynamics: The model (``kinematics.dynamics.RobotDynamics``).
+        waypoints: x_0, ..., x_K, shape (K + 1, m) with K ≥ 1, consecutive ones distinct.
+        force_limits: τ_max > 0, a number or one per actuator, shape (n,) [N for legs and sliders, N·m for cranks].
+        grid: Intervals of the path grid per segment (≥ 10).
+
+    Raises:
+        ValueError: On waypoints of the wrong shape, not finite or repeated, limits not > 0, a grid < 10, or a
+            segment TOPP-RA finds no feasible motion along (e.g. the holding forces exceed the limits).
+    """
+
+    def __init__(self, dynamics: RobotDynamics, waypoints: Any, force_limits: Any, grid: int = 100) -> None:
+        """Parametrise every segment (see the class docstring)."""
+        mech = dynamics.mechanism
+        m, n = mech.n_pose, mech.n_actuators
+        points = _vector("waypoints", waypoints, m, mech.x_description)
+        if points.ndim != 2 or points.shape[0] < 2:
+            raise ValueError(f"waypoints must have shape (K + 1, {m}) with K ≥ 1, got shape {points.shape}")
+        if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 10:
+            raise ValueError(f"grid must be an integer ≥ 10, got {grid!r}")
+        self.mechanism, self.dynamics = mech, dynamics
+        self.force_limits = _per_coordinate("force_limits", force_limits, n, "N or N·m")
+        self.waypoints = np.array(points)
+        self.steps = mech.pose_difference(points[1:], points[:-1], validate=False)
+        if (np.linalg.norm(self.steps, axis=-1) == 0).any():
+            raise ValueError("consecutive waypoints must differ")
+        self.segments = [self._parametrise(k, int(grid)) for k in range(len(self.steps))]
+        self.durations = np.array([float(seg.duration) for seg in self.segments])
+        self.times = np.concatenate([[0.0], np.cumsum(self.durations)])
+
+    def _efforts(self, k: int, xi: FloatArray, v: FloatArray, a: FloatArray) -> FloatArray:
+        """τ at local coordinates ξ = s Δ_k of segment k, twist v and twist rate a (each shape (m,))."""
+        mech, dyn = self.mechanism, self.dynamics
+        x = mech.retract(self.waypoints[k], xi, validate=False)
+        q = mech.inverse_kinematics(x, validate=False)
+        wrench = dyn.mass_matrix(q, x) @ a + dyn.bias_forces(q, x, v)
+        return mech.actuator_forces(q, x, wrench)
+
+    def _parametrise(self, k: int, grid: int) -> Any:
+        import toppra
+        from toppra import algorithm, constraint
+
+        toppra.setup_logging("WARNING")
+        path = toppra.SplineInterpolator([0.0, 1.0], np.stack([np.zeros_like(self.steps[k]), self.steps[k]]))
+        limits = np.stack([-self.force_limits, self.force_limits], axis=1)
+        torque = constraint.JointTorqueConstraint(
+            lambda xi, v, a: self._efforts(k, np.asarray(xi), np.asarray(v), np.asarray(a)),
+            limits,
+            np.zeros(len(self.force_limits)),
+            discretization_scheme=constraint.DiscretizationType.Interpolation,
+        )
+        solver = algorithm.TOPPRA([torque], path, gridpoints=np.linspace(0.0, 1.0, grid + 1),
+                                  parametrizer="ParametrizeConstAccel")  # fmt: skip
+        trajectory = solver.compute_trajectory(0.0, 0.0)
+        if trajectory is None:
+            raise ValueError(f"segment {k} has no motion within the force limits (TOPP-RA found none)")
+        return trajectory
+
+    @property
+    def duration(self) -> float:
+        """Total time [s] from the first waypoint to the last."""
+        return float(self.times[-1])
+
+    def __call__(self, t: float) -> Reference:
+        """The reference (x_d, ẋ_d, ẍ_d) at time t [s] (a finite number), each shape (m,); at rest outside [0, T]."""
+        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not math.isfinite(t):
+            raise ValueError(f"t must be a finite number [s], got {t!r}")
+        k = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.durations) - 1))
+        local = float(np.clip(t - self.times[k], 0.0, self.durations[k]))
+        seg = self.segments[k]
+        xi = np.asarray(seg(local), dtype=np.float64)
+        moving = 0.0 <= t <= self.duration
+        v = np.asarray(seg(local, 1), dtype=np.float64) * moving
+        a = np.asarray(seg(local, 2), dtype=np.float64) * moving
+        return Reference(self.mechanism.retract(self.waypoints[k], xi, validate=False), v, a)

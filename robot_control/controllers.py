@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from envs.info import actions_of_efforts
 from envs.kernels.packing import observation_layout
 from envs.params import FamilyParams
 from envs.physics import wrap_angle
@@ -400,7 +401,7 @@ class ComputedTorqueAgent:
         q = robot.inverse_kinematics(pose, validate=False)
         command = self.controller.compute(q, pose, twist, target, velocity)
         hold = params.dynamics.holding_forces(q, pose)
-        return np.clip((command.tau - hold) / params.force_limit_array, -1.0, 1.0).astype(np.float32)
+        return actions_of_efforts(hold, command.tau, params.force_limit_array).astype(np.float32)
 
 
 #: Controllers by command-line name.

@@ -1,10 +1,12 @@
 """Force control in the compiled step: the efforts of an action and the integration of the equations of motion.
 
 The step's second integrator (``envs.kernels.step._advance_of`` chooses it when the step is given a ``Dynamics``
-record): the action is an offset from the holding forces at the pose the period starts at, clipped to the drive
-limits,
+record): the action moves each effort from the holding force at the pose the period starts at towards a drive
+limit, piecewise linearly through (−1, −τ_max), (0, h) and (1, τ_max) (``envs.info.efforts_of_actions``):
 
-    τ = clip(τ_h(x) + clip(a, −1, 1) τ_max, −τ_max, τ_max),   J_iᵀ τ_h = G(x),
+    τ = h + a (τ_max − h) for a ≥ 0,   τ = h + a (τ_max + h) for a < 0,   h = clip(τ_h(x), ±τ_max),   J_iᵀ τ_h = G(x),
+
+with a clipped to [−1, 1]: a zero action holds, and the actions reach every effort the drive has.
 
 held over the control period, and the platform state (x, ẋ) moves by ``SUBSTEPS`` steps (more for a fast platform,
 each moving at most ``max_substep`` at the period's starting speed, up to ``max_substeps``) of the fourth-order
@@ -207,10 +209,12 @@ def _dexp_inverse(path, c, direction, scale, nu, out):
 
 @jit
 def _effort(ci, j, hold, action):
-    """(τ_j, τ_j / τ_max,j) of actuator j: the holding force plus the clipped action times the limit, clipped."""
+    """(τ_j, τ_j / τ_max,j) of actuator j: the clipped action's point between the holding force and a limit."""
     limit = ci[I_LIMIT + j]
-    tau = hold + min(max(action, -1.0), 1.0) * limit
-    tau = min(max(tau, -limit), limit)
+    h = min(max(hold, -limit), limit)
+    a = min(max(action, -1.0), 1.0)
+    tau = h + a * (limit - h) if a >= 0.0 else h + a * (limit + h)
+    tau = min(max(tau, -limit), limit)  # an ulp past the limit at a = ±1
     return tau, tau / limit
 
 

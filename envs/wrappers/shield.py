@@ -29,6 +29,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from envs.info import actions_of_efforts
 from envs.physics import transition
 from kinematics import SingularConfigurationError
 
@@ -72,8 +73,9 @@ def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[
 def brake_actions(params, state) -> np.ndarray:
     """Force control: the actions whose efforts would stop each platform within one period, clipped.
 
-    τ_b = J_fᵀ (M(x) (−ẋ / dt) + c(x, ẋ) + G(x)) (``kinematics.dynamics``, the nominal model), as an offset from
-    the holding forces τ_h = J_fᵀ G in units of the drive limits, clipped to [−1, 1]; 0 where J_x is singular.
+    τ_b = J_fᵀ (M(x) (−ẋ / dt) + c(x, ẋ) + G(x)) (``kinematics.dynamics``, the nominal model), clipped to the drive
+    limits, as the action of ``envs.info.actions_of_efforts`` (from the holding forces τ_h = J_fᵀ G); 0 (hold) where
+    J_x is singular.
 
     Args:
         params: The environment's ``FamilyParams`` (``control="force"``).
@@ -86,17 +88,19 @@ def brake_actions(params, state) -> np.ndarray:
     q, x, twist = state.q, state.x, state.twist
     M = dynamics.mass_matrix(q, x)
     wrench = np.einsum("Nij,Nj->Ni", M, -twist / params.dt) + dynamics.bias_forces(q, x, twist)
-    offset = wrench - dynamics.gravity_forces(q, x)  # τ_b − τ_h = J_fᵀ (M (−ẋ / dt) + c)
+    both = np.concatenate([wrench, dynamics.gravity_forces(q, x)])  # τ_b, then τ_h = J_fᵀ G
+    q2, x2 = np.concatenate([q, q]), np.concatenate([x, x])
     try:
-        effort = robot.actuator_forces(q, x, offset, validate=False)
-    except SingularConfigurationError:  # a row at a singularity (an ended episode): row by row, 0 there
-        effort = np.zeros_like(q)
+        brake, hold = np.split(robot.actuator_forces(q2, x2, both, validate=False), 2)
+    except SingularConfigurationError:  # a row at a singularity (an ended episode): row by row, 0 (hold) there
+        brake, hold = np.zeros_like(q), np.zeros_like(q)
         for i in range(len(q)):
             try:
-                effort[i] = robot.actuator_forces(q[i], x[i], offset[i], validate=False)
+                brake[i] = robot.actuator_forces(q[i], x[i], wrench[i], validate=False)
+                hold[i] = robot.actuator_forces(q[i], x[i], both[len(q) + i], validate=False)
             except SingularConfigurationError:
-                continue
-    return np.clip(np.nan_to_num(effort / np.asarray(params.force_limits)), -1.0, 1.0)
+                brake[i] = hold[i] = 0.0
+    return actions_of_efforts(hold, brake, params.force_limit_array)
 
 
 def _guard(k_guard: Any) -> float:

@@ -43,12 +43,23 @@ def _starts(params, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return poses[kept][:n], q[kept][:n]
 
 
+def _interpolated_efforts(hold, action, limits):
+    """The oracle of the action map: np.interp per drive through (−1, −τ_max), (0, clip(τ_h)), (1, τ_max)."""
+    out = np.empty(np.broadcast_shapes(hold.shape, action.shape))
+    for index in np.ndindex(out.shape):
+        limit = limits[index[-1]]
+        h = min(max(hold[index], -limit), limit)
+        out[index] = np.interp(action[index], [-1.0, 0.0, 1.0], [-limit, h, limit])
+    return out
+
+
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_the_compiled_step_is_the_numpy_dynamics(robot):
     """Against ``RobotDynamics.step`` (NumPy, its own RKMK4): efforts, poses, twists, strokes, residual ≤ 1e-10.
 
     Random starts of the task box with random twists and actions (some saturating), ten periods in a row, the
-    efforts rebuilt from the NumPy holding forces: τ = clip(τ_h + a τ_max, ±τ_max).
+    efforts rebuilt from the NumPy holding forces by interpolating each action through (−1, −τ_max), (0, τ_h),
+    (1, τ_max).
     """
     params = build_family_params(robot, control="force", dynamics_substeps=3)
     dynamics, limits = params.dynamics, np.asarray(params.force_limits)
@@ -65,7 +76,7 @@ def test_the_compiled_step_is_the_numpy_dynamics(robot):
         live = state.twist.copy(), state.x.copy()
         new, outcome = physics.transition(params, state, action)
         hold = dynamics.holding_forces(state.q, state.x)
-        tau = np.clip(hold + np.clip(action, -1.0, 1.0) * limits, -limits, limits)
+        tau = _interpolated_efforts(hold, action, limits)
         np.testing.assert_allclose(outcome.hold, hold, rtol=1e-9, atol=1e-9 * limits.max())
         np.testing.assert_allclose(outcome.effort, tau, rtol=1e-9, atol=1e-9 * limits.max())
         np.testing.assert_allclose(outcome.action, tau / limits, atol=1e-12)
@@ -297,3 +308,25 @@ def test_the_multi_core_step_is_the_one_thread_step(robot, monkeypatch):
     serial = arrays(physics.step(params, state, action, False))
     for a, b in zip(parallel, serial, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_the_action_map_reaches_every_effort_and_inverts():
+    """``efforts_of_actions`` against np.interp; ±1 gives ±τ_max whatever τ_h; ``actions_of_efforts`` inverts it."""
+    from envs.info import actions_of_efforts, efforts_of_actions
+
+    rng = np.random.default_rng(5)
+    limits = np.array([12.0, 13.0, 0.5])
+    hold = rng.uniform(-1.5, 1.5, size=(200, 3)) * limits  # some beyond the limits (near a singularity)
+    action = rng.uniform(-1.2, 1.2, size=(200, 3))
+    tau = efforts_of_actions(hold, action, limits)
+    np.testing.assert_allclose(tau, _interpolated_efforts(hold, action, limits), rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(efforts_of_actions(hold, np.ones(3), limits), np.broadcast_to(limits, hold.shape))
+    np.testing.assert_allclose(efforts_of_actions(hold, -np.ones(3), limits), -np.broadcast_to(limits, hold.shape))
+    np.testing.assert_allclose(efforts_of_actions(hold, np.zeros(3), limits), np.clip(hold, -limits, limits))
+    inside = np.abs(action) <= 1.0
+    back = actions_of_efforts(hold, tau, limits)
+    room = np.abs(np.clip(hold, -limits, limits)) < limits
+    np.testing.assert_allclose(back[inside & room], action[inside & room], atol=1e-12)
+    wanted = rng.uniform(-2.0, 2.0, size=(200, 3)) * limits
+    np.testing.assert_allclose(efforts_of_actions(hold, actions_of_efforts(hold, wanted, limits), limits),
+                               np.clip(wanted, -limits, limits), atol=1e-12)  # fmt: skip

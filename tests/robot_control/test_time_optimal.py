@@ -1,0 +1,129 @@
+"""Time-optimal references under drive limits (``TimeOptimalPath``, TOPP-RA) and the Delta's adept cycle.
+
+Oracles: finite differences of the reference, the inverse dynamics of ``RobotDynamics`` evaluated along it, the
+shortest minimum-jerk move within the same limits (found by bisection: a time-optimal move is never slower), and
+the NumPy plant ``RobotDynamics.step`` driven by computed torque along it.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from kinematics import Delta, StewartGough
+from kinematics.dynamics import RobotDynamics, default_inertia
+from robot_control.computed_torque import ComputedTorqueController, MinimumJerkPath, TimeOptimalPath
+
+pytest.importorskip("toppra")
+
+
+def _delta():
+    robot = Delta()
+    dynamics = RobotDynamics(robot, default_inertia(robot))
+    home = robot.home_pose()
+    points = np.stack([home - [0.15, 0.0, 0.0], home - [0.15, 0.0, -0.025], home + [0.15, 0.0, 0.025]])
+    return robot, dynamics, points, np.array([12.0, 13.0, 13.0])
+
+
+def _efforts(robot, dynamics, ref):
+    q = robot.inverse_kinematics(ref.x)
+    wrench = dynamics.mass_matrix(q, ref.x) @ ref.xddot + dynamics.bias_forces(q, ref.x, ref.xdot)
+    return robot.actuator_forces(q, ref.x, wrench)
+
+
+def test_the_reference_is_consistent_and_within_the_limits():
+    """x(t), ẋ(t), ẍ(t) agree by finite differences; rest at every waypoint; |τ| ≤ τ_max; a drive at its limit."""
+    robot, dynamics, points, limits = _delta()
+    path = TimeOptimalPath(dynamics, points, limits, grid=60)
+    for k, when in enumerate(path.times):
+        ref = path(float(when))
+        np.testing.assert_allclose(ref.x, points[k], atol=1e-12)
+        assert np.linalg.norm(ref.xdot) < 1e-9
+    np.testing.assert_allclose(path(0.0).xddot, path(1e-9).xddot, rtol=1e-6)  # it starts accelerating at t = 0
+    assert np.linalg.norm(path(0.0).xddot) > 1.0
+    h = 1e-6
+    ts = np.linspace(0.003, path.duration - 0.003, 97)
+    ts = ts[np.min(np.abs(ts[:, None] - path.times[None, :]), axis=1) > 2 * h]
+    for t in ts:
+        before, now, after = path(t - h), path(t), path(t + h)
+        np.testing.assert_allclose((after.x - before.x) / (2 * h), now.xdot, atol=1e-6)
+    efforts = np.array([_efforts(robot, dynamics, path(t)) for t in ts]) / limits
+    assert np.abs(efforts).max() <= 1.0 + 1e-4  # exact at the grid points, within 1e-5 between them
+    assert np.mean(np.abs(efforts).max(axis=1) > 0.97) > 0.8  # time-optimal: some drive at its limit almost always
+
+
+def test_no_minimum_jerk_move_within_the_limits_is_faster():
+    """The shortest minimum-jerk move whose efforts stay within the limits (bisection) is slower than TOPP-RA's."""
+    robot, dynamics, points, limits = _delta()
+    start, end = points[1], points[2]
+    optimal = TimeOptimalPath(dynamics, np.stack([start, end]), limits, grid=60).duration
+
+    def within(duration):
+        path = MinimumJerkPath.point_to_point(robot, start, end, duration)
+        return all(np.all(np.abs(_efforts(robot, dynamics, path(t))) <= limits) for t in np.linspace(0, duration, 80))
+
+    low, high = 0.01, 2.0
+    for _ in range(25):
+        mid = 0.5 * (low + high)
+        low, high = (low, mid) if within(mid) else (mid, high)
+    assert optimal < high
+    assert optimal > 0.5 * high  # and not absurdly faster: a rest-to-rest move needs the same reach
+
+
+def test_computed_torque_follows_it_within_a_millimetre():
+    """On the NumPy plant at 2 ms with 90 % of the limits: the platform ends within 0.5 mm; efforts within limits."""
+    robot, dynamics, points, limits = _delta()
+    path = TimeOptimalPath(dynamics, points, 0.9 * limits, grid=60)
+    controller = ComputedTorqueController.critically_damped(robot, dynamics.inertia, bandwidth=40.0,
+                                                            force_limits=limits)  # fmt: skip
+    x, xdot, dt = points[0].copy(), np.zeros(3), 0.002
+    for i in range(int(np.ceil(path.duration / dt))):
+        command = controller.compute(robot.inverse_kinematics(x), x, xdot, *path(i * dt))
+        _, x, xdot = dynamics.step(x, xdot, command.tau, dt, substeps=2)
+    assert np.linalg.norm(x - points[-1]) < 5e-4
+
+
+def test_the_hexapod_rotates_on_its_geodesic():
+    """Spatial poses: the reference's twist is the finite difference of its poses (``pose_difference``)."""
+    robot = StewartGough()
+    dynamics = RobotDynamics(robot, default_inertia(robot))
+    home = robot.home_pose()
+    end = robot.retract(home, np.array([0.03, -0.02, 0.04, 0.1, -0.05, 0.2]))
+    path = TimeOptimalPath(dynamics, np.stack([home, end]), 3000.0, grid=40)
+    h = 1e-6
+    for t in np.linspace(0.1, 0.9, 5) * path.duration:
+        step = robot.pose_difference(path(t + h).x, path(t - h).x)
+        np.testing.assert_allclose(step / (2 * h), path(t).xdot, atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"waypoints": np.zeros((1, 3))}, "K ≥ 1"),
+        ({"force_limits": -1.0}, "force_limits"),
+        ({"grid": 3}, "grid"),
+        ({"waypoints": "repeat"}, "differ"),
+        ({"force_limits": 0.5}, "no motion"),  # cannot even hold the platform against gravity
+    ],
+)
+def test_bad_arguments_are_refused(kwargs, match):
+    robot, dynamics, points, limits = _delta()
+    args = {"waypoints": points, "force_limits": limits, "grid": 20, **kwargs}
+    if isinstance(args["waypoints"], str):
+        args["waypoints"] = np.stack([points[0], points[0], points[1]])
+    with pytest.raises(ValueError, match=match):
+        TimeOptimalPath(dynamics, args["waypoints"], args["force_limits"], grid=args["grid"])
+
+
+def test_the_adept_cycle_experiment_writes_its_table(tmp_path):
+    """``experiments.pick_and_place`` through the compiled force-control env: table, results and GIF."""
+    from experiments import pick_and_place
+
+    assert pick_and_place.main(["--out", str(tmp_path), "--margins", "0.8", "--dt", "0.004", "--grid", "30"]) == 0
+    rows = json.loads((tmp_path / "results.json").read_text())["rows"]
+    assert len(rows) == 1 and rows[0]["termination"] is None and rows[0]["max_residual"] < 1e-10
+    assert rows[0]["place_error_mm"] < 1.0 and rows[0]["pick_error_mm"] < 1.0
+    assert "| 0.80 |" in (tmp_path / "table.md").read_text()
+    assert (tmp_path / "cycle.gif").stat().st_size > 0
