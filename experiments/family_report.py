@@ -121,14 +121,18 @@ def effort_table(groups: dict[str, list[dict]]) -> str:
     """A Markdown table of the drive efforts of the groups under force control (``peak_effort``); "" if none.
 
     Peak effort: the largest |τ_i| / τ_max,i of an episode (1: a drive at its limit); saturation: the fraction of
-    its steps with a drive at its limit. Means over the group's episodes (runs weighted by their episodes).
+    its steps with a drive at its limit. Means over the group's episodes (runs weighted by their episodes). The
+    holding effort at the target, max_i |τ_h,i| / τ_max,i there (above 1 no drive holds the platform still), where
+    the evaluations have it.
     """
     rows = {label: ms for label, ms in groups.items() if all("peak_effort" in m for m in ms)}
     if not rows:
         return ""
+    holding = all("target_holding_effort" in m for ms in rows.values() for m in ms)
     lines = [
-        "| agent @ targets | episodes | peak effort abs(τ) / τ_max (mean / median / max) | saturated steps (mean) |",
-        "|---|---|---|---|",
+        "| agent @ targets | episodes | peak effort abs(τ) / τ_max (mean / median / max) | saturated steps (mean) |"
+        + (" holding effort at the target (median / max) |" if holding else ""),
+        "|---|---|---|---|" + ("---|" if holding else ""),
     ]
     for label, ms in rows.items():
         episodes = sum(m["episodes"] for m in ms)
@@ -136,7 +140,11 @@ def effort_table(groups: dict[str, list[dict]]) -> str:
         median = statistics.mean(m["peak_effort"]["median"] for m in ms)
         peak = max(m["peak_effort"]["max"] for m in ms)
         saturated = sum(m["saturation_fraction"]["mean"] * m["episodes"] for m in ms) / episodes
-        lines.append(f"| {label} | {episodes} | {mean:.2f} / {median:.2f} / {peak:.2f} | {100 * saturated:.1f} % |")
+        line = f"| {label} | {episodes} | {mean:.2f} / {median:.2f} / {peak:.2f} | {100 * saturated:.1f} % |"
+        if holding:
+            hold = [m["target_holding_effort"] for m in ms]
+            line += f" {statistics.mean(h['median'] for h in hold):.2f} / {max(h['max'] for h in hold):.2f} |"
+        lines.append(line)
     return "\n".join(lines) + "\n"
 
 

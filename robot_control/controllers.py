@@ -404,8 +404,52 @@ class ComputedTorqueAgent:
         return actions_of_efforts(hold, command.tau, params.force_limit_array).astype(np.float32)
 
 
+class PlannerComputedTorqueAgent(ComputedTorqueAgent):
+    """Computed torque toward the carrot of the planner's certified path (``PathFollower``): hard targets.
+
+    As ``ComputedTorqueAgent`` with the reference pose the carrot, ``lookahead`` ahead of the platform's closest
+    point on the path planned at the episode's first observation (``PlannerController``'s follower, with
+    ``cross_track``), and the target once the carrot reaches it; the reference velocity is zero.
+
+    Args:
+        params: Environment constants of a force-control env.
+        bandwidth: ω [rad/s] of the error dynamics.
+        lookahead: The carrot's distance ahead on the path, in z [m].
+        planner: "auto", "ompl" or "grid" (``PathFollower``).
+    """
+
+    name = "planner-computed-torque"
+
+    def __init__(self, params: FamilyParams, bandwidth: float = 4.0, lookahead: float = 0.1, planner: str = "auto"):
+        super().__init__(params, bandwidth)
+        self.follower = PathFollower(params, lookahead, planner, cross_track=True)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Normalised efforts in [−1, 1] for a batch of observations (N, D): shape (N, n), float32."""
+        params, robot = self.params, self.params.robot
+        obs = np.asarray(obs, dtype=np.float64)
+        pose, error, _ = decode_observation(params, obs)
+        target = pose + error if robot.pose_space.name != "spatial" else robot.retract(pose, error, validate=False)
+        carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
+        twist = obs[:, self._layout["twist"]]
+        q = robot.inverse_kinematics(pose, validate=False)
+        command = self.controller.compute(q, pose, twist, carrot)
+        hold = params.dynamics.holding_forces(q, pose)
+        return actions_of_efforts(hold, command.tau, params.force_limit_array).astype(np.float32)
+
+    def episode_metrics(self, row: int | None = None) -> dict[str, float] | None:
+        """The last plan's figures (``PlannerController.episode_metrics``)."""
+        return self.follower.last_plan_metrics(row)
+
+
 #: Controllers by command-line name.
 CONTROLLERS = {
     cls.name: cls
-    for cls in (ResolvedRateController, SingularityAwareController, PlannerController, ComputedTorqueAgent)
+    for cls in (
+        ResolvedRateController,
+        SingularityAwareController,
+        PlannerController,
+        ComputedTorqueAgent,
+        PlannerComputedTorqueAgent,
+    )
 }

@@ -9,6 +9,7 @@ import numpy as np
 
 import envs
 from envs.physics import TERMINATION_REASONS
+from kinematics import SingularConfigurationError
 from training.records import EpisodeRecord
 from training.runs import Agent, EvaluationError, evaluation_env_kwargs, wrap_for_run, wrap_vector_for_run
 
@@ -160,7 +161,17 @@ def _episode_record(
         time_to_target_s=float(reached[0] * dt) if reached.size and dt is not None else None,
         peak_effort=None if efforts is None or not efforts[0].size else float(np.max(efforts[0])),
         saturation_fraction=None if efforts is None or not efforts[1].size else float(np.mean(efforts[1])),
+        target_holding_effort=None if efforts is None else _holding_effort(base.params, series["target"][0]),
     )
+
+
+def _holding_effort(params: Any, target: np.ndarray) -> float:
+    """max_i |τ_h,i| / τ_max,i at ``target`` (m,): the effort that holds the platform still there (NumPy model)."""
+    try:
+        q = params.robot.inverse_kinematics(target, validate=False)
+        return float(np.max(np.abs(params.dynamics.holding_forces(q, target)) / params.force_limit_array))
+    except SingularConfigurationError:
+        return float("inf")
 
 
 def _efforts(base: Any, info: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
@@ -392,6 +403,9 @@ def aggregate(records: list[EpisodeRecord]) -> dict[str, Any]:
             "peak_effort": {**stats([r.peak_effort for r in records]), "max": max(r.peak_effort for r in records)},
             "saturation_fraction": stats([r.saturation_fraction for r in records]),
         }
+        holding = [r.target_holding_effort for r in records if r.target_holding_effort is not None]
+        if holding:
+            force["target_holding_effort"] = {**stats(holding), "max": max(holding)}
     return {
         "episodes": len(records),
         "success_rate": float(np.mean([r.success for r in records])),

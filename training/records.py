@@ -37,6 +37,8 @@ class EpisodeRecord:
             (steps × dt); None if no step was, or if the env has no ``params.dt``.
         peak_effort: Under force control, the largest |τ_i| / τ_max,i of the episode; else None.
         saturation_fraction: Under force control, the fraction of steps with a drive at its limit; else None.
+        target_holding_effort: Under force control, max_i |τ_h,i| / τ_max,i at the episode's (first) target: above
+            1 no drive can hold the platform still there; else None.
     """
 
     episode: int
@@ -57,6 +59,7 @@ class EpisodeRecord:
     time_to_target_s: float | None = None
     peak_effort: float | None = None
     saturation_fraction: float | None = None
+    target_holding_effort: float | None = None
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, for ``episodes.csv`` (the tracking metrics go to ``metrics.json``)."""

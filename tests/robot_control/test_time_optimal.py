@@ -109,7 +109,8 @@ def test_the_hexapod_rotates_on_its_geodesic():
     ],
 )
 def test_bad_arguments_are_refused(kwargs, match):
-    robot, dynamics, points, limits = _delta()
+    """Misshapen or repeated waypoints, limits not > 0, a coarse grid, limits below the holding forces."""
+    _, dynamics, points, limits = _delta()
     args = {"waypoints": points, "force_limits": limits, "grid": 20, **kwargs}
     if isinstance(args["waypoints"], str):
         args["waypoints"] = np.stack([points[0], points[0], points[1]])

@@ -13,6 +13,7 @@ from envs import FORCE_IDS, PLANAR_3RPR_IDS
 from robot_control.controllers import (
     CONTROLLERS,
     ComputedTorqueAgent,
+    PlannerComputedTorqueAgent,
     PlannerController,
     ResolvedRateController,
     SingularityAwareController,
@@ -21,8 +22,9 @@ from tests.training.conftest import REACH
 from training import evaluate
 from training.evaluate import EvaluationError, aggregate, evaluate_agent, load_controller
 
-#: The rate-control controllers (computed torque drives force control: ``test_computed_torque_*``).
-NAMES = sorted(name for name in CONTROLLERS if name != ComputedTorqueAgent.name)
+#: The rate-control controllers (the computed-torque agents drive force control: ``test_*computed_torque_*``).
+FORCE_AGENTS = (ComputedTorqueAgent.name, PlannerComputedTorqueAgent.name)
+NAMES = sorted(name for name in CONTROLLERS if name not in FORCE_AGENTS)
 EPISODES = 5
 
 
@@ -64,9 +66,10 @@ def _observations(
 
 
 def test_registry_names():
-    """The command-line names map to the four controller classes."""
+    """The command-line names map to the five controller classes."""
     assert CONTROLLERS == {
         "computed-torque": ComputedTorqueAgent,
+        "planner-computed-torque": PlannerComputedTorqueAgent,
         "planner": PlannerController,
         "resolved-rate": ResolvedRateController,
         "singularity-aware": SingularityAwareController,
@@ -301,12 +304,74 @@ def test_computed_torque_actions_are_bounded_and_batched(env_id, make_env):
     np.testing.assert_allclose(actions[:5], stacked, rtol=0, atol=1e-6)
 
 
+def test_the_planner_takes_computed_torque_around_the_3rprs_singularities(make_env):
+    """3-RPR detours under force control: the planner's certified path takes computed torque around the band.
+
+    Straight at the target it ends singular on most of three hard episodes; along the path it reaches all three.
+    """
+    env = make_env("Planar3RPRForceReach-v0")
+    results = {name: aggregate(evaluate_agent(load_controller(name, env), env, 3, 0, "hard")) for name in FORCE_AGENTS}
+    assert results["computed-torque"]["singularity_terminations"] >= 2
+    planned = results["planner-computed-torque"]
+    assert planned["success_rate"] == 1.0 and planned["singularity_terminations"] == 0
+
+
+def test_computed_torque_gets_the_efforts_it_asks_for(make_env):
+    """Through the env's action map the applied efforts are the controller's, clipped to the drive limits.
+
+    Also where an effort lies more than τ_max from the holding force (a stiff controller far from its target).
+    """
+    from robot_control.controllers import decode_observation
+
+    env = make_env("DeltaForceReach-v0")
+    params = env.unwrapped.params
+    agent = ComputedTorqueAgent(params, bandwidth=20.0)
+    limits = params.force_limit_array
+    far = 0
+    for seed in range(4):
+        obs, info = env.reset(seed=seed)
+        for _ in range(3):
+            pose, error, _ = decode_observation(params, obs[None])
+            q = params.robot.inverse_kinematics(pose)
+            command = agent.controller.compute(q, pose, obs[None, agent._layout["twist"]], pose + error)
+            hold = params.dynamics.holding_forces(q, pose)
+            far += int(np.any(np.abs(np.clip(command.tau_model, -limits, limits) - hold) > limits))
+            obs, _, terminated, truncated, info = env.step(agent(obs[None])[0])
+            np.testing.assert_allclose(info["actuator_forces"], np.clip(command.tau_model, -limits, limits)[0],
+                                       rtol=1e-5, atol=1e-5 * limits.max())  # fmt: skip
+            if terminated or truncated:
+                break
+    assert far > 0  # the case the offset map (τ_h + a τ_max) could not reach
+
+
 def test_computed_torque_reaches_standard_targets_of_the_delta(make_env):
     """Computed torque on DeltaForceReach-v0: 5 of 5 standard targets, no singularity termination."""
     env = make_env("DeltaForceReach-v0")
     metrics = aggregate(evaluate_agent(load_controller("computed-torque", env), env, EPISODES, 0, "standard"))
     assert metrics["success_rate"] == 1.0 and metrics["singularity_terminations"] == 0
     assert 0.0 < metrics["peak_effort"]["max"] <= 1.0
+    assert 0.0 < metrics["target_holding_effort"]["max"] < 1.0  # the Delta holds its standard targets
+
+
+def test_the_hexapods_ill_conditioned_targets_need_more_than_its_drives_to_hold():
+    """The holding effort at the target (``target_holding_effort``) exceeds 1 at the hexapod's hard targets.
+
+    Recomputed from the constraint Jacobians with NumPy's own solver: J_i = −J_q⁻¹ J_x, J_iᵀ τ_h = G(x).
+    """
+    env = gym.make("StewartGoughForceReach-v0", robot="stewart_gough_hard")
+    try:
+        records = evaluate_agent(load_controller("computed-torque", env), env, 2, 0, "hard")
+    finally:
+        env.close()
+    params = env.unwrapped.params
+    for record in records:
+        target = record.targets[0]
+        q = params.robot.inverse_kinematics(target)
+        J_q, J_x = params.robot.jacobians(q, target)
+        J_i = -np.linalg.inv(J_q) @ J_x
+        tau = np.linalg.solve(J_i.T, params.dynamics.gravity_forces(q, target))
+        assert record.target_holding_effort == pytest.approx(np.max(np.abs(tau) / params.force_limit_array), rel=1e-8)
+        assert record.target_holding_effort > 1.0
 
 
 def test_each_controller_refuses_the_other_control_mode(make_env):
