@@ -285,11 +285,11 @@ class FamilyReachEnv(FamilyEnvBase):
     `Box(-1, 1, (n,), float32)`: actuator rates q̇_i / max_rate (m/s for legs and sliders, rad/s for cranks);
     actuators stop at `stroke_limits` (the joint limits).
 
-    Under force control (`control="force"`, the `*ForceReach`/`*ForceTrack` ids) the action sets each drive's
-    effort between the holding force τ_h (J_iᵀ τ_h = G(x), gravity, at the pose the period starts at; clipped to
-    ±τ_max) and a drive limit, piecewise linearly: τ = τ_h + a (τ_max − τ_h) for a ≥ 0, τ_h + a (τ_max + τ_h) for
-    a < 0 (`envs.info.efforts_of_actions`) [N for legs and sliders, N·m for cranks], held for dt: a zero action
-    holds a platform at rest still, ±1 is the drive's limit. The platform moves by the rigid-body dynamics
+    Under force control (`control="force"`, the `*ForceReach`/`*ForceTrack` ids) the action is each drive's
+    effort as an offset from the holding force τ_h (J_iᵀ τ_h = G(x), gravity, at the pose the period starts at;
+    clipped to ±τ_max): τ = clip(τ_h + a (τ_max + |τ_h|), −τ_max, τ_max) (`envs.info.efforts_of_actions`) [N for
+    legs and sliders, N·m for cranks], held for dt: a zero action holds a platform at rest still, ±1 reaches
+    either drive limit. The platform moves by the rigid-body dynamics
     M(x) ẍ + c(x, ẋ) + G(x) = J_iᵀ τ (``kinematics.dynamics``: masses and inertias `inertia`, `gravity`), integrated
     by RKMK4 on the pose space with q from the closed-form inverse kinematics (Φ at round-off); episodes start at
     rest. `info` adds `actuator_forces` (τ), `holding_forces` (τ_h) and `saturated` (a drive at its limit), and

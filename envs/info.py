@@ -19,8 +19,7 @@ __all__ = ["actions_of_efforts", "efforts_of_actions", "force_info", "measuremen
 def efforts_of_actions(hold: np.ndarray, action: np.ndarray, limits: np.ndarray) -> np.ndarray:
     """The efforts of force-control actions (NumPy; the compiled step's map, ``envs.kernels.force``).
 
-    Each effort runs piecewise linearly through (a = −1, −τ_max), (0, h) and (1, τ_max), h = clip(τ_h, ±τ_max):
-    a zero action holds, ±1 is the drive's limit.
+    τ = clip(h + a (τ_max + |h|), ±τ_max), h = clip(τ_h, ±τ_max): a zero action holds, ±1 reaches either limit.
 
     Args:
         hold: Holding forces τ_h at the period's start, shape (..., n) [N, N·m for cranks].
@@ -33,20 +32,15 @@ def efforts_of_actions(hold: np.ndarray, action: np.ndarray, limits: np.ndarray)
     limits = np.asarray(limits, dtype=np.float64)
     h = np.clip(np.asarray(hold, dtype=np.float64), -limits, limits)
     a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-    return np.clip(h + a * np.where(a >= 0.0, limits - h, limits + h), -limits, limits)
+    return np.clip(h + a * (limits + np.abs(h)), -limits, limits)
 
 
 def actions_of_efforts(hold: np.ndarray, tau: np.ndarray, limits: np.ndarray) -> np.ndarray:
-    """The actions whose efforts are τ clipped to ±τ_max: the inverse of ``efforts_of_actions`` (same shapes).
-
-    Where h = ±τ_max the drive has no room on that side and the action there is 0.
-    """
+    """The least actions whose efforts are τ clipped to ±τ_max: (clip(τ) − h) / (τ_max + |h|) (same shapes)."""
     limits = np.asarray(limits, dtype=np.float64)
     h = np.clip(np.asarray(hold, dtype=np.float64), -limits, limits)
     tau = np.clip(np.asarray(tau, dtype=np.float64), -limits, limits)
-    room = np.where(tau >= h, limits - h, limits + h)
-    safe = np.where(room > 0.0, room, 1.0)
-    return np.clip(np.where(room > 0.0, (tau - h) / safe, 0.0), -1.0, 1.0)
+    return np.clip((tau - h) / (limits + np.abs(h)), -1.0, 1.0)
 
 
 def measurement_info(state: FamilyState) -> dict[str, np.ndarray]:

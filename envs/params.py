@@ -245,9 +245,9 @@ class FamilyParams:
         "rate", '"rate" (actions: stroke rates) or "force" (actions: efforts; rigid-body dynamics)',
         check=Choice(CONTROLS),
         note=(
-            '"force": a ∈ [−1, 1] moves τ from the holding forces τ_h at the period\'s start (a = 0) to ±τ_max '
-            "(a = ±1) piecewise linearly (``envs.info.efforts_of_actions``), held for dt; (x, ẋ) integrated by "
-            "RKMK4 (``envs.kernels.force``); the observation adds ẋ and the actuator rates."
+            '"force": τ = clip(τ_h + a (τ_max + |τ_h|), ±τ_max), an offset a ∈ [−1, 1] from the holding forces τ_h '
+            "at the period's start (``envs.info.efforts_of_actions``), held for dt; (x, ẋ) integrated by RKMK4 "
+            "(``envs.kernels.force``); the observation adds ẋ and the actuator rates."
         ),
     )  # fmt: skip
     force_limits: tuple[float, ...] = documented(

@@ -1,12 +1,13 @@
 """Force control in the compiled step: the efforts of an action and the integration of the equations of motion.
 
 The step's second integrator (``envs.kernels.step._advance_of`` chooses it when the step is given a ``Dynamics``
-record): the action moves each effort from the holding force at the pose the period starts at towards a drive
-limit, piecewise linearly through (−1, −τ_max), (0, h) and (1, τ_max) (``envs.info.efforts_of_actions``):
+record): the action is an offset from the holding force at the pose the period starts at, scaled so that ±1
+reaches either drive limit (``envs.info.efforts_of_actions``),
 
-    τ = h + a (τ_max − h) for a ≥ 0,   τ = h + a (τ_max + h) for a < 0,   h = clip(τ_h(x), ±τ_max),   J_iᵀ τ_h = G(x),
+    τ = clip(h + a (τ_max + |h|), −τ_max, τ_max),   h = clip(τ_h(x), ±τ_max),   J_iᵀ τ_h = G(x),
 
-with a clipped to [−1, 1]: a zero action holds, and the actions reach every effort the drive has.
+with a clipped to [−1, 1]: a zero action holds, the response is the same on both sides of it (exploration noise
+does not bias the mean effort), and the actions reach every effort the drive has.
 
 held over the control period, and the platform state (x, ẋ) moves by ``SUBSTEPS`` steps (more for a fast platform,
 each moving at most ``max_substep`` at the period's starting speed, up to ``max_substeps``) of the fourth-order
@@ -209,12 +210,11 @@ def _dexp_inverse(path, c, direction, scale, nu, out):
 
 @jit
 def _effort(ci, j, hold, action):
-    """(τ_j, τ_j / τ_max,j) of actuator j: the clipped action's point between the holding force and a limit."""
+    """(τ_j, τ_j / τ_max,j) of actuator j: the holding force plus the clipped action times τ_max + |h|, clipped."""
     limit = ci[I_LIMIT + j]
     h = min(max(hold, -limit), limit)
     a = min(max(action, -1.0), 1.0)
-    tau = h + a * (limit - h) if a >= 0.0 else h + a * (limit + h)
-    tau = min(max(tau, -limit), limit)  # an ulp past the limit at a = ±1
+    tau = min(max(h + a * (limit + abs(h)), -limit), limit)
     return tau, tau / limit
 
 

@@ -44,12 +44,13 @@ def _starts(params, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _interpolated_efforts(hold, action, limits):
-    """The oracle of the action map: np.interp per drive through (−1, −τ_max), (0, clip(τ_h)), (1, τ_max)."""
+    """The oracle of the action map, drive by drive: from h = clip(τ_h) by a (τ_max + |h|), stopped at ±τ_max."""
     out = np.empty(np.broadcast_shapes(hold.shape, action.shape))
     for index in np.ndindex(out.shape):
         limit = limits[index[-1]]
         h = min(max(hold[index], -limit), limit)
-        out[index] = np.interp(action[index], [-1.0, 0.0, 1.0], [-limit, h, limit])
+        a = min(max(action[index], -1.0), 1.0)
+        out[index] = min(h + a * (limit + abs(h)), limit) if a >= 0 else max(h + a * (limit + abs(h)), -limit)
     return out
 
 
@@ -58,8 +59,7 @@ def test_the_compiled_step_is_the_numpy_dynamics(robot):
     """Against ``RobotDynamics.step`` (NumPy, its own RKMK4): efforts, poses, twists, strokes, residual ≤ 1e-10.
 
     Random starts of the task box with random twists and actions (some saturating), ten periods in a row, the
-    efforts rebuilt from the NumPy holding forces by interpolating each action through (−1, −τ_max), (0, τ_h),
-    (1, τ_max).
+    efforts rebuilt from the NumPy holding forces: τ = clip(τ_h + a (τ_max + |τ_h|), ±τ_max).
     """
     params = build_family_params(robot, control="force", dynamics_substeps=3)
     dynamics, limits = params.dynamics, np.asarray(params.force_limits)
@@ -311,7 +311,7 @@ def test_the_multi_core_step_is_the_one_thread_step(robot, monkeypatch):
 
 
 def test_the_action_map_reaches_every_effort_and_inverts():
-    """``efforts_of_actions`` against np.interp; ±1 gives ±τ_max whatever τ_h; ``actions_of_efforts`` inverts it."""
+    """``efforts_of_actions`` against the oracle; ±1 gives ±τ_max whatever τ_h; ``actions_of_efforts`` inverts it."""
     from envs.info import actions_of_efforts, efforts_of_actions
 
     rng = np.random.default_rng(5)
@@ -323,10 +323,9 @@ def test_the_action_map_reaches_every_effort_and_inverts():
     np.testing.assert_allclose(efforts_of_actions(hold, np.ones(3), limits), np.broadcast_to(limits, hold.shape))
     np.testing.assert_allclose(efforts_of_actions(hold, -np.ones(3), limits), -np.broadcast_to(limits, hold.shape))
     np.testing.assert_allclose(efforts_of_actions(hold, np.zeros(3), limits), np.clip(hold, -limits, limits))
-    inside = np.abs(action) <= 1.0
+    unclipped = (np.abs(tau) < limits * (1.0 - 1e-12)) & (np.abs(action) <= 1.0)
     back = actions_of_efforts(hold, tau, limits)
-    room = np.abs(np.clip(hold, -limits, limits)) < limits
-    np.testing.assert_allclose(back[inside & room], action[inside & room], atol=1e-12)
+    np.testing.assert_allclose(back[unclipped], action[unclipped], atol=1e-12)
     wanted = rng.uniform(-2.0, 2.0, size=(200, 3)) * limits
     np.testing.assert_allclose(efforts_of_actions(hold, actions_of_efforts(hold, wanted, limits), limits),
                                np.clip(wanted, -limits, limits), atol=1e-12)  # fmt: skip

@@ -123,7 +123,7 @@ def test_unknown_controller_lists_choices(make_env):
         EvaluationError,
         match=(
             r"unknown controller 'pid'; valid choices: "
-            r"\['computed-torque', 'planner', 'resolved-rate', 'singularity-aware'\]"
+            r"\['computed-torque', 'planner', 'planner-computed-torque', 'resolved-rate', 'singularity-aware'\]"
         ),
     ):
         load_controller("pid", make_env(REACH))
