@@ -3,6 +3,7 @@
 Usage::
 
     python -m experiments.pick_and_place --out docs/results/pick_and_place [--dt 0.002] [--bandwidth 40]
+        [--policy RUN --periods 1.0 1.2 1.5 2.0]
 
 The adept cycle (25 mm up, 305 mm across, 25 mm down to the place point, and back the same way; centred on the
 Delta's home pose, along x) is parametrised time-optimally from rest to rest at every corner with the drives'
@@ -13,6 +14,11 @@ limits) follows each trajectory in ``DeltaForceReach-v0`` (the compiled force-co
 ``--dt``. A cycle counts when the platform is within 1 mm of the place point when the reference arrives there and
 of the pick point at the end of the cycle. ``table.md`` lists every σ (cycle time, those errors, the largest
 tracking error, peak effort, saturated periods); ``cycle.gif`` shows the shortest cycle that counts.
+
+With ``--policy``, a policy trained on ``DeltaForceTrack-v0`` (the same cycle as a moving target, rest at every
+corner, cosine time law, a random heading per episode) runs ``--cycles`` cycles of ``--episodes`` episodes at
+each period of ``--periods`` (its run's env settings, ``track_period`` replaced): the errors at the place and
+pick points are read when its reference arrives there, and a period counts when every one is ≤ 1 mm.
 """
 
 from __future__ import annotations
@@ -30,11 +36,11 @@ from envs.info import actions_of_efforts
 from envs.kernels.packing import observation_layout
 from robot_control.computed_torque import ComputedTorqueController, TimeOptimalPath
 
-__all__ = ["adept_waypoints", "follow", "main"]
+__all__ = ["adept_waypoints", "follow", "main", "policy_cycles"]
 
 #: Largest error at the pick and place points of a cycle that counts [m].
 TOLERANCE = 1e-3
-ENV_ID = "DeltaForceReach-v0"
+ENV_ID, TRACK_ID = "DeltaForceReach-v0", "DeltaForceTrack-v0"
 
 
 def adept_waypoints(centre: np.ndarray, across: float = 0.305, lift: float = 0.025) -> np.ndarray:
@@ -104,6 +110,68 @@ def follow(env: gym.Env, path: TimeOptimalPath, bandwidth: float, frame_every: i
     }
 
 
+def policy_cycles(agent, env_kwargs: dict, period: float, episodes: int, cycles: int) -> dict:
+    """A Track policy on the adept cycle at ``period`` [s]: its errors at the place and pick points [mm].
+
+    The reference reaches the place point at half the period and the pick point at its end (``ADEPT_CYCLE``'s
+    shares), which must fall on control periods.
+
+    Returns:
+        The period, the median and largest errors at the place and pick points over every cycle of every
+        episode, the peak effort, the saturated fraction and the episodes that ended early.
+
+    Raises:
+        ValueError: If half the period is not a whole number of control periods.
+    """
+    env = gym.make(TRACK_ID, **{**env_kwargs, "track_period": period}, max_episode_steps=10**6)
+    dt = env.unwrapped.params.dt
+    half = period / 2.0 / dt
+    if abs(half - round(half)) > 1e-6:
+        raise ValueError(f"half the period ({period / 2} s) must be a whole number of control periods ({dt} s)")
+    place, whole = round(half), 2 * round(half)
+    limits = env.unwrapped.params.force_limit_array
+    errors: dict[str, list[float]] = {"place": [], "pick": []}
+    peak, saturated, steps, ended = 0.0, 0, 0, 0
+    for episode in range(episodes):
+        obs, _ = env.reset(seed=episode)
+        for step in range(1, cycles * whole + 1):
+            obs, _, terminated, truncated, info = env.step(agent(obs[None])[0])
+            peak = max(peak, float(np.max(np.abs(info["actuator_forces"]) / limits)))
+            saturated, steps = saturated + bool(info["saturated"]), steps + 1
+            if terminated or truncated:
+                ended += 1
+                break
+            if step % whole in (place, 0):
+                errors["place" if step % whole == place else "pick"].append(1e3 * float(info["position_error"]))
+    env.close()
+    out = {"period_s": period, "peak_effort": peak, "saturated_fraction": saturated / max(steps, 1), "ended": ended}
+    for name, values in errors.items():
+        values = values or [float("nan")]
+        out[f"{name}_error_mm"] = {"median": float(np.median(values)), "max": float(np.max(values))}
+    return out
+
+
+def _policy_table(rows: list[dict], run: str, episodes: int, cycles: int) -> str:
+    lines = [
+        "",
+        f"A PPO policy of `DeltaForceTrack-v0` (`{run}`) on the same cycle as a moving target: {episodes} episodes "
+        f"of {cycles} cycles per period, errors when the reference arrives (median / largest).",
+        "",
+        "| cycle time [s] | place error [mm] | pick error [mm] | peak abs(τ)/τ_max | saturated periods | ended early "
+        "| counts |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        place, pick = row["place_error_mm"], row["pick_error_mm"]
+        ok = row["ended"] == 0 and max(place["max"], pick["max"]) <= TOLERANCE * 1e3
+        lines.append(
+            f"| {row['period_s']:.2f} | {place['median']:.2f} / {place['max']:.2f} | {pick['median']:.2f} / "
+            f"{pick['max']:.2f} | {row['peak_effort']:.2f} | {100 * row['saturated_fraction']:.1f} % | "
+            f"{row['ended']} | {'yes' if ok else 'no'} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def _table(rows: list[dict], command: str, dt: float, bandwidth: float, limits: np.ndarray) -> str:
     lines = [
         "# The Delta's adept cycle: computed torque on time-optimal trajectories",
@@ -141,6 +209,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bandwidth", type=float, default=40.0, help="ω of computed torque [rad/s]")
     parser.add_argument("--margins", type=float, nargs="+", default=[1.0, 0.95, 0.9, 0.85, 0.8, 0.7, 0.6, 0.5])
     parser.add_argument("--grid", type=int, default=100, help="TOPP-RA grid intervals per segment")
+    parser.add_argument("--policy", type=Path, help="a DeltaForceTrack-v0 run folder (training.train)")
+    parser.add_argument("--model", default="final", choices=("final", "best"))
+    parser.add_argument("--periods", type=float, nargs="+", default=[1.0, 1.2, 1.5, 2.0], help="policy cycle times [s]")
+    parser.add_argument("--episodes", type=int, default=5, help="policy episodes per period")
+    parser.add_argument("--cycles", type=int, default=3, help="cycles per policy episode")
     args = parser.parse_args(argv)
     if not all(0.0 < m <= 1.0 for m in args.margins):
         parser.error(f"--margins must lie in (0, 1], got {args.margins}")
@@ -159,8 +232,18 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(rows[-1]), flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python -m experiments.pick_and_place " + " ".join(argv if argv is not None else sys.argv[1:])
-    (args.out / "results.json").write_text(json.dumps({"command": command, "rows": rows}, indent=1) + "\n")
-    (args.out / "table.md").write_text(_table(rows, command, args.dt, args.bandwidth, limits))
+    table, policy_rows = _table(rows, command, args.dt, args.bandwidth, limits), []
+    if args.policy is not None:
+        from training.runs import load_run, run_env_kwargs
+
+        agent, config = load_run(args.policy, args.model)
+        for period in args.periods:
+            policy_rows.append(policy_cycles(agent, run_env_kwargs(config), period, args.episodes, args.cycles))
+            print(json.dumps(policy_rows[-1]), flush=True)
+        table += _policy_table(policy_rows, args.policy.name, args.episodes, args.cycles)
+    results = {"command": command, "rows": rows, "policy": policy_rows}
+    (args.out / "results.json").write_text(json.dumps(results, indent=1) + "\n")
+    (args.out / "table.md").write_text(table)
     counted = [r for r in rows if r["place_error_mm"] <= 1.0 and r["pick_error_mm"] <= 1.0]
     if counted:
         fastest = min(counted, key=lambda r: r["cycle_time_s"])

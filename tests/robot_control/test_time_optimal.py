@@ -128,3 +128,35 @@ def test_the_adept_cycle_experiment_writes_its_table(tmp_path):
     assert rows[0]["place_error_mm"] < 1.0 and rows[0]["pick_error_mm"] < 1.0
     assert "| 0.80 |" in (tmp_path / "table.md").read_text()
     assert (tmp_path / "cycle.gif").stat().st_size > 0
+
+
+def test_a_track_policy_is_scored_when_the_reference_reaches_the_place_and_pick_points():
+    """``policy_cycles`` reads the errors at half and whole periods, where the reference is at the place point.
+
+    There it is 305 mm across, level with the pick point, and back at the pick point; a hold-still agent's
+    errors are those distances.
+    """
+    import gymnasium as gym
+
+    from experiments.pick_and_place import TRACK_ID, policy_cycles
+
+    env = gym.make(TRACK_ID, dt=0.01, track_period=1.0)
+    _, info = env.reset(seed=0)
+    pick = np.asarray(info["target"]).copy()
+    targets = []
+    for _ in range(100):
+        _, _, _, _, info = env.step(np.zeros(3, np.float32))
+        targets.append(np.asarray(info["target"]).copy())
+    np.testing.assert_allclose(np.linalg.norm((targets[49] - pick)[:2]), 0.305, atol=1e-9)
+    np.testing.assert_allclose(targets[49][2], pick[2], atol=1e-9)
+    np.testing.assert_allclose(targets[99], pick, atol=1e-9)
+
+    def hold(obs):
+        return np.zeros((len(obs), 3), np.float32)
+
+    row = policy_cycles(hold, {"dt": 0.01}, 1.0, episodes=1, cycles=2)
+    assert row["ended"] == 0
+    assert row["place_error_mm"]["median"] == pytest.approx(305.0, abs=0.5)
+    assert row["pick_error_mm"]["max"] < 0.5
+    with pytest.raises(ValueError, match="whole number of control periods"):
+        policy_cycles(hold, {"dt": 0.01}, 1.005, episodes=1, cycles=1)
