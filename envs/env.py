@@ -287,13 +287,15 @@ class FamilyReachEnv(FamilyEnvBase):
 
     Under force control (`control="force"`, the `*ForceReach`/`*ForceTrack` ids) the action is each drive's
     effort as an offset from the holding force τ_h (J_iᵀ τ_h = G(x), gravity, at the pose the period starts at;
-    clipped to ±τ_max): τ = clip(τ_h + a (τ_max + |τ_h|), −τ_max, τ_max) (`envs.info.efforts_of_actions`) [N for
-    legs and sliders, N·m for cranks], held for dt: a zero action holds a platform at rest still, ±1 reaches
-    either drive limit. The platform moves by the rigid-body dynamics
-    M(x) ẍ + c(x, ẋ) + G(x) = J_iᵀ τ (``kinematics.dynamics``: masses and inertias `inertia`, `gravity`), integrated
-    by RKMK4 on the pose space with q from the closed-form inverse kinematics (Φ at round-off); episodes start at
-    rest. `info` adds `actuator_forces` (τ), `holding_forces` (τ_h) and `saturated` (a drive at its limit), and
-    the action penalty is on the applied efforts τ / τ_max.
+    clipped to ±τ_max): τ = clip(τ_h + a (τ_max + |τ_h|), −τ_max, τ_max) (`envs.kernels.force.efforts_of_actions`)
+    [N for legs and sliders, N·m for cranks], held for dt: a zero action holds a platform at rest still, ±1
+    reaches either drive limit. The controller's τ_h is the nominal model's at the pose it knows (with encoders,
+    its estimate; the observed twist and rates are then differences of its measurements over the period). The
+    platform moves by the rigid-body dynamics M(x) ẍ + c(x, ẋ) + G(x) = J_iᵀ τ (``kinematics.dynamics``: masses
+    and inertias `inertia`, `gravity`), integrated by RKMK4 on the pose space with q from the closed-form inverse
+    kinematics (Φ at round-off); episodes start at rest. `info` adds `actuator_forces` (τ), `holding_forces`
+    (the robot's own τ_h at its true pose) and `saturated` (a drive at its limit), and the action penalty is on
+    the applied efforts τ / τ_max.
 
     ## Observation Space
     `Box(low, high, (D,), float32)` with finite bounds; spatial robots (D = 33, or 39 with Track's velocity):

@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from envs.kernels import force
 from envs.kernels import generic as fk
 from envs.kernels.layout import C_A, C_B, C_ELL, C_P
 from envs.kernels.setup import random_streams, uniform_batch
@@ -42,10 +43,12 @@ __all__ = [
     "check_tolerance",
     "drive",
     "encoders",
+    "known_holding_actions",
     "perturbed_plants",
     "perturbed_robot",
     "plant_columns",
     "sense",
+    "sensed_motion",
     "varied_plants",
 ]
 
@@ -254,3 +257,47 @@ def drive(params, state: np.ndarray, action: np.ndarray) -> tuple[np.ndarray, np
         applied = np.clip(applied, state[:, 0] - change, state[:, 0] + change)
     new[:, 0] = applied
     return applied, new
+
+
+def sensed_motion(params, before: Measurement, after: Measurement) -> tuple[np.ndarray, np.ndarray]:
+    """What a controller knows of the motion under force control: the period's differences of its measurements.
+
+    Returns:
+        (twist estimate (x̂′ ⊖ x̂) / dt (N, m), measured actuator rates (q̃′ − q̃) / dt (N, n)).
+    """
+    dt = params.dt
+    step = params.robot.pose_difference(after.x, before.x, validate=False)
+    return step / dt, (after.q - before.q) / dt
+
+
+def known_holding_actions(params, q, x, sensed, plant, action) -> np.ndarray:
+    """Force control on a robot the controller does not know exactly (a geometry tolerance, encoders).
+
+    The action is an offset from the holding forces the controller computes: the nominal model's at the pose it
+    knows (its estimate with encoders, else the true pose). The compiled step offsets it from the plant's at the
+    true pose, so each action is turned into the one whose efforts there are the same
+    (``envs.kernels.force.efforts_of_actions`` and its inverse).
+
+    Args:
+        params: ``envs.params.FamilyParams`` (force control).
+        q: True actuator coordinates, shape (N, n).
+        x: True poses, shape (N, m).
+        sensed: The controllers' ``Measurement``, or None (they know the true pose).
+        plant: Read-only packed constants of the robots as built, (N or 1, C_SIZE).
+        action: The actions given, shape (N, n).
+
+    Returns:
+        The actions for the compiled step, shape (N, n); rows where a holding force is not finite (a singular
+        J_x) or the action is not are passed through.
+    """
+    limits = params.force_limit_array
+    if sensed is not None:
+        q_known, x_known = sensed.q, sensed.x
+    else:
+        q_known, x_known = params.robot.inverse_kinematics(x, validate=False), x
+    known = force.holding_batch(params.packed_rows, params.packed_inertia, q_known, x_known)
+    true = force.holding_batch(plant, params.packed_inertia, q, x)
+    clean = (np.isfinite(known).all(axis=-1) & np.isfinite(true).all(axis=-1))[:, None]
+    effort = force.efforts_of_actions(np.where(clean, known, 0.0), action, limits)
+    converted = force.actions_of_efforts(np.where(clean, true, 0.0), effort, limits)
+    return np.where(clean & np.isfinite(action), converted, action)

@@ -10,37 +10,11 @@ from __future__ import annotations
 import numpy as np
 
 from envs.kernels import force
+from envs.kernels.force import actions_of_efforts, efforts_of_actions
 from envs.params import FamilyParams
 from envs.physics import _REASON_NAMES, INFO_KEYS, TYPE_I_INFO, FamilyOutcome, FamilyState
 
 __all__ = ["actions_of_efforts", "efforts_of_actions", "force_info", "measurement_info", "step_info"]
-
-
-def efforts_of_actions(hold: np.ndarray, action: np.ndarray, limits: np.ndarray) -> np.ndarray:
-    """The efforts of force-control actions (NumPy; the compiled step's map, ``envs.kernels.force``).
-
-    τ = clip(h + a (τ_max + |h|), ±τ_max), h = clip(τ_h, ±τ_max): a zero action holds, ±1 reaches either limit.
-
-    Args:
-        hold: Holding forces τ_h at the period's start, shape (..., n) [N, N·m for cranks].
-        action: Actions, shape (..., n), clipped to [−1, 1].
-        limits: Drive limits τ_max > 0, shape (n,).
-
-    Returns:
-        τ, shape of the broadcast of ``hold`` and ``action``.
-    """
-    limits = np.asarray(limits, dtype=np.float64)
-    h = np.clip(np.asarray(hold, dtype=np.float64), -limits, limits)
-    a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-    return np.clip(h + a * (limits + np.abs(h)), -limits, limits)
-
-
-def actions_of_efforts(hold: np.ndarray, tau: np.ndarray, limits: np.ndarray) -> np.ndarray:
-    """The least actions whose efforts are τ clipped to ±τ_max: (clip(τ) − h) / (τ_max + |h|) (same shapes)."""
-    limits = np.asarray(limits, dtype=np.float64)
-    h = np.clip(np.asarray(hold, dtype=np.float64), -limits, limits)
-    tau = np.clip(np.asarray(tau, dtype=np.float64), -limits, limits)
-    return np.clip((tau - h) / (limits + np.abs(h)), -1.0, 1.0)
 
 
 def measurement_info(state: FamilyState) -> dict[str, np.ndarray]:
@@ -69,7 +43,7 @@ def force_info(params: FamilyParams, state: FamilyState, outcome: FamilyOutcome 
     if state.twist is None:
         return {}
     if outcome is None:
-        hold = force.holding_batch(params.packed, params.packed_inertia, state.q, state.x)
+        hold = force.holding_batch(params.packed_rows, params.packed_inertia, state.q, state.x)
         return {"actuator_forces": np.zeros_like(hold), "holding_forces": hold, "saturated": np.zeros(len(hold), bool)}
     effort = outcome.effort.copy()
     saturated = (np.abs(effort) >= params.force_limit_array).any(axis=-1)

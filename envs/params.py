@@ -246,8 +246,8 @@ class FamilyParams:
         check=Choice(CONTROLS),
         note=(
             '"force": τ = clip(τ_h + a (τ_max + |τ_h|), ±τ_max), an offset a ∈ [−1, 1] from the holding forces τ_h '
-            "at the period's start (``envs.info.efforts_of_actions``), held for dt; (x, ẋ) integrated by RKMK4 "
-            "(``envs.kernels.force``); the observation adds ẋ and the actuator rates."
+            "at the period's start (``envs.kernels.force.efforts_of_actions``), held for dt; (x, ẋ) integrated by "
+            "RKMK4 (``envs.kernels.force``); the observation adds ẋ and the actuator rates."
         ),
     )  # fmt: skip
     force_limits: tuple[float, ...] = documented(

@@ -553,6 +553,8 @@ def step(
             _non_finite(action)
         action, drive = hardware.drive(params, drive, action)
     plant, model = _plant(params, state.plant), _model(params, state)
+    if state.twist is not None and (state.plant is not None or state.sensed is not None) and state.geometry is None:
+        action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
     force = _force(params, state) + out.force
     if fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays, out.kernels, force):
         _non_finite(action)
@@ -564,6 +566,8 @@ def step(
             raise ValueError("step needs the robots' random streams (streams=) with observation_source='encoders'")
         new = new._replace(sensed=hardware.sense(params, q, state.sensed.x, streams, model))
         outcome = (out.outcome.action, out.outcome.reason)
+        if twist is not None:  # the controller's twist and rates: the period's differences of its measurements
+            outcome += hardware.sensed_motion(params, state.sensed, new.sensed)
         out.observations[:] = _sensed_observations(params, new, observation, ref, outcome)
     return new, out.outcome, out.evaluation, _with_codes(new, out.observations)
 

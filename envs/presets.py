@@ -512,8 +512,8 @@ def _check_force_control(robot: DistanceConstraintMechanism, values: dict[str, A
             raise TypeError(f"inertia must be a kinematics.InertialParameters, its dict or None, got {inertia!r}")
         RobotDynamics(robot, inertia)  # raises if the data do not fit the robot
     values["inertia"] = inertia
-    if values["control"] == "force" and (values["observation_source"] != "pose" or values["max_acceleration"]):
+    if values["control"] == "force" and values["max_acceleration"]:
         raise ValueError(
-            "control='force' supports observation_source='pose' without max_acceleration, got observation_source="
-            f"{values['observation_source']!r}, max_acceleration={values['max_acceleration']}"
+            "control='force' has no max_acceleration (a limit on the stroke rates the actions command), got "
+            f"max_acceleration={values['max_acceleration']}"
         )

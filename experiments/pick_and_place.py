@@ -32,7 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
-from envs.info import actions_of_efforts
+from envs.kernels.force import actions_of_efforts
 from envs.kernels.packing import observation_layout
 from robot_control.computed_torque import ComputedTorqueController, TimeOptimalPath
 

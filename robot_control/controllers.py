@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from envs.info import actions_of_efforts
+from envs.kernels.force import actions_of_efforts
 from envs.kernels.packing import observation_layout
 from envs.params import FamilyParams
 from envs.physics import wrap_angle

@@ -2,7 +2,7 @@
 
 The step's second integrator (``envs.kernels.step._advance_of`` chooses it when the step is given a ``Dynamics``
 record): the action is an offset from the holding force at the pose the period starts at, scaled so that ±1
-reaches either drive limit (``envs.info.efforts_of_actions``),
+reaches either drive limit (``envs.kernels.force.efforts_of_actions``),
 
     τ = clip(h + a (τ_max + |h|), −τ_max, τ_max),   h = clip(τ_h(x), ±τ_max),   J_iᵀ τ_h = G(x),
 
@@ -69,11 +69,13 @@ from envs.kernels.records import Dynamics
 from envs.kernels.setup import jit, jit_inline
 
 __all__ = [
+    "actions_of_efforts",
     "advance",
     "advance_force",
     "beyond_stops",
     "dexp_inverse",
     "efforts",
+    "efforts_of_actions",
     "from_extra",
     "holding",
     "holding_batch",
@@ -457,10 +459,12 @@ def _with_dynamics_of(result, dynamics):
 def _holding_kernel(path: int):
     """The entry kernel of the row path ``path`` (a compile-time constant): τ_h of N robots at (q, x), (N, n)."""
 
-    def holding_rows(c, ci, q, x):
+    def holding_rows(cs, ci, q, x):
         out = np.empty(q.shape)
         wd = _dynamics_work()
+        shared = cs.shape[0] == 1
         for i in range(q.shape[0]):
+            c = cs[0] if shared else cs[i]
             hold = holding(path, c, _row(ci, 0), paths.vector(path, q[i]), paths.vector(path, x[i]), wd, wd[D_HOLD])
             for j in range(q.shape[1]):
                 out[i, j] = hold[j]
@@ -474,13 +478,43 @@ def _holding_kernel(path: int):
 _HOLDING = {path: _holding_kernel(path) for path in ROW_PATHS}
 
 
-def holding_batch(c, ci, q, x):
-    """The holding forces τ_h (J_iᵀ τ_h = G) of N robots of one geometry, shape (N, n); NaN where J_i is singular.
+def holding_batch(cs, ci, q, x):
+    """The holding forces τ_h (J_iᵀ τ_h = G) of N robots, shape (N, n); NaN where J_i is singular.
 
     Args:
-        c: Packed constants, shape (C_SIZE,).
+        cs: Read-only packed constants, shape (1, C_SIZE) (one geometry) or (N, C_SIZE) (each robot's).
         ci: Packed inertia (``pack_inertia``), shape (1, C_INERTIA_SIZE).
         q: Actuator coordinates with Φ(q, x) = 0, shape (N, n).
         x: Platform poses, shape (N, m).
     """
-    return _HOLDING[row_path(c)](c, ci, q, x)
+    return _HOLDING[row_path(cs)](cs, ci, q, x)
+
+
+# -- the action map in NumPy (controllers, the brake, a controller that knows another model) -------------------
+
+
+def efforts_of_actions(hold: np.ndarray, action: np.ndarray, limits: np.ndarray) -> np.ndarray:
+    """The efforts of force-control actions (NumPy; the compiled step's map, ``envs.kernels.force``).
+
+    τ = clip(h + a (τ_max + |h|), ±τ_max), h = clip(τ_h, ±τ_max): a zero action holds, ±1 reaches either limit.
+
+    Args:
+        hold: Holding forces τ_h at the period's start, shape (..., n) [N, N·m for cranks].
+        action: Actions, shape (..., n), clipped to [−1, 1].
+        limits: Drive limits τ_max > 0, shape (n,).
+
+    Returns:
+        τ, shape of the broadcast of ``hold`` and ``action``.
+    """
+    limits = np.asarray(limits, dtype=np.float64)
+    h = np.clip(np.asarray(hold, dtype=np.float64), -limits, limits)
+    a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+    return np.clip(h + a * (limits + np.abs(h)), -limits, limits)
+
+
+def actions_of_efforts(hold: np.ndarray, tau: np.ndarray, limits: np.ndarray) -> np.ndarray:
+    """The least actions whose efforts are τ clipped to ±τ_max: (clip(τ) − h) / (τ_max + |h|) (same shapes)."""
+    limits = np.asarray(limits, dtype=np.float64)
+    h = np.clip(np.asarray(hold, dtype=np.float64), -limits, limits)
+    tau = np.clip(np.asarray(tau, dtype=np.float64), -limits, limits)
+    return np.clip((tau - h) / (limits + np.abs(h)), -1.0, 1.0)

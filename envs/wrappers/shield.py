@@ -29,7 +29,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.info import actions_of_efforts
+from envs.kernels.force import actions_of_efforts
 from envs.physics import transition
 from kinematics import SingularConfigurationError
 
@@ -74,8 +74,8 @@ def brake_actions(params, state) -> np.ndarray:
     """Force control: the actions whose efforts would stop each platform within one period, clipped.
 
     τ_b = J_fᵀ (M(x) (−ẋ / dt) + c(x, ẋ) + G(x)) (``kinematics.dynamics``, the nominal model), clipped to the drive
-    limits, as the action of ``envs.info.actions_of_efforts`` (from the holding forces τ_h = J_fᵀ G); 0 (hold) where
-    J_x is singular.
+    limits, as the action of ``envs.kernels.force.actions_of_efforts`` (from the holding forces τ_h = J_fᵀ G); 0
+    (hold) where J_x is singular.
 
     Args:
         params: The environment's ``FamilyParams`` (``control="force"``).

@@ -13,6 +13,7 @@ from gymnasium.utils.env_checker import check_env
 from envs import physics
 from envs.kernels import generic as fk
 from envs.presets import build_family_params
+from kinematics.dynamics import RobotDynamics
 
 #: The force ids and the robots of the family behind them (and two crank/slider robots by name).
 FORCE_IDS = (
@@ -207,7 +208,7 @@ def test_gymnasium_checks_every_force_id(env_id):
         ({"gravity": (0.0, 0.0, -9.8)}, "gravity must be 2 finite numbers"),
         ({"dynamics_substeps": 0}, "dynamics_substeps"),
         ({"control": "torque"}, "control must be one of"),
-        ({"observation_source": "encoders"}, "control='force' supports observation_source='pose'"),
+        ({"max_acceleration": (1.0, 1.0, 1.0)}, "control='force' has no max_acceleration"),
         ({"inertia": {"platform_mass": -1.0}}, "inertial data needs"),
     ],
 )
@@ -276,7 +277,7 @@ def test_the_compiled_holding_forces_are_the_numpy_ones():
     for robot in ("planar_3rpr", "stewart_gough", "delta"):
         params = build_family_params(robot, control="force", gravity=(0.0, -9.8) if robot == "planar_3rpr" else ())
         x, q = _starts(params, 5, seed=10)
-        got = force.holding_batch(params.packed, params.packed_inertia, q, x)
+        got = force.holding_batch(params.packed_rows, params.packed_inertia, q, x)
         want = params.dynamics.holding_forces(q, x)
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
         assert np.abs(want).max() > 0.1
@@ -312,7 +313,7 @@ def test_the_multi_core_step_is_the_one_thread_step(robot, monkeypatch):
 
 def test_the_action_map_reaches_every_effort_and_inverts():
     """``efforts_of_actions`` against the oracle; ±1 gives ±τ_max whatever τ_h; ``actions_of_efforts`` inverts it."""
-    from envs.info import actions_of_efforts, efforts_of_actions
+    from envs.kernels.force import actions_of_efforts, efforts_of_actions
 
     rng = np.random.default_rng(5)
     limits = np.array([12.0, 13.0, 0.5])
@@ -329,3 +330,54 @@ def test_the_action_map_reaches_every_effort_and_inverts():
     wanted = rng.uniform(-2.0, 2.0, size=(200, 3)) * limits
     np.testing.assert_allclose(efforts_of_actions(hold, actions_of_efforts(hold, wanted, limits), limits),
                                np.clip(wanted, -limits, limits), atol=1e-12)  # fmt: skip
+
+
+def _applied_efforts_oracle(params, known_q, known_x, action):
+    """Efforts of ``action`` offset from the nominal NumPy model's holding forces at (known_q, known_x)."""
+    dynamics = RobotDynamics(params.robot, params.dynamics.inertia)
+    return _interpolated_efforts(dynamics.holding_forces(known_q, known_x), action, params.force_limit_array)
+
+
+def test_encoders_under_force_control_observe_differences_and_hold_from_the_estimate():
+    """Encoders: the efforts are offsets from the nominal τ_h at the *estimated* pose.
+
+    The observed twist and rates are the period's differences of the estimates and of the readings.
+    """
+    env = gym.make("DeltaForceReach-v0", observation_source="encoders", encoder_resolution=(1e-3, 1e-3, 1e-3))
+    params = env.unwrapped.params
+    layout = fk.observation_layout("translational", 3, True, force=True)
+    obs, info = env.reset(seed=3)
+    rng = np.random.default_rng(4)
+    for _ in range(8):
+        before_x, before_q = info["estimated_pose"].copy(), info["measured_strokes"].copy()
+        action = rng.uniform(-0.1, 0.1, 3).astype(np.float32)
+        obs, _, terminated, _, info = env.step(action)
+        assert not terminated
+        want = _applied_efforts_oracle(params, before_q[None], before_x[None], action[None].astype(float))[0]
+        np.testing.assert_allclose(info["actuator_forces"], want, rtol=1e-9, atol=1e-9)
+        twist = (info["estimated_pose"] - before_x) / params.dt
+        rates = (info["measured_strokes"] - before_q) / params.dt
+        np.testing.assert_allclose(obs[layout["twist"]], twist, rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(obs[layout["actuator_rates"]], rates, rtol=1e-5, atol=1e-5)
+    assert not np.allclose(info["estimated_pose"], info["pose"], atol=1e-9)  # a 1 mrad count: the estimate is off
+
+
+def test_a_robot_as_built_is_driven_by_the_nominal_holding_forces():
+    """A geometry tolerance: the efforts are offsets from the *nominal* model's τ_h at the true pose.
+
+    So a zero action does not hold the robot as built exactly.
+    """
+    env = gym.make("StewartGoughForceReach-v0", geometry_tolerance=2e-3)
+    params = env.unwrapped.params
+    _, info = env.reset(seed=1)
+    rng = np.random.default_rng(5)
+    for step in range(5):
+        pose = info["pose"].copy()
+        action = np.zeros(6, np.float32) if step < 2 else rng.uniform(-0.1, 0.1, 6).astype(np.float32)
+        _, _, terminated, _, info = env.step(action)
+        assert not terminated
+        q_nominal = params.robot.inverse_kinematics(pose)
+        want = _applied_efforts_oracle(params, q_nominal[None], pose[None], action[None].astype(float))[0]
+        np.testing.assert_allclose(info["actuator_forces"], want, rtol=1e-9, atol=1e-7)
+        if step < 2:
+            assert not np.allclose(info["actuator_forces"], info["holding_forces"], rtol=1e-6)
