@@ -11,12 +11,14 @@ leave the robot below a guard level of the inverse condition number:
     a, a/2, a/4, a/8, 0 — the first candidate that does not terminate and ends with k' ≥ min(k_guard, k).
 
 The zero action leaves strokes and pose unchanged, so a safe candidate always exists. Under force control
-(``control="force"``) the candidates are tried with the equations of motion one period ahead, and the last resort is
-the braking effort instead (``brake_actions``: the computed-torque effort that would stop the platform within one
-period, clipped to the drive limits), since a zero offset holds a platform at rest but does not stop a moving one.
-That is not a guarantee: momentum can carry a fast platform past the guard before the drives stop it. The dynamics,
-rewards and termination rules are those of the environment; the cost is one to four extra
-``core.transition`` calls per step (the accepted candidate is computed again by ``env.step``).
+(``control="force"``) the candidates are tried with the equations of motion, and a candidate must also leave the
+platform stoppable: braking after it for ``BRAKE_TIME`` (whole periods of ``brake_actions``: the computed-torque
+effort that would stop the platform within one period, clipped to the drive limits) neither terminates nor takes k
+below that level. The last resort is the braking effort, since a zero offset holds a platform at rest but does not
+stop a moving one. That is not a guarantee: a platform already too fast to stop within the guard cannot be saved.
+The dynamics, rewards and termination rules are those of the environment; the cost is one to four extra
+``core.transition`` calls per step (under force control 1 + ⌈``BRAKE_TIME`` / dt⌉ per candidate; the accepted
+candidate is computed again by ``env.step``).
 ``shield_actions`` is the filter on a batch of robots; ``SingularityShield`` applies it to the single env and
 ``VectorSingularityShield`` to the native vector env (row i of the vector env is shielded exactly as the single env
 of the same seed).
@@ -24,6 +26,7 @@ of the same seed).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import gymnasium as gym
@@ -33,10 +36,19 @@ from envs.kernels.force import actions_of_efforts
 from envs.physics import transition
 from kinematics import SingularConfigurationError
 
-__all__ = ["SHIELD_SCALES", "SingularityShield", "VectorSingularityShield", "brake_actions", "shield_actions"]
+__all__ = [
+    "BRAKE_TIME",
+    "SHIELD_SCALES",
+    "SingularityShield",
+    "VectorSingularityShield",
+    "brake_actions",
+    "shield_actions",
+]
 
 #: Action scales tried in order; the last (zero) is always safe.
 SHIELD_SCALES = (1.0, 0.5, 0.25, 0.125, 0.0)
+#: Under force control, the time [s] of braking a candidate must leave the platform able to survive (whole periods).
+BRAKE_TIME = 0.3
 
 
 def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[np.ndarray, np.ndarray]:
@@ -50,16 +62,20 @@ def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[
 
     Returns:
         (actions (N, n) float32: row i is its proposal times the first scale of ``SHIELD_SCALES`` whose step does
-        not terminate and ends with k' ≥ min(k_guard, k), else zero (under force control the braking effort,
-        ``brake_actions``); the scales (N,) float64).
+        not terminate and ends with k' ≥ min(k_guard, k) (under force control, from which braking for
+        ``BRAKE_TIME`` keeps it so), else zero (under force control the braking effort, ``brake_actions``); the
+        scales (N,) float64).
     """
     proposed = np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0)
     k_now = np.asarray(state.inverse_condition, dtype=np.float64)
+    floor = np.minimum(k_guard, k_now)
     scales = np.zeros(len(proposed))
     open_rows = np.ones(len(proposed), dtype=bool)
     for scale in SHIELD_SCALES[:-1]:
         new_state, outcome = transition(params, state, proposed * scale)
-        accept = open_rows & (outcome.reason == 0) & (new_state.inverse_condition >= np.minimum(k_guard, k_now))
+        accept = open_rows & (outcome.reason == 0) & (new_state.inverse_condition >= floor)
+        if params.control == "force" and accept.any():
+            accept &= _stoppable(params, new_state, floor)
         scales[accept] = scale
         open_rows &= ~accept
         if not open_rows.any():
@@ -68,6 +84,16 @@ def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[
     if params.control == "force" and open_rows.any():
         actions[open_rows] = brake_actions(params, state)[open_rows]
     return actions.astype(np.float32), scales
+
+
+def _stoppable(params, state, floor: np.ndarray) -> np.ndarray:
+    """Rows (N,) whose braking for ``BRAKE_TIME`` from ``state`` never ends and keeps k ≥ ``floor``."""
+    ok = np.ones(len(state.q), dtype=bool)
+    for _ in range(max(1, math.ceil(BRAKE_TIME / params.dt - 1e-9))):
+        with np.errstate(invalid="ignore"):
+            state, outcome = transition(params, state, brake_actions(params, state))
+        ok &= (outcome.reason == 0) & (state.inverse_condition >= floor)
+    return ok
 
 
 def brake_actions(params, state) -> np.ndarray:

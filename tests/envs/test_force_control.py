@@ -381,3 +381,22 @@ def test_a_robot_as_built_is_driven_by_the_nominal_holding_forces():
         np.testing.assert_allclose(info["actuator_forces"], want, rtol=1e-9, atol=1e-7)
         if step < 2:
             assert not np.allclose(info["actuator_forces"], info["holding_forces"], rtol=1e-6)
+
+
+def test_the_shield_keeps_random_full_efforts_from_ending_force_episodes():
+    """3-RPR under force control, random full-scale efforts: episodes end without the shield, never behind it."""
+    from envs.wrappers.shield import SingularityShield
+
+    def ended(env, seed):
+        rng = np.random.default_rng(seed)
+        env.reset(seed=seed)
+        for _ in range(60):
+            _, _, terminated, _, info = env.step(rng.uniform(-1.0, 1.0, 3).astype(np.float32))
+            if terminated:
+                return info["termination_reason"]
+        return None
+
+    plain = [ended(gym.make("Planar3RPRForceReach-v0"), seed) for seed in range(8)]
+    shielded = [ended(SingularityShield(gym.make("Planar3RPRForceReach-v0"), 0.05), seed) for seed in range(8)]
+    assert sum(reason is not None for reason in plain) >= 4, plain
+    assert shielded == [None] * 8, shielded
