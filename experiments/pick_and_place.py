@@ -151,11 +151,19 @@ def policy_cycles(agent, env_kwargs: dict, period: float, episodes: int, cycles:
     return out
 
 
-def _policy_table(rows: list[dict], run: str, episodes: int, cycles: int) -> str:
+def _policy_table(rows: list[dict], run: Path, episodes: int, cycles: int) -> str:
+    command = run / "command.txt"
+    trained = ""
+    if command.is_file():  # the training command without the interpreter's path and the run folder
+        words = command.read_text().split()
+        words = ["python", *words[words.index("-m") :]] if "-m" in words else words
+        if "--run-dir" in words:
+            del words[words.index("--run-dir") : words.index("--run-dir") + 2]
+        trained = f", trained by `{' '.join(words)}`"
     lines = [
         "",
-        f"A PPO policy of `DeltaForceTrack-v0` (`{run}`) on the same cycle as a moving target: {episodes} episodes "
-        f"of {cycles} cycles per period, errors when the reference arrives (median / largest).",
+        f"A PPO policy of `DeltaForceTrack-v0` (`{run.name}`{trained}) on the same cycle as a moving target: "
+        f"{episodes} episodes of {cycles} cycles per period, errors when the reference arrives (median / largest).",
         "",
         "| cycle time [s] | place error [mm] | pick error [mm] | peak abs(τ)/τ_max | saturated periods | ended early "
         "| counts |",
@@ -240,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         for period in args.periods:
             policy_rows.append(policy_cycles(agent, run_env_kwargs(config), period, args.episodes, args.cycles))
             print(json.dumps(policy_rows[-1]), flush=True)
-        table += _policy_table(policy_rows, args.policy.name, args.episodes, args.cycles)
+        table += _policy_table(policy_rows, args.policy, args.episodes, args.cycles)
     results = {"command": command, "rows": rows, "policy": policy_rows}
     (args.out / "results.json").write_text(json.dumps(results, indent=1) + "\n")
     (args.out / "table.md").write_text(table)
