@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--dt", type=float, default=0.002, help="control period [s]")
     parser.add_argument("--bandwidth", type=float, default=40.0, help="ω of computed torque [rad/s]")
-    parser.add_argument("--margins", type=float, nargs="+", default=[1.0, 0.95, 0.9, 0.85, 0.8, 0.7, 0.6, 0.5])
+    parser.add_argument("--margins", type=float, nargs="+", default=[1.0, 0.95, 0.9, 0.8, 0.6])
     parser.add_argument("--grid", type=int, default=100, help="TOPP-RA grid intervals per segment")
     parser.add_argument("--policy", type=Path, help="a DeltaForceTrack-v0 run folder (training.train)")
     parser.add_argument("--model", default="final", choices=("final", "best"))

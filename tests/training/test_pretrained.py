@@ -231,8 +231,7 @@ def test_other_shipped_3rpr_policies_keep_their_recorded_performance(run):
     assert_keeps_record(metrics, record)
 
 
-#: The shipped policies of the crank- and slider-driven robots (and the Delta's under force control), each with its
-#: regression.json.
+#: The shipped policies of the crank- and slider-driven robots and of force control, each with its regression.json.
 CRANK_RUNS = [
     demo._pretrained(name)
     for name in (
@@ -241,6 +240,7 @@ CRANK_RUNS = [
         "ppo-Planar3RRRReach-v0",
         "ppo-Planar3PRRReach-v0",
         "ppo-DeltaForceReach-v0",
+        "ppo-StewartGoughForceReach-v0",
     )
 ]
 
@@ -248,7 +248,7 @@ CRANK_RUNS = [
 @pytest.mark.slow
 @pytest.mark.parametrize("run", CRANK_RUNS, ids=lambda r: r.name)
 def test_shipped_crank_policies_keep_their_recorded_performance(run):
-    """One shipped policy per new robot (Delta Reach, Track and force control, 3-RRR, 3-PRR) keeps its record."""
+    """A shipped policy per new robot (Delta Reach, Track, 3-RRR, 3-PRR) and force control keeps its record."""
     record = json.loads((run / "regression.json").read_text())
     assert set(record) == set(REGRESSION_KEYS)
     agent, config = load_run(run)
