@@ -513,8 +513,13 @@ def efforts_of_actions(hold: np.ndarray, action: np.ndarray, limits: np.ndarray)
 
 
 def actions_of_efforts(hold: np.ndarray, tau: np.ndarray, limits: np.ndarray) -> np.ndarray:
-    """The least actions whose efforts are τ clipped to ±τ_max: (clip(τ) − h) / (τ_max + |h|) (same shapes)."""
+    """The actions whose efforts are τ clipped to ±τ_max (same shapes).
+
+    (clip(τ) − h) / (τ_max + |h|) within the limits, and ±1 at a limit, whose effort is the limit exactly (the
+    quotient would land within rounding of it, and a drive at its limit would not count as saturated).
+    """
     limits = np.asarray(limits, dtype=np.float64)
     h = np.clip(np.asarray(hold, dtype=np.float64), -limits, limits)
-    tau = np.clip(np.asarray(tau, dtype=np.float64), -limits, limits)
-    return np.clip((tau - h) / (limits + np.abs(h)), -1.0, 1.0)
+    tau = np.asarray(tau, dtype=np.float64)
+    inside = np.clip((np.clip(tau, -limits, limits) - h) / (limits + np.abs(h)), -1.0, 1.0)
+    return np.where(tau >= limits, 1.0, np.where(tau <= -limits, -1.0, inside))

@@ -396,7 +396,19 @@ def test_the_shield_keeps_random_full_efforts_from_ending_force_episodes():
                 return info["termination_reason"]
         return None
 
-    plain = [ended(gym.make("Planar3RPRForceReach-v0"), seed) for seed in range(8)]
-    shielded = [ended(SingularityShield(gym.make("Planar3RPRForceReach-v0"), 0.05), seed) for seed in range(8)]
-    assert sum(reason is not None for reason in plain) >= 4, plain
-    assert shielded == [None] * 8, shielded
+    plain = [ended(gym.make("Planar3RPRForceReach-v0"), seed) for seed in range(6)]
+    shielded = [ended(SingularityShield(gym.make("Planar3RPRForceReach-v0"), 0.05), seed) for seed in range(6)]
+    assert sum(reason is not None for reason in plain) >= 3, plain
+    assert shielded == [None] * 6, shielded
+
+
+def test_an_effort_at_a_limit_is_the_limit_exactly():
+    """``actions_of_efforts`` gives ±1 for efforts at or beyond a limit, whose efforts are the limit to the bit."""
+    from envs.kernels.force import actions_of_efforts, efforts_of_actions
+
+    limits = np.array([12.0, 13.0, 13.0])
+    hold = np.array([[-3.54434053, 5.22143976, -5.22143976]])
+    wanted = np.array([[12.0, 13.0 + 1e-3, -13.0]])
+    action = actions_of_efforts(hold, wanted, limits)
+    np.testing.assert_array_equal(action, [[1.0, 1.0, -1.0]])
+    np.testing.assert_array_equal(efforts_of_actions(hold, action, limits), [[12.0, 13.0, -13.0]])

@@ -121,7 +121,7 @@ def test_evaluate_missing_or_corrupt_normalisation(make_run_folder, tmp_path, ca
 def test_evaluate_unknown_controller(tmp_path, capsys, name):
     """An unknown controller name lists the valid ones."""
     err = _exit_message(evaluate.main, ["--controller", name, "--episodes", "1", "--out", str(tmp_path)], capsys)
-    valid = "['computed-torque', 'planner', 'resolved-rate', 'singularity-aware']"
+    valid = "['computed-torque', 'planner', 'planner-computed-torque', 'resolved-rate', 'singularity-aware']"
     assert f"unknown controller {name!r}; valid choices: {valid}" in err
 
 
