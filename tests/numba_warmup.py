@@ -42,10 +42,11 @@ IDS = (
     "DeltaForceReach-v0",
 )
 
-#: The ids of each part of the warm-up (about 45 s of compiling each on one core).
+#: The ids of each part of the warm-up (about 80 s of compiling each on one core): the hexapod's but its Track, and
+#: the others with the hexapod's Track last (its step kernels are the Reach ones, in the cache by then).
 PARTS = (
-    tuple(env_id for env_id in IDS if env_id.startswith("StewartGough")),
-    tuple(env_id for env_id in IDS if not env_id.startswith("StewartGough")),
+    tuple(env_id for env_id in IDS if env_id.startswith("StewartGough") and "Track" not in env_id),
+    (*(env_id for env_id in IDS if not env_id.startswith("StewartGough")), "StewartGoughTrack-v0"),
 )
 
 #: The ids whose robot as built and as measured (``envs.hardware``) the warm-up compiles.
@@ -158,6 +159,11 @@ def warm_up(part: int | None = None) -> None:
         family.step(np.zeros(3, dtype=np.float32))
     if "StewartGoughReach-v0" in ids:
         _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
+    if "Planar3RRRReach-v0" in ids:  # the work-array paths of the spaces the register paths serve (compared by a test)
+        for env_id in ("Planar3RRRReach-v0", "Planar3PRRReach-v0", "Planar3RPRReach-v0", "DeltaReach-v0"):
+            _work_array_transition(gym.make(env_id).unwrapped)
+        for env_id in ("Planar3RRRReach-v0", "Planar3PRRReach-v0"):  # force control on planar cranks and sliders
+            _force_transition(gym.make(env_id, control="force").unwrapped)
 
 
 def _force_transition(env: gym.Env) -> None:
@@ -167,6 +173,20 @@ def _force_transition(env: gym.Env) -> None:
     start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(2)], {})
     state = physics.initial_state(env.params, start, reference)
     physics.transition(env.params, state, np.zeros_like(state.q))
+
+
+def _work_array_transition(env: gym.Env) -> None:
+    """The work-array path's transition for a robot that steps on a register path (its pose space's)."""
+    from envs import physics
+    from envs.kernels import packing, records
+    from envs.kernels import step as step_kernels
+
+    start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(2)], {})
+    state = physics.initial_state(env.params, start, reference)
+    cs = env.params.packed_rows
+    work = step_kernels._PATH_KERNELS[packing.WORK_ARRAYS, packing.pose_space_code(cs)]
+    motion = records.Motion(state.q, state.x, state.t, state.det_sign, state.residual)
+    work.transition(cs, *motion, np.zeros_like(state.q))
 
 
 def _batch_kernels(env: gym.Env) -> None:

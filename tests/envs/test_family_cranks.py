@@ -138,8 +138,7 @@ REGISTER_ROBOTS = {
 }
 
 
-@pytest.mark.slow  # compiles a work-array path no robot of the suite's warm-up uses
-@pytest.mark.parametrize("space", sorted(REGISTER_ROBOTS))
+@pytest.mark.parametrize("space", sorted(REGISTER_ROBOTS))  # tests/numba_warmup.py compiles both paths
 def test_register_path_equals_the_work_array_path_bit_for_bit(space):
     """The step's register path (3 × 3 in scalars) gives exactly what its work-array path gives.
 
