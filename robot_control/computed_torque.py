@@ -248,7 +248,25 @@ def minimum_jerk(phase: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
     return s, ds, dds
 
 
-class MinimumJerkPath:
+class _Segments:
+    """Consecutive segments of a reference: their start times ``times`` (K + 1,) and durations (K,)."""
+
+    times: FloatArray
+    durations: FloatArray
+
+    @property
+    def duration(self) -> float:
+        """Total time [s] from the first waypoint to the last."""
+        return float(self.times[-1])
+
+    def _segment(self, t: float) -> int:
+        """The segment k whose interval holds t [s] (the first before it, the last after it)."""
+        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not math.isfinite(t):
+            raise ValueError(f"t must be a finite number [s], got {t!r}")
+        return int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.durations) - 1))
+
+
+class MinimumJerkPath(_Segments):
     """Rest-to-rest minimum-jerk segments along the pose space's geodesics through waypoints.
 
     Segment k goes from waypoint x_k to x_{k+1} in T_k seconds along x_k ⊕ s(τ) Δ_k, Δ_k = x_{k+1} ⊖ x_k
@@ -292,16 +310,9 @@ class MinimumJerkPath:
             raise ValueError(f"start {start.shape} and end {end.shape} do not broadcast") from None
         return cls(mechanism, np.stack([np.broadcast_to(start, batch), np.broadcast_to(end, batch)], axis=-2), duration)
 
-    @property
-    def duration(self) -> float:
-        """Total time [s] from the first waypoint to the last."""
-        return float(self.times[-1])
-
     def __call__(self, t: float) -> Reference:
         """The reference (x_d, ẋ_d, ẍ_d) at time t [s] (a finite number), each shape (..., m)."""
-        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not math.isfinite(t):
-            raise ValueError(f"t must be a finite number [s], got {t!r}")
-        k = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.durations) - 1))
+        k = self._segment(t)
         T = self.durations[k]
         s, ds, dds = minimum_jerk((t - self.times[k]) / T)
         step = self.steps[..., k, :]
@@ -309,7 +320,7 @@ class MinimumJerkPath:
         return Reference(x, (ds / T) * step, (dds / T**2) * step)
 
 
-class TimeOptimalPath:
+class TimeOptimalPath(_Segments):
     """Rest-to-rest time-optimal motion along the geodesics through waypoints under actuator force limits (TOPP-RA).
 
     Segment k follows x_k ⊕ s Δ_k (s from 0 to 1, Δ_k = x_{k+1} ⊖ x_k, as ``MinimumJerkPath``), so the twist is ṡ Δ_k
@@ -378,16 +389,9 @@ class TimeOptimalPath:
             raise ValueError(f"segment {k} has no motion within the force limits (TOPP-RA found none)")
         return trajectory
 
-    @property
-    def duration(self) -> float:
-        """Total time [s] from the first waypoint to the last."""
-        return float(self.times[-1])
-
     def __call__(self, t: float) -> Reference:
         """The reference (x_d, ẋ_d, ẍ_d) at time t [s] (a finite number), each shape (m,); at rest outside [0, T]."""
-        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not math.isfinite(t):
-            raise ValueError(f"t must be a finite number [s], got {t!r}")
-        k = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.durations) - 1))
+        k = self._segment(t)
         local = float(np.clip(t - self.times[k], 0.0, self.durations[k]))
         seg = self.segments[k]
         xi = np.asarray(seg(local), dtype=np.float64)

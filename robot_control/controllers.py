@@ -323,9 +323,7 @@ class PlannerController(ResolvedRateController):
 
     def _target(self, pose: np.ndarray, error: np.ndarray) -> np.ndarray:
         """The target pose from the pose and the observation's error block (each (N, m))."""
-        if self.params.robot.pose_space.name != "spatial":
-            return pose + error
-        return self.params.robot.retract(pose, error, validate=False)
+        return _target_pose(self.params, pose, error)
 
     def steer(self, pose: np.ndarray, carrot: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """Resolved-rate actions from ``pose`` toward ``carrot`` (each (N, m)) with feed-forward ``velocity``."""
@@ -348,6 +346,13 @@ class PlannerController(ResolvedRateController):
             row: The batch row whose current plan to describe; None: the last plan made.
         """
         return self.follower.last_plan_metrics(row)
+
+
+def _target_pose(params: FamilyParams, pose: np.ndarray, error: np.ndarray) -> np.ndarray:
+    """The target pose from the pose and the observation's error block (each (N, m))."""
+    if params.robot.pose_space.name != "spatial":
+        return pose + error
+    return params.robot.retract(pose, error, validate=False)
 
 
 def _decode_pose(space: str, code: np.ndarray) -> np.ndarray:
@@ -392,16 +397,18 @@ class ComputedTorqueAgent:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Normalised efforts in [−1, 1] for a batch of observations (N, D): shape (N, n), float32."""
-        params, layout = self.params, self._layout
-        robot = params.robot
+        params, robot = self.params, self.params.robot
         obs = np.asarray(obs, dtype=np.float64)
-        pose, _, velocity = decode_observation(params, obs)
-        target = _decode_pose(robot.pose_space.name, obs[:, layout["target"]])
-        twist = obs[:, layout["twist"]]
+        pose, error, velocity = decode_observation(params, obs)
+        target, velocity = self._reference(obs, pose, error, velocity)
         q = robot.inverse_kinematics(pose, validate=False)
-        command = self.controller.compute(q, pose, twist, target, velocity)
+        command = self.controller.compute(q, pose, obs[:, self._layout["twist"]], target, velocity)
         hold = params.dynamics.holding_forces(q, pose)
         return actions_of_efforts(hold, command.tau, params.force_limit_array).astype(np.float32)
+
+    def _reference(self, obs, pose, error, velocity) -> tuple[np.ndarray, np.ndarray]:
+        """(x_d, ẋ_d) of each row (N, m): the observed target and its velocity."""
+        return _decode_pose(self.params.robot.pose_space.name, obs[:, self._layout["target"]]), velocity
 
 
 class PlannerComputedTorqueAgent(ComputedTorqueAgent):
@@ -424,18 +431,11 @@ class PlannerComputedTorqueAgent(ComputedTorqueAgent):
         super().__init__(params, bandwidth)
         self.follower = PathFollower(params, lookahead, planner, cross_track=True)
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Normalised efforts in [−1, 1] for a batch of observations (N, D): shape (N, n), float32."""
-        params, robot = self.params, self.params.robot
-        obs = np.asarray(obs, dtype=np.float64)
-        pose, error, _ = decode_observation(params, obs)
-        target = pose + error if robot.pose_space.name != "spatial" else robot.retract(pose, error, validate=False)
+    def _reference(self, obs, pose, error, velocity) -> tuple[np.ndarray, np.ndarray]:
+        """(x_d, ẋ_d) of each row (N, m): the carrot of its planned path, at rest."""
+        target = _target_pose(self.params, pose, error)
         carrot = np.stack([self.follower.carrot(i, pose[i], target[i]) for i in range(len(pose))])
-        twist = obs[:, self._layout["twist"]]
-        q = robot.inverse_kinematics(pose, validate=False)
-        command = self.controller.compute(q, pose, twist, carrot)
-        hold = params.dynamics.holding_forces(q, pose)
-        return actions_of_efforts(hold, command.tau, params.force_limit_array).astype(np.float32)
+        return carrot, np.zeros_like(carrot)
 
     def episode_metrics(self, row: int | None = None) -> dict[str, float] | None:
         """The last plan's figures (``PlannerController.episode_metrics``)."""
