@@ -5,7 +5,9 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
-# The CPU build of torch must be installed before the project, or pip resolves a CUDA build of several GB.
+CORE := $(VENV)/.core-installed
+# The environments first (core dependencies only), then the CPU build of torch, then every extra: torch must be
+# installed before the extras, or pip resolves a CUDA build of several GB.
 # --no-compile: Python compiles the modules it imports on first use instead of every file of every package, and
 # writes the bytecode it compiled (PYTHONDONTWRITEBYTECODE is cleared for the commands below: where it is set, every
 # process of the tests, each of their subprocesses and each Ray worker would compile torch's modules again, ~4 s each).
@@ -18,11 +20,21 @@ EXTRAS ?= all,dev
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(CORE): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet --no-compile "$(TORCH_SPEC)"
-	$(PY) -m pip install --quiet --no-compile -e ".[$(EXTRAS)]"
+	$(PY) -m pip install --quiet --no-compile -e .
+	touch $(CORE)
+
+# The environments' Numba kernels compile into their on-disk cache (`python -m tests.numba_warmup`, two processes)
+# while pip installs the extras, which they do not import. A warm-up that fails (see $(VENV)/warmup.log) only
+# leaves its kernels to be compiled on first use; a failed install stops here.
+$(STAMP): $(CORE)
+	PYTHONDONTWRITEBYTECODE= $(PY) -m tests.numba_warmup > $(VENV)/warmup.log 2>&1 & warm=$$!; \
+	$(PY) -m pip install --quiet --no-compile "$(TORCH_SPEC)" && \
+	$(PY) -m pip install --quiet --no-compile -e ".[$(EXTRAS)]"; installed=$$?; \
+	wait $$warm || echo "Numba warm-up failed (kernels compile on first use): see $(VENV)/warmup.log"; \
+	exit $$installed
 	touch $(STAMP)
 
 demo: $(STAMP)

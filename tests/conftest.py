@@ -53,8 +53,9 @@ def gymnasium_left_unpatched() -> Iterator[None]:
     assert not patched, f"this test left gymnasium's TimeLimit replaced in {patched} (was rl_zoo3 imported?)"
 
 
-#: Test modules whose tests share an expensive module fixture (one local Ray session): run by one worker.
-ONE_WORKER_MODULES = ("tests/training/test_sweep.py",)
+#: Test modules whose tests share an expensive module fixture (one local Ray session, one set of RL Zoo runs): run
+#: by one worker.
+ONE_WORKER_MODULES = ("tests/training/test_sweep.py", "tests/training/test_rl_zoo.py")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

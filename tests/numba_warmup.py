@@ -1,7 +1,9 @@
 """Compile the environments' Numba kernels into their on-disk cache, in one pass over every code path.
 
-With ``pytest -n 2`` the conftest runs ``warm_up`` before the workers start, so on a fresh clone each kernel is
-compiled once and the workers load it from ``__pycache__`` instead of compiling it side by side. It only fills
+``make setup`` runs it (``python -m tests.numba_warmup``) while pip installs the extras, and with ``pytest -n 2``
+the conftest runs it again before the workers start (it then only loads the cache, a few seconds, or compiles what
+a changed source file needs), so that each kernel is compiled once and the workers load it from ``__pycache__``
+instead of compiling it side by side. It only fills
 the cache: what a test asserts is unchanged, and a kernel it misses is compiled on first use as before.
 
 The warm-up comes in two ``PARTS`` of about equal compile time (the hexapod's kernels, and everyone else's),
@@ -204,6 +206,9 @@ def _batch_kernels(env: gym.Env) -> None:
     fk.singularity_batch(params.packed, state.q, start)
 
 
-if __name__ == "__main__":  # python -m tests.numba_warmup [part]
-    lock_numba_cache()
-    warm_up(int(sys.argv[1]) if len(sys.argv) > 1 else None)
+if __name__ == "__main__":  # python -m tests.numba_warmup [part]: every part at once (make setup), or one part
+    if len(sys.argv) > 1:
+        lock_numba_cache()
+        warm_up(int(sys.argv[1]))
+    else:
+        warm_up_in_parallel()

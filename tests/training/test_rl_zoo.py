@@ -28,57 +28,58 @@ CASES = {
 }
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("algo", sorted(CASES))
-def test_rl_zoo_trains_the_shipped_config_and_evaluate_scores_its_run(algo, tmp_path):
-    """``python -m rl_zoo3.train -conf training/<algo>.yml`` runs; ``training.evaluate --run`` reads its folder."""
+#: The Zoo's own entry point (``python -m rl_zoo3.train`` and ``rl_zoo3 train`` call it), once per argv, in one
+#: fresh interpreter: the four runs then pay for importing torch, SB3 and the Zoo once.
+_TRAIN_EACH = "import sys\nfrom rl_zoo3.train import train\nfor argv in {argvs!r}:\n    sys.argv = argv\n    train()\n"
+
+#: ``training.evaluate``'s command line (``main``), once per argv, in another fresh interpreter, as a user runs it:
+#: loading the Zoo's model unpickles rl_zoo3's schedules, and importing rl_zoo3 patches gymnasium's TimeLimit
+#: (rl_zoo3.gym_patches) for the rest of the process.
+_EVALUATE_EACH = (
+    "import sys\nfrom training import evaluate\nfor argv in {argvs!r}:\n    assert evaluate.main(argv) == 0, argv\n"
+)
+
+
+def _run(code: str) -> None:
+    done = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+
+
+@pytest.fixture(scope="module")
+def zoo_runs(tmp_path_factory) -> dict[str, Path]:
+    """Each config of ``CASES`` trained by the RL Zoo, then scored by ``training.evaluate``: {algo: its folder}.
+
+    (Under xdist the module's tests run on one worker: ``ONE_WORKER_MODULES`` in ``tests/conftest.py``.)
+    """
     # Found, not imported: importing rl_zoo3 patches gymnasium's TimeLimit for the whole worker (rl_zoo3.gym_patches
     # adds "TimeLimit.truncated" to every info), which would leak into the tests that run after this one
     # (tests/conftest.py fails any test that leaves the patch behind).
     assert importlib.util.find_spec("rl_zoo3") is not None, "rl_zoo3 is a test dependency: pip install -e '.[test]'"
-    env_id, budget = CASES[algo]
-    command = [
-        sys.executable,
-        "-m",
-        "rl_zoo3.train",
-        "--algo",
-        algo,
-        "--env",
-        env_id,
-        "--gym-packages",
-        "envs",
-        "-conf",
-        str(default_config_path(algo)),
-        "-n",
-        str(TIMESTEPS),
-        "--num-threads",  # one torch thread, as in the tests' own processes: more are ~4× slower on a shared core
-        "1",
-        "--eval-freq",
-        "-1",
-        "-f",
-        str(tmp_path / "logs"),
-        "--seed",
-        "0",
-        "--hyperparams",
-        *budget,
-    ]
-    done = subprocess.run(command, cwd=REPO_ROOT, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr[-3000:]
-    run = tmp_path / "logs" / algo / f"{env_id}_1"
+    root = tmp_path_factory.mktemp("zoo")
+    trains, scores = [], []
+    for algo, (env_id, budget) in sorted(CASES.items()):
+        logs = root / algo
+        trains.append(
+            ["rl_zoo3.train", "--algo", algo, "--env", env_id, "--gym-packages", "envs"]
+            + ["-conf", str(default_config_path(algo)), "-n", str(TIMESTEPS)]
+            # one torch thread, as in the tests' own processes: more are ~4× slower on a shared core
+            + ["--num-threads", "1", "--eval-freq", "-1", "-f", str(logs), "--seed", "0", "--hyperparams", *budget]
+        )
+        run = logs / algo / f"{env_id}_1"
+        scores.append(["--run", str(run), "--episodes", "1", "--seed", "10000", "--out", str(logs / "eval")])
+    _run(_TRAIN_EACH.format(argvs=trains))
+    _run(_EVALUATE_EACH.format(argvs=scores))
+    return {algo: root / algo for algo in CASES}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo", sorted(CASES))
+def test_rl_zoo_trains_the_shipped_config_and_evaluate_scores_its_run(algo, zoo_runs):
+    """``python -m rl_zoo3.train -conf training/<algo>.yml`` runs; ``training.evaluate --run`` reads its folder."""
+    env_id, _ = CASES[algo]
+    run = zoo_runs[algo] / algo / f"{env_id}_1"
     assert (run / f"{env_id}.zip").is_file(), sorted(p.name for p in run.iterdir())
     config = evaluate.read_run_config(run)
     assert (config["algo"], config["env_id"], config["source"]) == (algo, env_id, "rl_zoo3")
-    out = tmp_path / "eval"
-    # In a fresh interpreter, as a user runs it: loading the Zoo's model unpickles rl_zoo3's schedules, and importing
-    # rl_zoo3 patches gymnasium's TimeLimit (rl_zoo3.gym_patches) for the rest of the process.
-    scored = subprocess.run(
-        [sys.executable, "-m", "training.evaluate", "--run", str(run), "--episodes", "1", "--seed", "10000"]
-        + ["--out", str(out)],
-        cwd=REPO_ROOT,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert scored.returncode == 0, scored.stderr[-3000:]
-    metrics = json.loads((out / "metrics.json").read_text())
+    metrics = json.loads((zoo_runs[algo] / "eval" / "metrics.json").read_text())
     assert metrics["episodes"] == 1 and 0.0 <= metrics["success_rate"] <= 1.0
