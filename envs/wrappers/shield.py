@@ -14,8 +14,11 @@ The zero action leaves strokes and pose unchanged, so a safe candidate always ex
 (``control="force"``) the candidates are tried with the equations of motion, and a candidate must also leave the
 platform stoppable: braking after it for ``BRAKE_TIME`` (whole periods of ``brake_actions``: the computed-torque
 effort that would stop the platform within one period, clipped to the drive limits) neither terminates nor takes k
-below that level. The last resort is the braking effort, since a zero offset holds a platform at rest but does not
-stop a moving one. That is not a guarantee: a platform already too fast to stop within the guard cannot be saved.
+below that level, and leaves the platform at rest (speeds ≤ ``REST_SPEED``) where the drives can hold it (holding
+forces within their limits), from where holding keeps it there. Each accepted step thus keeps a way to stop in
+reserve. The last resort is the braking effort, since a zero offset holds a platform at rest but does not stop a
+moving one. That is not a guarantee: a platform already too fast to stop (a start, or a robot as built that
+differs from the model the brake uses) cannot be saved.
 The dynamics, rewards and termination rules are those of the environment; the cost is one to four extra
 ``core.transition`` calls per step (under force control 1 + ⌈``BRAKE_TIME`` / dt⌉ per candidate; the accepted
 candidate is computed again by ``env.step``).
@@ -38,6 +41,7 @@ from kinematics import SingularConfigurationError
 
 __all__ = [
     "BRAKE_TIME",
+    "REST_SPEED",
     "SHIELD_SCALES",
     "SingularityShield",
     "VectorSingularityShield",
@@ -47,8 +51,10 @@ __all__ = [
 
 #: Action scales tried in order; the last (zero) is always safe.
 SHIELD_SCALES = (1.0, 0.5, 0.25, 0.125, 0.0)
-#: Under force control, the time [s] of braking a candidate must leave the platform able to survive (whole periods).
+#: Under force control, the time [s] within which braking after a candidate must stop the platform (whole periods).
 BRAKE_TIME = 0.3
+#: Under force control, the speed [m/s; ℓ_c rad/s about an angle] at or below which braking has stopped the platform.
+REST_SPEED = 0.01
 
 
 def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[np.ndarray, np.ndarray]:
@@ -87,13 +93,21 @@ def shield_actions(params, state, actions: np.ndarray, k_guard: float) -> tuple[
 
 
 def _stoppable(params, state, floor: np.ndarray) -> np.ndarray:
-    """Rows (N,) whose braking for ``BRAKE_TIME`` from ``state`` never ends and keeps k ≥ ``floor``."""
+    """Rows (N,) whose braking for ``BRAKE_TIME`` from ``state`` never ends, keeps k ≥ ``floor`` and stops where held.
+
+    Stopped: every speed of the twist at most ``REST_SPEED`` (angular ones times ℓ_c); held: the holding forces
+    there within the drive limits (|τ_h,i| < τ_max,i), so that a zero action keeps the platform at rest.
+    """
     ok = np.ones(len(state.q), dtype=bool)
     for _ in range(max(1, math.ceil(BRAKE_TIME / params.dt - 1e-9))):
         with np.errstate(invalid="ignore"):
             state, outcome = transition(params, state, brake_actions(params, state))
         ok &= (outcome.reason == 0) & (state.inverse_condition >= floor)
-    return ok
+    at_rest = (np.abs(state.twist * params.pose_metric) <= REST_SPEED).all(axis=-1)
+    _, hold = _brake_and_hold(params, state)
+    with np.errstate(invalid="ignore"):
+        held = (np.abs(hold) < params.force_limit_array).all(axis=-1)
+    return ok & at_rest & held
 
 
 def brake_actions(params, state) -> np.ndarray:
@@ -110,6 +124,12 @@ def brake_actions(params, state) -> np.ndarray:
     Returns:
         Actions, shape (N, n) float64.
     """
+    brake, hold = _brake_and_hold(params, state)
+    return actions_of_efforts(np.nan_to_num(hold), np.nan_to_num(brake), params.force_limit_array)
+
+
+def _brake_and_hold(params, state) -> tuple[np.ndarray, np.ndarray]:
+    """The braking efforts τ_b and holding forces τ_h of ``brake_actions``, each (N, n); NaN where J_x is singular."""
     dynamics, robot = params.dynamics, params.robot
     q, x, twist = state.q, state.x, state.twist
     M = dynamics.mass_matrix(q, x)
@@ -118,15 +138,15 @@ def brake_actions(params, state) -> np.ndarray:
     q2, x2 = np.concatenate([q, q]), np.concatenate([x, x])
     try:
         brake, hold = np.split(robot.actuator_forces(q2, x2, both, validate=False), 2)
-    except SingularConfigurationError:  # a row at a singularity (an ended episode): row by row, 0 (hold) there
+    except SingularConfigurationError:  # a row at a singularity (an ended episode): row by row, NaN there
         brake, hold = np.zeros_like(q), np.zeros_like(q)
         for i in range(len(q)):
             try:
                 brake[i] = robot.actuator_forces(q[i], x[i], wrench[i], validate=False)
                 hold[i] = robot.actuator_forces(q[i], x[i], both[len(q) + i], validate=False)
             except SingularConfigurationError:
-                brake[i] = hold[i] = 0.0
-    return actions_of_efforts(hold, brake, params.force_limit_array)
+                brake[i] = hold[i] = np.nan
+    return brake, hold
 
 
 def _guard(k_guard: Any) -> float:
