@@ -23,6 +23,7 @@ motion of constant twist ẋ (ẍ = 0), written analytically: for a platform poi
 actuator q̈⁰ from the second derivative of Φ_i = 0, for the rods ü⁰ from that of u_i = d_i / ℓ_i. A rod's
 rotational energy ½ I |u̇|² is that of a point of mass I moving with u (its angular velocity is u × u̇, of
 norm |u̇|). τ are the actuator efforts dual to q (forces [N] for legs and sliders, torques [N·m] for cranks).
+The drives' viscous friction (``actuator_damping`` B) takes B q̇ from τ: c includes J_iᵀ B J_i ẋ.
 """
 
 from __future__ import annotations
@@ -76,6 +77,7 @@ class _Kinematics(NamedTuple):
     J_actuator: FloatArray  # (N, n, d, m): ẋ → velocity of the actuator body's centre of mass (for its weight)
     omega: FloatArray  # (N, r): platform angular velocity (r = 3 spatial, 1 planar, 0 translational)
     inertia_world: FloatArray  # (N, r, r): platform inertia about its centre of mass in {B} axes
+    qdot: FloatArray  # (N, n): actuator rates q̇ = J_i ẋ
 
 
 class RobotDynamics:
@@ -227,7 +229,7 @@ class RobotDynamics:
             omega = np.zeros((N, 0))
             inertia_world = np.zeros((N, 0, 0))
         return _Kinematics(
-            J_platform, a_platform, J_q, qdd, J_u, udd, J_distal, a_distal, J_actuator, omega, inertia_world
+            J_platform, a_platform, J_q, qdd, J_u, udd, J_distal, a_distal, J_actuator, omega, inertia_world, qdot
         )
 
     # -- the terms of the equations of motion -------------------------------------------------------
@@ -252,6 +254,7 @@ class RobotDynamics:
         c += np.einsum("i,Nim,Ni->Nm", self._w_q, k.J_q, k.qdd)
         c += np.einsum("i,Nidm,Nid->Nm", self._w_u, k.J_u, k.udd)
         c += np.einsum("i,Nidm,Nid->Nm", ine.distal_mass, k.J_distal, k.a_distal)
+        c += np.einsum("Nim,Ni->Nm", k.J_q, ine.actuator_damping * k.qdot)  # the drives' viscous friction J_iᵀ B q̇
         return c
 
     def _gravity(self, k: _Kinematics) -> FloatArray:
@@ -282,7 +285,7 @@ class RobotDynamics:
         return self._mass_matrix(k).reshape(batch + 2 * (self.mechanism.n_pose,))
 
     def bias_forces(self, q: Any, x: Any, xdot: Any) -> FloatArray:
-        """The velocity-product and gravity terms c(x, ẋ) + G(x): M ẍ + c + G = J_iᵀ τ.
+        """The velocity-product, friction and gravity terms c(x, ẋ) + G(x): M ẍ + c + G = J_iᵀ τ.
 
         Args:
             q: Actuator coordinates with Φ(q, x) = 0, shape (..., n).

@@ -40,7 +40,15 @@ __all__ = [
 #: Standard gravity g_n [m/s²] (CGPM 1901).
 STANDARD_GRAVITY = 9.80665
 
-_PER_LEG = ("actuator_mass", "actuator_com", "actuator_inertia", "distal_mass", "distal_com", "distal_inertia")
+_PER_LEG = (
+    "actuator_mass",
+    "actuator_com",
+    "actuator_inertia",
+    "distal_mass",
+    "distal_com",
+    "distal_inertia",
+    "actuator_damping",
+)
 
 
 def _non_negative(name: str, arr: FloatArray, unit: str) -> None:
@@ -76,6 +84,10 @@ class InertialParameters:
             shape (n,).
         distal_inertia: Transverse moment of inertia of the rod about its centre of mass [kg·m²], shape (n,).
         gravity: Gravitational acceleration g in {B} [m/s²], shape (d,).
+        actuator_damping: Viscous friction b of each actuated joint, shape (n,), ≥ 0 [N·s/m for legs and sliders,
+            N·m·s/rad for cranks]: the drive loses the effort b_i q̇_i (default 0: none). A friction that stops
+            the drive faster than an integration substep (b_i above its moving inertia / substep) is too stiff
+            for the explicit integrators.
     """
 
     platform_mass: float
@@ -88,6 +100,7 @@ class InertialParameters:
     distal_com: FloatArray
     distal_inertia: FloatArray
     gravity: FloatArray
+    actuator_damping: FloatArray = 0.0  # type: ignore[assignment]  (a number broadcasts to every leg)
 
     def __post_init__(self) -> None:
         """Validate and freeze the arrays (see the class docstring); raise ``ValueError`` naming a bad value."""
@@ -123,6 +136,8 @@ class InertialParameters:
         _non_negative("actuator_inertia", legs["actuator_inertia"], "[kg·m²]")
         _non_negative("distal_mass", legs["distal_mass"], "[kg]")
         _non_negative("distal_inertia", legs["distal_inertia"], "[kg·m²]")
+        check_finite("actuator_damping", legs["actuator_damping"])
+        _non_negative("actuator_damping", legs["actuator_damping"], "[N·s/m or N·m·s/rad]")
         gravity = as_float_array("gravity", self.gravity)
         if gravity.shape != (d,):
             raise ValueError(f"gravity must have shape ({d},) like platform_com, got shape {gravity.shape}")
@@ -169,7 +184,8 @@ class InertialParameters:
         unknown = sorted(set(data) - set(names))
         if unknown:
             raise ValueError(f"unknown key(s) {unknown} in inertial data; valid keys are {names}")
-        missing = [name for name in names if name not in data]
+        optional = {field.name for field in dataclasses.fields(cls) if field.default is not dataclasses.MISSING}
+        missing = [name for name in names if name not in data and name not in optional]
         if missing:
             raise ValueError(f"inertial data needs {missing}")
         return cls(**data)

@@ -18,7 +18,8 @@ configuration ``qpos0`` the model is closed and the actuated joints read q. Name
     closure      equality ``closure{i}``: a ``connect`` of the platform point P_i to the distal body's end
                  (planar: its z row is identically satisfied, so it acts as a hinge in the plane).
     motor        actuator ``motor{i}`` on joint ``actuator{i}``, gear 1, no control limits: ``data.ctrl`` is
-                 τ (N for legs and sliders, N·m for cranks), the effort dual to q of ``kinematics.dynamics``.
+                 τ (N for legs and sliders, N·m for cranks), the effort dual to q of ``kinematics.dynamics``; the
+                 joint's ``damping`` is the drive's viscous friction b_i (``actuator_damping``).
 
 The platform's joints come first in ``qpos`` (``platform_pose`` reads x from them). The inertial data map to
 MuJoCo's bodies as follows (every ``<inertial>`` explicit, geoms for display only, contacts disabled):
@@ -242,6 +243,11 @@ def to_mjcf(
         ET.SubElement(platform, "geom", type="capsule", size=radius, fromto=_numbers([*local[i - 1], *local[i]]))
 
     joint_kind = "ball" if d == 3 else "hinge"
+
+    def damping(i: int) -> dict[str, str]:  # the drive's viscous friction on its joint (none: MuJoCo's default)
+        b = float(ine.actuator_damping[i])
+        return {"damping": repr(b)} if b > 0.0 else {}
+
     for i, kind in enumerate(kinds):
         t_i = max(float(ine.distal_inertia[i]), _FLOOR)
         rod_inertia = _world_inertia(t_i, axial_inertia * t_i, u[i])
@@ -266,7 +272,13 @@ def to_mjcf(
             )
             distal = ET.SubElement(cylinder, "body", name=f"distal{i}", pos=_numbers(P[i] - B[i]))
             ET.SubElement(
-                distal, "joint", name=f"actuator{i}", type="slide", axis=_numbers(u[i]), ref=repr(float(q[i]))
+                distal,
+                "joint",
+                name=f"actuator{i}",
+                type="slide",
+                axis=_numbers(u[i]),
+                ref=repr(float(q[i])),
+                **damping(i),
             )
             rod_com = -ine.distal_com[i] * u[i]
             rod_geom = [*(-0.5 * q[i] * u[i]), 0, 0, 0]
@@ -275,7 +287,15 @@ def to_mjcf(
                 U, V = (_lift(axis) for axis in mechanism.crank_axes[i])
                 w = np.cross(U, V)
                 arm = ET.SubElement(world, "body", name=f"actuator{i}", pos=_numbers(B[i]))
-                ET.SubElement(arm, "joint", name=f"actuator{i}", type="hinge", axis=_numbers(w), ref=repr(float(q[i])))
+                ET.SubElement(
+                    arm,
+                    "joint",
+                    name=f"actuator{i}",
+                    type="hinge",
+                    axis=_numbers(w),
+                    ref=repr(float(q[i])),
+                    **damping(i),
+                )
                 radial = (A[i] - B[i]) / mechanism.crank_radii[i]
                 own = max(float(shortfall[i]), _FLOOR)
                 ET.SubElement(
@@ -290,7 +310,15 @@ def to_mjcf(
             else:
                 e = _lift(mechanism.rails[i])
                 arm = ET.SubElement(world, "body", name=f"actuator{i}", pos=_numbers(A[i]))
-                ET.SubElement(arm, "joint", name=f"actuator{i}", type="slide", axis=_numbers(e), ref=repr(float(q[i])))
+                ET.SubElement(
+                    arm,
+                    "joint",
+                    name=f"actuator{i}",
+                    type="slide",
+                    axis=_numbers(e),
+                    ref=repr(float(q[i])),
+                    **damping(i),
+                )
                 ET.SubElement(
                     arm,
                     "inertial",

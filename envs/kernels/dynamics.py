@@ -55,6 +55,7 @@ from envs.kernels.dynamics_layout import (
     I_AMASS,
     I_ARM,
     I_COM,
+    I_DAMP,
     I_DCOM,
     I_DMASS,
     I_GRAVITY,
@@ -166,7 +167,8 @@ def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2):
     y1 = w_u * udd1 - c_d * fd1 - lever * gy
     y2 = w_u * udd2 - c_d * fd2 - lever * gz
     hy = h0 * y0 + h1 * y1 + h2 * y2
-    along = w_q * qdd - m_a * ci[I_ARM + i] * (D0 * gx + D1 * gy + D2 * gz) - hy * inv
+    # the drive's viscous friction b q̇ acts along the actuator like its inertia's w_q q̈
+    along = w_q * qdd + ci[I_DAMP + i] * qd - m_a * ci[I_ARM + i] * (D0 * gx + D1 * gy + D2 * gz) - hy * inv
     F0 = fd0 + y0 * inv + along * g0
     F1 = fd1 + y1 * inv + along * g1
     F2 = fd2 + y2 * inv + along * g2

@@ -37,6 +37,7 @@ INERTIA: tuple[tuple[str, int, str], ...] = (
     ("WU", _LEGS, "weight of |u̇_i|² [kg·m²]"),
     ("DMASS", _LEGS, "distal rod masses m_d [kg]"),
     ("DCOM", _LEGS, "distal rod centres of mass from P_i along the rod [m]"),
+    ("DAMP", _LEGS, "viscous friction b of the actuated joints [N·s/m, N·m·s/rad for cranks]"),
     ("LIMIT", _LEGS, "drive limits |τ_i| ≤ τ_max,i of force control [N, N·m for cranks]"),
     ("SUBSTEPS", _ONE, "RKMK4 steps per control period of force control"),
 )
@@ -124,6 +125,7 @@ def pack_inertia(mechanism, inertia, limits=None, substeps: int = 1) -> np.ndarr
         "WU": leg * (mass_a * com_a**2 + inertia_a) + inertia.distal_inertia,
         "DMASS": inertia.distal_mass,
         "DCOM": inertia.distal_com,
+        "DAMP": inertia.actuator_damping,
         "LIMIT": np.full(n, np.inf) if limits is None else np.asarray(limits, dtype=np.float64),
         "SUBSTEPS": [substeps],
     }

@@ -282,6 +282,40 @@ def test_kinetic_energy_is_conserved_without_gravity(name, rng):
     assert np.abs(E - E[0]).max() <= 1e-6 * E[0].min()
 
 
+@pytest.mark.parametrize("name", ["3-RPR", "hexapod", "Delta"])
+def test_viscous_friction_dissipates_its_power(name, rng):
+    """Drives with viscous friction B, τ = 0, under gravity: E(t) + ∫ q̇ᵀ B q̇ dt = E(0).
+
+    The dissipated work is integrated by Simpson's rule over 1 ms steps, q̇ = J_i ẋ from the kinematics; the
+    friction takes at least a tenth of the largest kinetic energy (B chosen per robot), and the balance holds to
+    1e-6 of it. A friction with the wrong sign, the wrong Jacobian or none breaks the balance.
+    """
+    robot, _ = make(name)
+    damping = {"3-RPR": 20.0, "hexapod": 200.0, "Delta": 0.5}[name]
+    inertia = default_inertia(robot).replace(gravity=GRAVITY[robot.pose_space.point_dim], actuator_damping=damping)
+    dyn = RobotDynamics(robot, inertia)
+    X = random_poses(robot, name, rng, 2, margin=0.3)
+    V = 0.2 * rng.uniform(-1.0, 1.0, X.shape) * robot.pose_scale
+    Q = robot.inverse_kinematics(X)
+    tau = np.zeros_like(Q)
+
+    def energy_and_power(Q, X, V):
+        qdot = np.einsum("Nim,Nm->Ni", robot.inverse_jacobian(Q, X), V)
+        T = dyn.kinetic_energy(Q, X, V)
+        return T + dyn.potential_energy(Q, X), T, np.einsum("Ni,i,Ni->N", qdot, inertia.actuator_damping, qdot)
+
+    samples = [energy_and_power(Q, X, V)]
+    dt = 1e-3
+    for _ in range(100):
+        Q, X, V = dyn.step(X, V, tau, dt)
+        samples.append(energy_and_power(Q, X, V))
+    E, T, P = (np.array(values) for values in zip(*samples))
+    W = np.zeros_like(E)  # ∫ P dt at the even samples, Simpson's rule
+    W[2::2] = np.cumsum(dt / 3.0 * (P[0:-2:2] + 4.0 * P[1:-1:2] + P[2::2]), axis=0)
+    assert (W[-1] >= 0.1 * T.max(axis=0)).all(), (W[-1], T.max(axis=0))
+    np.testing.assert_allclose(E[::2] + W[::2], np.broadcast_to(E[0], E[::2].shape), rtol=0, atol=1e-6 * T.max())
+
+
 @pytest.mark.parametrize(("name", "dt"), [("hexapod", 1e-3), ("Delta", 1e-3), ("3-RRR", 2.5e-4)])
 def test_total_energy_is_conserved_under_gravity(name, dt, rng):
     """Gravity, τ = 0, starting slow: T + V drifts by ≤ 1e-6 of the largest T until near a singularity.
@@ -369,6 +403,11 @@ def valid(**changes) -> dict:
         ({"gravity": [0.0, 0.0, -9.81]}, r"gravity must have shape \(2,\) like platform_com, got shape \(3,\)"),
         ({"actuator_com": [0.1, 0.1]}, r"actuator_com must be a number or have shape \(3,\), got shape \(2,\)"),
         ({"gravity": [0.0, np.inf]}, r"gravity must be finite"),
+        (
+            {"actuator_damping": [0.0, -3.0, 0.0]},
+            r"actuator_damping must be ≥ 0 \[N·s/m or N·m·s/rad\], got -3.0 for leg 2",
+        ),
+        ({"actuator_damping": np.nan}, r"actuator_damping must be finite"),
     ],
 )
 def test_bad_inertial_data_is_refused(changes, match):
