@@ -78,6 +78,8 @@ class _Kinematics(NamedTuple):
     omega: FloatArray  # (N, r): platform angular velocity (r = 3 spatial, 1 planar, 0 translational)
     inertia_world: FloatArray  # (N, r, r): platform inertia about its centre of mass in {B} axes
     qdot: FloatArray  # (N, n): actuator rates q̇ = J_i ẋ
+    J_joint: FloatArray  # (N, n, 3, m): ẋ → relative angular velocity of each chain's passive joint at its actuator
+    xdot: FloatArray  # (N, m): the platform twist
 
 
 class RobotDynamics:
@@ -229,8 +231,25 @@ class RobotDynamics:
             omega = np.zeros((N, 0))
             inertia_world = np.zeros((N, 0, 0))
         return _Kinematics(
-            J_platform, a_platform, J_q, qdd, J_u, udd, J_distal, a_distal, J_actuator, omega, inertia_world, qdot
-        )
+            J_platform, a_platform, J_q, qdd, J_u, udd, J_distal, a_distal, J_actuator, omega, inertia_world, qdot,
+            self._joint_map(u, J_u, dA, ddA, J_q), xdot,
+        )  # fmt: skip
+
+    @staticmethod
+    def _joint_map(u: FloatArray, J_u: FloatArray, dA: FloatArray, ddA: FloatArray, J_q: FloatArray) -> FloatArray:
+        """ẋ → ω_i, (N, n, 3, m): the rod's angular velocity less the crank arm's, across the rod.
+
+        ω_i = u_i × u̇_i − w⊥_i q̇_i, the arm turning about w_i = A_i′ × A_i″ / |A_i′|² (a crank's axis; 0 for legs,
+        whose A_i′ = 0, and for sliders, whose A_i″ = 0) and w⊥_i = w_i − (w_i·u_i) u_i: the spin about the rod's
+        own axis, free and without inertia in this model, carries no friction. Planar vectors are lifted to 3-D.
+        """
+        if u.shape[-1] == 2:
+            u, dA, ddA = (np.concatenate([a, np.zeros_like(a[..., :1])], axis=-1) for a in (u, dA, ddA))
+            J_u = np.concatenate([J_u, np.zeros_like(J_u[..., :1, :])], axis=-2)
+        norm = np.einsum("...d,...d->...", dA, dA)
+        w = np.cross(dA, ddA) / np.where(norm > 0.0, norm, 1.0)[..., None]
+        w = w - np.einsum("...d,...d->...", w, u)[..., None] * u
+        return np.cross(u[..., :, None], J_u, axis=-2) - np.einsum("Nid,Nim->Nidm", w, J_q)
 
     # -- the terms of the equations of motion -------------------------------------------------------
 
@@ -255,6 +274,9 @@ class RobotDynamics:
         c += np.einsum("i,Nidm,Nid->Nm", self._w_u, k.J_u, k.udd)
         c += np.einsum("i,Nidm,Nid->Nm", ine.distal_mass, k.J_distal, k.a_distal)
         c += np.einsum("Nim,Ni->Nm", k.J_q, ine.actuator_damping * k.qdot)  # the drives' viscous friction J_iᵀ B q̇
+        if ine.joint_damping.any():  # the passive joints' viscous friction Σ_i b_i J_ω,iᵀ ω_i
+            omega = np.einsum("Nidm,Nm->Nid", k.J_joint, k.xdot)
+            c += np.einsum("i,Nidm,Nid->Nm", ine.joint_damping, k.J_joint, omega)
         return c
 
     def _gravity(self, k: _Kinematics) -> FloatArray:

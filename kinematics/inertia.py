@@ -48,6 +48,7 @@ _PER_LEG = (
     "distal_com",
     "distal_inertia",
     "actuator_damping",
+    "joint_damping",
 )
 
 
@@ -88,6 +89,10 @@ class InertialParameters:
             N·m·s/rad for cranks]: the drive loses the effort b_i q̇_i (default 0: none). A friction that stops
             the drive faster than an integration substep (b_i above its moving inertia / substep) is too stiff
             for the explicit integrators.
+        joint_damping: Viscous friction of each chain's passive joint at its actuator [N·m·s/rad], shape (n,),
+            ≥ 0: a leg's base joint, a crank's or slider's elbow. The joint loses the moment b ω of the relative
+            angular velocity ω of the two bodies it joins (the rod's u × u̇ less the crank arm's; spin about the
+            rod's own axis is neglected, as in the inertia). Default 0; the joints at the platform are frictionless.
     """
 
     platform_mass: float
@@ -101,6 +106,7 @@ class InertialParameters:
     distal_inertia: FloatArray
     gravity: FloatArray
     actuator_damping: FloatArray = 0.0  # type: ignore[assignment]  (a number broadcasts to every leg)
+    joint_damping: FloatArray = 0.0  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         """Validate and freeze the arrays (see the class docstring); raise ``ValueError`` naming a bad value."""
@@ -138,6 +144,8 @@ class InertialParameters:
         _non_negative("distal_inertia", legs["distal_inertia"], "[kg·m²]")
         check_finite("actuator_damping", legs["actuator_damping"])
         _non_negative("actuator_damping", legs["actuator_damping"], "[N·s/m or N·m·s/rad]")
+        check_finite("joint_damping", legs["joint_damping"])
+        _non_negative("joint_damping", legs["joint_damping"], "[N·m·s/rad]")
         gravity = as_float_array("gravity", self.gravity)
         if gravity.shape != (d,):
             raise ValueError(f"gravity must have shape ({d},) like platform_com, got shape {gravity.shape}")

@@ -19,7 +19,9 @@ configuration ``qpos0`` the model is closed and the actuated joints read q. Name
                  (planar: its z row is identically satisfied, so it acts as a hinge in the plane).
     motor        actuator ``motor{i}`` on joint ``actuator{i}``, gear 1, no control limits: ``data.ctrl`` is
                  τ (N for legs and sliders, N·m for cranks), the effort dual to q of ``kinematics.dynamics``; the
-                 joint's ``damping`` is the drive's viscous friction b_i (``actuator_damping``).
+                 joint's ``damping`` is the drive's viscous friction b_i (``actuator_damping``), that of
+                 ``base{i}`` or ``elbow{i}`` the passive joint's (``joint_damping``; a rod's spin, which the
+                 friction of a ball joint also slows, stays decoupled from the platform).
 
 The platform's joints come first in ``qpos`` (``platform_pose`` reads x from them). The inertial data map to
 MuJoCo's bodies as follows (every ``<inertial>`` explicit, geoms for display only, contacts disabled):
@@ -151,7 +153,8 @@ def to_mjcf(
         solimp: MuJoCo's impedance (d_0, d_width, width [m], midpoint, power) of the closures; d near 1 makes
             them stiff. Default (0.9999, 0.9999, 0.001, 0.5, 2).
         axial_inertia: Moment of inertia of every rod and cylinder about its own axis, as a fraction of its
-            transverse one, > 0 (our model neglects it; the spin it weighs is decoupled). Default 1e-3.
+            transverse one, > 0 (our model neglects it; the spin it weighs is decoupled). Default 1e-3; at least
+            2 b × ``timestep`` on a ball joint with friction b (``joint_damping``).
         model_name: The model's name; default the mechanism's class name.
 
     Returns:
@@ -249,19 +252,22 @@ def to_mjcf(
         return {"damping": repr(b)} if b > 0.0 else {}
 
     for i, kind in enumerate(kinds):
+        # a ball joint's friction also slows the spin of the rod it carries: an axial moment of at least 2 b dt keeps
+        # that mode (time constant I / b) stable under MuJoCo's explicit integrators
+        spin = 2.0 * float(ine.joint_damping[i]) * timestep if joint_kind == "ball" else 0.0
         t_i = max(float(ine.distal_inertia[i]), _FLOOR)
-        rod_inertia = _world_inertia(t_i, axial_inertia * t_i, u[i])
+        rod_inertia = _world_inertia(t_i, max(axial_inertia * t_i, spin), u[i])
         rod_mass = repr(max(float(ine.distal_mass[i]), _FLOOR))
         if kind == "leg":
             cylinder = ET.SubElement(world, "body", name=f"actuator{i}", pos=_numbers(B[i]))
-            _pivot(cylinder, f"base{i}", joint_kind)
+            _pivot(cylinder, f"base{i}", joint_kind, float(ine.joint_damping[i]))
             c_i = max(float(ine.actuator_inertia[i]), _FLOOR)
             ET.SubElement(
                 cylinder,
                 "inertial",
                 pos=_numbers(ine.actuator_com[i] * u[i]),
                 mass=repr(max(float(ine.actuator_mass[i]), _FLOOR)),
-                fullinertia=_full(_world_inertia(c_i, axial_inertia * c_i, u[i])),
+                fullinertia=_full(_world_inertia(c_i, max(axial_inertia * c_i, spin), u[i])),
             )
             ET.SubElement(
                 cylinder,
@@ -329,7 +335,7 @@ def to_mjcf(
                 ET.SubElement(arm, "geom", type="sphere", size=repr(2 * float(radius)))
                 offset = np.zeros(3)
             distal = ET.SubElement(arm, "body", name=f"distal{i}", pos=_numbers(offset))
-            _pivot(distal, f"elbow{i}", joint_kind)
+            _pivot(distal, f"elbow{i}", joint_kind, float(ine.joint_damping[i]))
             ell = float(np.linalg.norm(link[i]))
             rod_com = (ell - ine.distal_com[i]) * u[i]
             rod_geom = [0, 0, 0, *link[i]]
@@ -369,11 +375,12 @@ def _platform_inertia(ine: InertialParameters) -> FloatArray:
     return I_c
 
 
-def _pivot(body: ET.Element, name: str, joint_kind: str) -> None:
+def _pivot(body: ET.Element, name: str, joint_kind: str, damping: float) -> None:
+    extra = {"damping": repr(damping)} if damping > 0.0 else {}
     if joint_kind == "ball":
-        ET.SubElement(body, "joint", name=name, type="ball")
+        ET.SubElement(body, "joint", name=name, type="ball", **extra)
     else:
-        ET.SubElement(body, "joint", name=name, type="hinge", axis="0 0 1")
+        ET.SubElement(body, "joint", name=name, type="hinge", axis="0 0 1", **extra)
 
 
 def platform_pose(mechanism: DistanceConstraintMechanism, qpos: Any) -> FloatArray:

@@ -60,6 +60,7 @@ from envs.kernels.dynamics_layout import (
     I_DMASS,
     I_GRAVITY,
     I_INERTIA,
+    I_JDAMP,
     I_LEVER,
     I_MASS,
     I_N,
@@ -166,9 +167,26 @@ def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2):
     y0 = w_u * udd0 - c_d * fd0 - lever * gx
     y1 = w_u * udd1 - c_d * fd1 - lever * gy
     y2 = w_u * udd2 - c_d * fd2 - lever * gz
+    # the passive joint's viscous friction b ω, ω = u × u̇ − w⊥ q̇ (w = A′ × A″ / |A′|²: a crank's axis, else 0;
+    # w⊥ = w − (w·u) u: no friction on the rod's spin): its generalised force J_uᵀ (b ω × u) + J_qᵀ (−b w⊥·ω)
+    b_j = ci[I_JDAMP + i]
+    wdotw = 0.0
+    if b_j != 0.0:
+        norm = D0 * D0 + D1 * D1 + D2 * D2
+        scale = 1.0 / norm if norm > 0.0 else 0.0
+        w0, w1, w2 = (D1 * DD2 - D2 * DD1) * scale, (D2 * DD0 - D0 * DD2) * scale, (D0 * DD1 - D1 * DD0) * scale
+        wu = w0 * u0 + w1 * u1 + w2 * u2
+        w0, w1, w2 = w0 - wu * u0, w1 - wu * u1, w2 - wu * u2
+        o0 = u1 * ud2 - u2 * ud1 - w0 * qd
+        o1 = u2 * ud0 - u0 * ud2 - w1 * qd
+        o2 = u0 * ud1 - u1 * ud0 - w2 * qd
+        y0 += b_j * (o1 * u2 - o2 * u1)
+        y1 += b_j * (o2 * u0 - o0 * u2)
+        y2 += b_j * (o0 * u1 - o1 * u0)
+        wdotw = b_j * (w0 * o0 + w1 * o1 + w2 * o2)
     hy = h0 * y0 + h1 * y1 + h2 * y2
     # the drive's viscous friction b q̇ acts along the actuator like its inertia's w_q q̈
-    along = w_q * qdd + ci[I_DAMP + i] * qd - m_a * ci[I_ARM + i] * (D0 * gx + D1 * gy + D2 * gz) - hy * inv
+    along = w_q * qdd + ci[I_DAMP + i] * qd - wdotw - m_a * ci[I_ARM + i] * (D0 * gx + D1 * gy + D2 * gz) - hy * inv
     F0 = fd0 + y0 * inv + along * g0
     F1 = fd1 + y1 * inv + along * g1
     F2 = fd2 + y2 * inv + along * g2

@@ -38,6 +38,7 @@ INERTIA: tuple[tuple[str, int, str], ...] = (
     ("DMASS", _LEGS, "distal rod masses m_d [kg]"),
     ("DCOM", _LEGS, "distal rod centres of mass from P_i along the rod [m]"),
     ("DAMP", _LEGS, "viscous friction b of the actuated joints [N·s/m, N·m·s/rad for cranks]"),
+    ("JDAMP", _LEGS, "viscous friction b of the passive joints at the actuators [N·m·s/rad]"),
     ("LIMIT", _LEGS, "drive limits |τ_i| ≤ τ_max,i of force control [N, N·m for cranks]"),
     ("SUBSTEPS", _ONE, "RKMK4 steps per control period of force control"),
 )
@@ -126,6 +127,7 @@ def pack_inertia(mechanism, inertia, limits=None, substeps: int = 1) -> np.ndarr
         "DMASS": inertia.distal_mass,
         "DCOM": inertia.distal_com,
         "DAMP": inertia.actuator_damping,
+        "JDAMP": inertia.joint_damping,
         "LIMIT": np.full(n, np.inf) if limits is None else np.asarray(limits, dtype=np.float64),
         "SUBSTEPS": [substeps],
     }

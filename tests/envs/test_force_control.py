@@ -57,18 +57,19 @@ def _interpolated_efforts(hold, action, limits):
 
 @pytest.mark.parametrize(
     ("robot", "damped"),
-    [(robot, False) for robot in ROBOTS] + [("planar_3rpr", True), ("stewart_gough", True), ("delta", True)],
+    [(robot, False) for robot in ROBOTS] + [(robot, True) for robot in ROBOTS],
 )
 def test_the_compiled_step_is_the_numpy_dynamics(robot, damped):
     """Against ``RobotDynamics.step`` (NumPy, its own RKMK4): efforts, poses, twists, strokes, residual ≤ 1e-10.
 
     Random starts of the task box with random twists and actions (some saturating), ten periods in a row, the
     efforts rebuilt from the NumPy holding forces: τ = clip(τ_h + a (τ_max + |τ_h|), ±τ_max). Damped: drives
-    with viscous friction b_i = 0.1 s × τ_max,i per unit of q̇.
+    with viscous friction b_i = 0.1 s × τ_max,i per unit of q̇, and passive joints with 0.01 s × the largest τ_max.
     """
     params = build_family_params(robot, control="force", dynamics_substeps=3)
     if damped:
-        inertia = params.dynamics.inertia.replace(actuator_damping=0.1 * np.asarray(params.force_limits))
+        limits = np.asarray(params.force_limits)
+        inertia = params.dynamics.inertia.replace(actuator_damping=0.1 * limits, joint_damping=0.01 * limits.max())
         params = build_family_params(robot, control="force", dynamics_substeps=3, inertia=inertia)
     dynamics, limits = params.dynamics, np.asarray(params.force_limits)
     x, q = _starts(params, 6, seed=1)

@@ -316,6 +316,67 @@ def test_viscous_friction_dissipates_its_power(name, rng):
     np.testing.assert_allclose(E[::2] + W[::2], np.broadcast_to(E[0], E[::2].shape), rtol=0, atol=1e-6 * T.max())
 
 
+def joint_angular_velocities(robot, X: np.ndarray, V: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """The rod's angular velocity less the arm's, across the rod, by central differences along the twist: (N, n, 3).
+
+    u_i = d_i / ℓ_i from ``link_vectors`` at x ± h ẋ (``retract``) and q from the inverse kinematics; the arm turns
+    with w_i q̇_i, w_i = U_i × V_i of a crank's axes (else 0); ω_i = u_i × u̇_i − w_i q̇_i less its component along
+    u_i (the rod's free spin). Planar vectors are lifted to 3-D.
+    """
+
+    def lift(a: np.ndarray) -> np.ndarray:
+        return a if a.shape[-1] == 3 else np.concatenate([a, np.zeros_like(a[..., :1])], axis=-1)
+
+    def rod_and_strokes(x):
+        q = robot.inverse_kinematics(x)
+        d = lift(robot.link_vectors(q, x))
+        return d / np.linalg.norm(d, axis=-1, keepdims=True), q
+
+    u, _ = rod_and_strokes(X)
+    (u_up, q_up), (u_down, q_down) = rod_and_strokes(robot.retract(X, h * V)), rod_and_strokes(robot.retract(X, -h * V))
+    udot, qdot = (u_up - u_down) / (2.0 * h), (q_up - q_down) / (2.0 * h)
+    kinds = np.array(robot.actuator_kinds)
+    axes = lift(robot.crank_axes)
+    w = np.where((kinds == "crank")[:, None], np.cross(axes[:, 0], axes[:, 1]), 0.0)
+    omega = np.cross(u, udot) - w * qdot[..., None]
+    return omega - np.einsum("Nid,Nid->Ni", omega, u)[..., None] * u
+
+
+@pytest.mark.parametrize(
+    ("name", "damping"), [("3-RPR", 3.0), ("hexapod", 20.0), ("Delta", 0.6), ("3-RRR", 0.03), ("3-PRR", 0.1)]
+)
+def test_passive_joint_friction_dissipates_its_power(name, damping, rng):
+    """Friction b at each chain's passive joint (base joint or elbow), τ = 0, gravity: E(t) + ∫ b Σ|ω_i|² dt = E(0).
+
+    ω_i, the rod's angular velocity less the crank arm's, by differences of the kinematics (not the dynamics'
+    velocity maps); Simpson's rule over 0.25 ms steps; the friction takes a tenth of the largest kinetic energy
+    or more, and the balance holds to 1e-6 of it.
+    """
+    robot, _ = make(name)
+    inertia = default_inertia(robot).replace(gravity=GRAVITY[robot.pose_space.point_dim], joint_damping=damping)
+    dyn = RobotDynamics(robot, inertia)
+    X = random_poses(robot, name, rng, 2, margin=0.3)
+    V = 0.2 * rng.uniform(-1.0, 1.0, X.shape) * robot.pose_scale
+    Q = robot.inverse_kinematics(X)
+    tau = np.zeros_like(Q)
+
+    def energy_and_power(Q, X, V):
+        omega = joint_angular_velocities(robot, X, V)
+        T = dyn.kinetic_energy(Q, X, V)
+        return T + dyn.potential_energy(Q, X), T, damping * np.einsum("Nid,Nid->N", omega, omega)
+
+    samples = [energy_and_power(Q, X, V)]
+    dt = 2.5e-4
+    for _ in range(200):
+        Q, X, V = dyn.step(X, V, tau, dt)
+        samples.append(energy_and_power(Q, X, V))
+    E, T, P = (np.array(values) for values in zip(*samples))
+    W = np.zeros_like(E)
+    W[2::2] = np.cumsum(dt / 3.0 * (P[0:-2:2] + 4.0 * P[1:-1:2] + P[2::2]), axis=0)
+    assert (W[-1] >= 0.1 * T.max(axis=0)).all(), (W[-1], T.max(axis=0))
+    np.testing.assert_allclose(E[::2] + W[::2], np.broadcast_to(E[0], E[::2].shape), rtol=0, atol=1e-6 * T.max())
+
+
 @pytest.mark.parametrize(("name", "dt"), [("hexapod", 1e-3), ("Delta", 1e-3), ("3-RRR", 2.5e-4)])
 def test_total_energy_is_conserved_under_gravity(name, dt, rng):
     """Gravity, τ = 0, starting slow: T + V drifts by ≤ 1e-6 of the largest T until near a singularity.
@@ -408,6 +469,7 @@ def valid(**changes) -> dict:
             r"actuator_damping must be ≥ 0 \[N·s/m or N·m·s/rad\], got -3.0 for leg 2",
         ),
         ({"actuator_damping": np.nan}, r"actuator_damping must be finite"),
+        ({"joint_damping": [0.0, 0.0, -1.0]}, r"joint_damping must be ≥ 0 \[N·m·s/rad\], got -1.0 for leg 3"),
     ],
 )
 def test_bad_inertial_data_is_refused(changes, match):

@@ -131,6 +131,7 @@ def compare(
     exported: InertialParameters | None = None,
     fraction: float = 0.3,
     damping: float = 0.0,
+    joint_damping: float = 0.0,
     **options,
 ) -> dict[str, np.ndarray]:
     """Both simulations from ``count`` start poses at rest under the same efforts; the gaps at 0.5 s.
@@ -142,6 +143,7 @@ def compare(
         fraction: Size of the random offsets to the holding forces (see ``efforts``).
         damping: The drives' viscous friction, b_i = ``damping`` × the largest holding force at home [per m/s or
             rad/s], in our dynamics and (unless ``exported``) in the MJCF.
+        joint_damping: The passive joints' viscous friction, b = ``joint_damping`` × that force × 1 m [N·m·s/rad].
         **options: Options of ``to_mjcf``.
 
     Returns:
@@ -150,10 +152,10 @@ def compare(
         segments), and "phi", our largest |Φ_i| at the end [m²].
     """
     robot, inertia = robot_and_inertia(name)
-    if damping:
+    if damping or joint_damping:
         home = robot.home_pose()
-        hold = RobotDynamics(robot, inertia).holding_forces(robot.inverse_kinematics(home), home)
-        inertia = inertia.replace(actuator_damping=damping * np.abs(hold).max())
+        hold = np.abs(RobotDynamics(robot, inertia).holding_forces(robot.inverse_kinematics(home), home)).max()
+        inertia = inertia.replace(actuator_damping=damping * hold, joint_damping=joint_damping * hold)
     dynamics = RobotDynamics(robot, inertia)
     X0 = start_poses(robot, name, count)
     tau = efforts(dynamics, X0, fraction)
@@ -299,18 +301,21 @@ def test_forced_motion_agrees_with_mujoco(name):
     assert out["phi"].max() < 1e-12
 
 
-@pytest.mark.parametrize("name", ["3-RPR", "hexapod", "Delta"])
-def test_viscous_friction_agrees_with_mujoco_joint_damping(name):
-    """Drives with viscous friction (MuJoCo: ``damping`` on the actuated joints): the same forced motion.
+@pytest.mark.parametrize("name", list(SCENARIOS))
+@pytest.mark.parametrize("where", ["drives", "joints"])
+def test_viscous_friction_agrees_with_mujoco_joint_damping(name, where):
+    """Viscous friction of the drives or of the passive joints at them: the same forced motion as MuJoCo's.
 
-    Without the damping in the MJCF the gap is over ten times the tolerance.
+    MuJoCo: ``damping`` on the actuated joints, or on ``base{i}`` and ``elbow{i}``. Without the damping in the
+    MJCF the gap is over ten times the tolerance.
     """
     _, fraction, _ = SCENARIOS[name]
-    out = compare(name, 2, fraction=fraction, damping=0.5)
+    friction = {"damping": 0.5} if where == "drives" else {"joint_damping": 0.05}
+    out = compare(name, 2, fraction=fraction, **friction)
     assert out["position"].max() < POSITION_TOLERANCE, out["position"]
     assert out["angle"].max() < ANGLE_TOLERANCE, out["angle"]
     _, inertia = robot_and_inertia(name)
-    undamped = compare(name, 1, exported=inertia, fraction=fraction, damping=0.5)
+    undamped = compare(name, 1, exported=inertia, fraction=fraction, **friction)
     assert undamped["position"].max() > 10 * POSITION_TOLERANCE, undamped["position"]
 
 
