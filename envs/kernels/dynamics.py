@@ -167,8 +167,7 @@ def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2):
     y0 = w_u * udd0 - c_d * fd0 - lever * gx
     y1 = w_u * udd1 - c_d * fd1 - lever * gy
     y2 = w_u * udd2 - c_d * fd2 - lever * gz
-    # the passive joint's viscous friction b ω, ω = u × u̇ − w⊥ q̇ (w = A′ × A″ / |A′|²: a crank's axis, else 0;
-    # w⊥ = w − (w·u) u: no friction on the rod's spin): its generalised force J_uᵀ (b ω × u) + J_qᵀ (−b w⊥·ω)
+    # passive joint friction b ω, ω = u × u̇ − w⊥ q̇ (RobotDynamics._joint_map): J_uᵀ (b ω × u) + J_qᵀ (−b w⊥·ω)
     b_j = ci[I_JDAMP + i]
     wdotw = 0.0
     if b_j != 0.0:
@@ -568,22 +567,13 @@ def _arguments(c: Any, ci: Any, q: Any, x: Any, xdot: Any, tau: Any) -> tuple[np
 
 
 def mass_matrix_batch(c, ci, q, x) -> np.ndarray:
-    """The mass matrices M(x) of N robots of one geometry (``RobotDynamics.mass_matrix``).
-
-    Arguments as ``forward_dynamics_batch``'s. Returns M [kg, kg·m, kg·m² by the blocks of ẋ], shape (N, m, m);
-    raises ValueError on an array of the wrong shape, naming it.
-    """
+    """M(x) of N robots of one geometry, (N, m, m) (``RobotDynamics.mass_matrix``; as ``forward_dynamics_batch``)."""
     c, ci, q, x, xdot, tau = _arguments(c, ci, q, x, None, None)
     return path_kernels(c).dynamics(c, ci, q, x, xdot, tau)[0]
 
 
 def bias_batch(c, ci, q, x, xdot) -> np.ndarray:
-    """The velocity-product and gravity terms c(x, ẋ) + G(x) of N robots (``RobotDynamics.bias_forces``).
-
-    Arguments as ``forward_dynamics_batch``'s. Returns c + G, a generalised force dual to the twist (planar: f_x,
-    f_y [N], m_z [N·m]; spatial: force [N] and moment about the origin of {P} [N·m] in {B} axes), shape (N, m);
-    raises ValueError on an array of the wrong shape, naming it.
-    """
+    """c(x, ẋ) + G(x) of N robots, (N, m) (``RobotDynamics.bias_forces``; as ``forward_dynamics_batch``)."""
     c, ci, q, x, xdot, tau = _arguments(c, ci, q, x, xdot, None)
     return path_kernels(c).dynamics(c, ci, q, x, xdot, tau)[1]
 
