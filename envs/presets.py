@@ -330,6 +330,20 @@ def certificate_spacing(
         high: Task box upper corner, shape (m,).
         margin: Safety the segment may lose between checked points.
     """
+    key = (certificate.tobytes(), np.asarray(robot.pose_scale).tobytes(), tuple(low), tuple(high), float(margin))
+    if key not in _SPACINGS:  # every gym.make asks; the hexapod's answer costs about 70 ms
+        if len(_SPACINGS) >= 256:
+            _SPACINGS.clear()
+        _SPACINGS[key] = _slope_spacing(certificate, robot, low, high, margin)
+    return _SPACINGS[key]
+
+
+#: ``certificate_spacing``'s answers by their arguments' values.
+_SPACINGS: dict[tuple, float] = {}
+
+
+def _slope_spacing(certificate, robot, low, high, margin) -> float:
+    """``certificate_spacing``, computed."""
     lo, hi = np.asarray(low), np.asarray(high)
     x = lo + np.random.default_rng(1).uniform(size=(_SLOPE_CHECKS, len(lo))) * (hi - lo)
     step = 1e-4

@@ -311,7 +311,7 @@ def test_viscous_friction_agrees_with_mujoco_joint_damping(name, where):
     """
     _, fraction, _ = SCENARIOS[name]
     friction = {"damping": 0.5} if where == "drives" else {"joint_damping": 0.05}
-    out = compare(name, 2, fraction=fraction, **friction)
+    out = compare(name, 1, fraction=fraction, **friction)
     assert out["position"].max() < POSITION_TOLERANCE, out["position"]
     assert out["angle"].max() < ANGLE_TOLERANCE, out["angle"]
     _, inertia = robot_and_inertia(name)
