@@ -188,6 +188,27 @@ def _oracle_safety(params, x: np.ndarray) -> np.ndarray:
     return out
 
 
+def test_a_remembered_certificate_spacing_is_the_one_computed_for_the_same_arguments():
+    """``certificate_spacing`` answers from memory only for the same certificate, scale, box and margin."""
+    from envs import presets
+
+    robot = gym.make("Planar3RRRReach-v0").unwrapped.params.robot
+    params = presets.build_family_params(robot)
+    certificate = fk.pack_certificate(
+        robot, params.stroke_limits, params.stroke_margin, params.safe_threshold,
+        params.actuator_safe_threshold,
+    )  # fmt: skip
+    box = (params.sample_low, params.sample_high)
+    for margin in (0.02, 0.04):
+        for other_box in (box, (params.sample_low, tuple(0.5 * (np.array(box[0]) + np.array(box[1]))))):
+            fresh = presets._slope_spacing(certificate, robot, *other_box, margin)
+            assert presets.certificate_spacing(certificate, robot, *other_box, margin) == fresh
+            assert presets.certificate_spacing(certificate, robot, *other_box, margin) == fresh
+    assert presets._slope_spacing(certificate, robot, *box, 0.04) == pytest.approx(
+        2.0 * presets._slope_spacing(certificate, robot, *box, 0.02)
+    )
+
+
 @pytest.mark.parametrize("env_id", ["Planar3RRRReach-v0", "Planar3PRRReach-v0", "StewartGoughReach-v0"])
 def test_the_certificate_spacing_is_the_margin_over_the_steepest_slope(env_id):
     """The spacing is (k_safe − k_hard) / L99 where the preset's own spacing is larger; L99 from the kinematics library.
