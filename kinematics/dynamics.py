@@ -78,7 +78,7 @@ class _Kinematics(NamedTuple):
     omega: FloatArray  # (N, r): platform angular velocity (r = 3 spatial, 1 planar, 0 translational)
     inertia_world: FloatArray  # (N, r, r): platform inertia about its centre of mass in {B} axes
     qdot: FloatArray  # (N, n): actuator rates q̇ = J_i ẋ
-    J_joint: FloatArray  # (N, n, 3, m): ẋ → relative angular velocity of each chain's passive joint at its actuator
+    J_joint: FloatArray | None  # (N, n, 3, m): ẋ → passive joints' relative angular velocity (None without friction)
     xdot: FloatArray  # (N, m): the platform twist
 
 
@@ -232,7 +232,7 @@ class RobotDynamics:
             inertia_world = np.zeros((N, 0, 0))
         return _Kinematics(
             J_platform, a_platform, J_q, qdd, J_u, udd, J_distal, a_distal, J_actuator, omega, inertia_world, qdot,
-            self._joint_map(u, J_u, dA, ddA, J_q), xdot,
+            self._joint_map(u, J_u, dA, ddA, J_q) if self.inertia.joint_damping.any() else None, xdot,
         )  # fmt: skip
 
     @staticmethod
@@ -274,7 +274,7 @@ class RobotDynamics:
         c += np.einsum("i,Nidm,Nid->Nm", self._w_u, k.J_u, k.udd)
         c += np.einsum("i,Nidm,Nid->Nm", ine.distal_mass, k.J_distal, k.a_distal)
         c += np.einsum("Nim,Ni->Nm", k.J_q, ine.actuator_damping * k.qdot)  # the drives' viscous friction J_iᵀ B q̇
-        if ine.joint_damping.any():  # the passive joints' viscous friction Σ_i b_i J_ω,iᵀ ω_i
+        if k.J_joint is not None:  # the passive joints' viscous friction Σ_i b_i J_ω,iᵀ ω_i
             omega = np.einsum("Nidm,Nm->Nid", k.J_joint, k.xdot)
             c += np.einsum("i,Nidm,Nid->Nm", ine.joint_damping, k.J_joint, omega)
         return c

@@ -247,9 +247,12 @@ def to_mjcf(
 
     joint_kind = "ball" if d == 3 else "hinge"
 
-    def damping(i: int) -> dict[str, str]:  # the drive's viscous friction on its joint (none: MuJoCo's default)
+    def actuated_joint(body: ET.Element, i: int, joint_type: str, axis: FloatArray) -> None:
+        """Joint ``actuator{i}`` at q_i, with the drive's viscous friction (none: MuJoCo's default)."""
         b = float(ine.actuator_damping[i])
-        return {"damping": repr(b)} if b > 0.0 else {}
+        extra = {"damping": repr(b)} if b > 0.0 else {}
+        ref = repr(float(q[i]))
+        ET.SubElement(body, "joint", name=f"actuator{i}", type=joint_type, axis=_numbers(axis), ref=ref, **extra)
 
     for i, kind in enumerate(kinds):
         # a ball joint's friction also slows the spin of the rod it carries: an axial moment of at least 2 b dt keeps
@@ -277,15 +280,7 @@ def to_mjcf(
                 fromto=_numbers([0, 0, 0, *(0.5 * q[i] * u[i])]),
             )
             distal = ET.SubElement(cylinder, "body", name=f"distal{i}", pos=_numbers(P[i] - B[i]))
-            ET.SubElement(
-                distal,
-                "joint",
-                name=f"actuator{i}",
-                type="slide",
-                axis=_numbers(u[i]),
-                ref=repr(float(q[i])),
-                **damping(i),
-            )
+            actuated_joint(distal, i, "slide", u[i])
             rod_com = -ine.distal_com[i] * u[i]
             rod_geom = [*(-0.5 * q[i] * u[i]), 0, 0, 0]
         else:
@@ -293,15 +288,7 @@ def to_mjcf(
                 U, V = (_lift(axis) for axis in mechanism.crank_axes[i])
                 w = np.cross(U, V)
                 arm = ET.SubElement(world, "body", name=f"actuator{i}", pos=_numbers(B[i]))
-                ET.SubElement(
-                    arm,
-                    "joint",
-                    name=f"actuator{i}",
-                    type="hinge",
-                    axis=_numbers(w),
-                    ref=repr(float(q[i])),
-                    **damping(i),
-                )
+                actuated_joint(arm, i, "hinge", w)
                 radial = (A[i] - B[i]) / mechanism.crank_radii[i]
                 own = max(float(shortfall[i]), _FLOOR)
                 ET.SubElement(
@@ -316,15 +303,7 @@ def to_mjcf(
             else:
                 e = _lift(mechanism.rails[i])
                 arm = ET.SubElement(world, "body", name=f"actuator{i}", pos=_numbers(A[i]))
-                ET.SubElement(
-                    arm,
-                    "joint",
-                    name=f"actuator{i}",
-                    type="slide",
-                    axis=_numbers(e),
-                    ref=repr(float(q[i])),
-                    **damping(i),
-                )
+                actuated_joint(arm, i, "slide", e)
                 ET.SubElement(
                     arm,
                     "inertial",

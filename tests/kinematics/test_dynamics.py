@@ -282,6 +282,31 @@ def test_kinetic_energy_is_conserved_without_gravity(name, rng):
     assert np.abs(E - E[0]).max() <= 1e-6 * E[0].min()
 
 
+def dissipation_balance(dyn: RobotDynamics, X: np.ndarray, V: np.ndarray, power, dt: float, steps: int) -> None:
+    """With τ = 0, E(t) + ∫ P dt = E(0) to 1e-6 of the largest kinetic energy.
+
+    P = ``power(Q, X, V)`` (N,) is the friction's, integrated by Simpson's rule over ``steps`` (even) steps of
+    ``dt``; the friction takes at least a tenth of that kinetic energy.
+    """
+    robot = dyn.mechanism
+    Q = robot.inverse_kinematics(X)
+    tau = np.zeros_like(Q)
+
+    def sample(Q, X, V):
+        T = dyn.kinetic_energy(Q, X, V)
+        return T + dyn.potential_energy(Q, X), T, power(Q, X, V)
+
+    samples = [sample(Q, X, V)]
+    for _ in range(steps):
+        Q, X, V = dyn.step(X, V, tau, dt)
+        samples.append(sample(Q, X, V))
+    E, T, P = (np.array(values) for values in zip(*samples))
+    W = np.zeros_like(E)  # ∫ P dt at the even samples
+    W[2::2] = np.cumsum(dt / 3.0 * (P[0:-2:2] + 4.0 * P[1:-1:2] + P[2::2]), axis=0)
+    assert (W[-1] >= 0.1 * T.max(axis=0)).all(), (W[-1], T.max(axis=0))
+    np.testing.assert_allclose(E[::2] + W[::2], np.broadcast_to(E[0], E[::2].shape), rtol=0, atol=1e-6 * T.max())
+
+
 @pytest.mark.parametrize("name", ["3-RPR", "hexapod", "Delta"])
 def test_viscous_friction_dissipates_its_power(name, rng):
     """Drives with viscous friction B, τ = 0, under gravity: E(t) + ∫ q̇ᵀ B q̇ dt = E(0).
@@ -293,27 +318,14 @@ def test_viscous_friction_dissipates_its_power(name, rng):
     robot, _ = make(name)
     damping = {"3-RPR": 20.0, "hexapod": 200.0, "Delta": 0.5}[name]
     inertia = default_inertia(robot).replace(gravity=GRAVITY[robot.pose_space.point_dim], actuator_damping=damping)
-    dyn = RobotDynamics(robot, inertia)
     X = random_poses(robot, name, rng, 2, margin=0.3)
     V = 0.2 * rng.uniform(-1.0, 1.0, X.shape) * robot.pose_scale
-    Q = robot.inverse_kinematics(X)
-    tau = np.zeros_like(Q)
 
-    def energy_and_power(Q, X, V):
+    def power(Q, X, V):
         qdot = np.einsum("Nim,Nm->Ni", robot.inverse_jacobian(Q, X), V)
-        T = dyn.kinetic_energy(Q, X, V)
-        return T + dyn.potential_energy(Q, X), T, np.einsum("Ni,i,Ni->N", qdot, inertia.actuator_damping, qdot)
+        return np.einsum("Ni,i,Ni->N", qdot, inertia.actuator_damping, qdot)
 
-    samples = [energy_and_power(Q, X, V)]
-    dt = 1e-3
-    for _ in range(100):
-        Q, X, V = dyn.step(X, V, tau, dt)
-        samples.append(energy_and_power(Q, X, V))
-    E, T, P = (np.array(values) for values in zip(*samples))
-    W = np.zeros_like(E)  # ∫ P dt at the even samples, Simpson's rule
-    W[2::2] = np.cumsum(dt / 3.0 * (P[0:-2:2] + 4.0 * P[1:-1:2] + P[2::2]), axis=0)
-    assert (W[-1] >= 0.1 * T.max(axis=0)).all(), (W[-1], T.max(axis=0))
-    np.testing.assert_allclose(E[::2] + W[::2], np.broadcast_to(E[0], E[::2].shape), rtol=0, atol=1e-6 * T.max())
+    dissipation_balance(RobotDynamics(robot, inertia), X, V, power, dt=1e-3, steps=100)
 
 
 def joint_angular_velocities(robot, X: np.ndarray, V: np.ndarray, h: float = 1e-6) -> np.ndarray:
@@ -354,27 +366,14 @@ def test_passive_joint_friction_dissipates_its_power(name, damping, rng):
     """
     robot, _ = make(name)
     inertia = default_inertia(robot).replace(gravity=GRAVITY[robot.pose_space.point_dim], joint_damping=damping)
-    dyn = RobotDynamics(robot, inertia)
     X = random_poses(robot, name, rng, 2, margin=0.3)
     V = 0.2 * rng.uniform(-1.0, 1.0, X.shape) * robot.pose_scale
-    Q = robot.inverse_kinematics(X)
-    tau = np.zeros_like(Q)
 
-    def energy_and_power(Q, X, V):
+    def power(Q, X, V):
         omega = joint_angular_velocities(robot, X, V)
-        T = dyn.kinetic_energy(Q, X, V)
-        return T + dyn.potential_energy(Q, X), T, damping * np.einsum("Nid,Nid->N", omega, omega)
+        return damping * np.einsum("Nid,Nid->N", omega, omega)
 
-    samples = [energy_and_power(Q, X, V)]
-    dt = 2.5e-4
-    for _ in range(200):
-        Q, X, V = dyn.step(X, V, tau, dt)
-        samples.append(energy_and_power(Q, X, V))
-    E, T, P = (np.array(values) for values in zip(*samples))
-    W = np.zeros_like(E)
-    W[2::2] = np.cumsum(dt / 3.0 * (P[0:-2:2] + 4.0 * P[1:-1:2] + P[2::2]), axis=0)
-    assert (W[-1] >= 0.1 * T.max(axis=0)).all(), (W[-1], T.max(axis=0))
-    np.testing.assert_allclose(E[::2] + W[::2], np.broadcast_to(E[0], E[::2].shape), rtol=0, atol=1e-6 * T.max())
+    dissipation_balance(RobotDynamics(robot, inertia), X, V, power, dt=2.5e-4, steps=200)
 
 
 @pytest.mark.parametrize(("name", "dt"), [("hexapod", 1e-3), ("Delta", 1e-3), ("3-RRR", 2.5e-4)])
