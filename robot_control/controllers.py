@@ -423,13 +423,27 @@ class PlannerComputedTorqueAgent(ComputedTorqueAgent):
         bandwidth: ω [rad/s] of the error dynamics.
         lookahead: The carrot's distance ahead on the path, in z [m].
         planner: "auto", "ompl" or "grid" (``PathFollower``).
+        replan_distance: The follower's ``replan_distance`` [m]: plan afresh whenever the platform is farther than
+            this from its path; None: once per episode.
     """
 
     name = "planner-computed-torque"
 
-    def __init__(self, params: FamilyParams, bandwidth: float = 4.0, lookahead: float = 0.1, planner: str = "auto"):
+    def __init__(
+        self,
+        params: FamilyParams,
+        bandwidth: float = 4.0,
+        lookahead: float = 0.1,
+        planner: str = "auto",
+        replan_distance: float | None = None,
+    ) -> None:
         super().__init__(params, bandwidth)
-        self.follower = PathFollower(params, lookahead, planner, cross_track=True)
+        self.follower = PathFollower(params, lookahead, planner, replan_distance, cross_track=True)
+
+    @property
+    def log(self) -> Sequence:
+        """The plans made, in order (the last ``robot_control.planner.LOG_LENGTH``)."""
+        return self.follower.log
 
     def _reference(self, obs, pose, error, velocity) -> tuple[np.ndarray, np.ndarray]:
         """(x_d, ẋ_d) of each row (N, m): the carrot of its planned path, at rest."""

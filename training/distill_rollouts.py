@@ -8,7 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from robot_control.controllers import PlannerController
+from robot_control.controllers import PlannerComputedTorqueAgent, PlannerController
 from robot_control.planner import PathFollower
 from training.distill_config import DistillConfig
 from training.episodes import SINGULARITY_REASONS, evaluate_agent
@@ -16,9 +16,27 @@ from training.episodes import SINGULARITY_REASONS, evaluate_agent
 __all__ = ["collect", "validate"]
 
 
-def _expert(env: gym.Env, config: DistillConfig) -> PlannerController:
-    """The labelling planner controller of ``config`` on the robot of ``env``."""
+def _expert(env: gym.Env, config: DistillConfig) -> PlannerController | PlannerComputedTorqueAgent:
+    """The labelling planner controller of ``config`` on the robot of ``env``.
+
+    Under force control (``control="force"``) the expert is computed torque along the planner's path
+    (``PlannerComputedTorqueAgent``); the rate-control expert's options (damping, first-order step) do not apply.
+
+    Raises:
+        ValueError: If a rate-control expert option is set on a force-control env.
+    """
     params = env.unwrapped.params
+    if params.control == "force":
+        rate_only = {
+            "expert_damping": config.expert_damping,
+            "first_order_expert": config.first_order_expert,
+            "damped_output": config.damped_output,
+        }
+        if any(rate_only.values()):
+            raise ValueError(f"these options label stroke rates (control='rate'), got {rate_only} on a force env")
+        return PlannerComputedTorqueAgent(
+            params, lookahead=config.lookahead, planner=config.planner, replan_distance=config.replan_distance
+        )
     follower = PathFollower(params, config.lookahead, config.planner, config.replan_distance)
     return PlannerController(
         params,

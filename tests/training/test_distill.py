@@ -122,6 +122,27 @@ def test_the_labels_are_the_planner_controllers_actions():
     assert np.max(np.abs(first - act)) > 1e-3
 
 
+def test_under_force_control_the_labels_are_planner_computed_torques_actions():
+    """On a force env the expert is computed torque along the planner's path: each label equals a fresh
+    PlannerComputedTorqueAgent's action at the recorded observation (same plans), not a rate law's."""
+    from robot_control.controllers import PlannerComputedTorqueAgent
+
+    env = gym.make("Planar3RPRForceReach-v0", targets="mixed")
+    expert = distill._expert(env, DistillConfig(replan_distance=None))
+    assert isinstance(expert, PlannerComputedTorqueAgent)
+    obs, act, k, figures, states = collect(env, expert, None, 2, 1.0, 77, np.random.default_rng(0))
+    assert act.shape == (400, 3) and len(expert.log) == 2  # one plan per episode
+    reference = PlannerComputedTorqueAgent(env.unwrapped.params)
+    for i in (0, 200):
+        reference(obs[i : i + 1])  # the episode's first observation plans
+        np.testing.assert_allclose(np.stack([reference(o[None])[0] for o in obs[i : i + 200]]), act[i : i + 200],
+                                   atol=1e-6)  # fmt: skip
+    assert figures["success_rate"] == 1.0 and figures["singular_terminations"] == 0.0
+    for option in ("expert_damping", "first_order_expert"):
+        with pytest.raises(ValueError, match=option):
+            distill._expert(env, DistillConfig(**{option: True}))
+
+
 def test_cut_episodes_are_the_first_steps_of_the_full_ones():
     """With max_steps each episode stops after that many steps: its pairs are the full episode's first ones."""
     env = gym.make(ENV)
