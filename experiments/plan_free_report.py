@@ -9,6 +9,8 @@ Usage::
 Evaluates (``training.evaluate``, ``--episodes`` from reset seed ``--seed``, held out from training) on the env's
 standard and hard targets: the planner, the distilled plan-free runs (each seed), the residual policy over the
 planner, resolved-rate and singularity-aware control, and the plan-free runs behind ``envs.SingularityShield``.
+On a force-control env (``control="force"``) the classical controllers are planner-computed-torque (the
+distillation's expert there) and computed torque.
 Writes each evaluation's folder, ``table.md`` (``experiments.family_report``: mean ± std over seeds),
 ``timing.md`` (the plan-free policy's time per decision, as ``training.evaluate`` runs it and exported by
 ``training.export``, against the
@@ -37,6 +39,9 @@ from experiments import family_report
 from training import evaluate, export, plots
 
 __all__ = ["main"]
+
+#: The classical controllers every rate-control report evaluates, the planner (the distillation's expert) first.
+CONTROLLERS = ("planner", "resolved-rate", "singularity-aware")
 
 
 def _decision_seconds(run: str, env_id: str, folder: Path, repeats: int = 2000) -> tuple[float, float]:
@@ -88,13 +93,13 @@ def _times_to_target(folder: Path) -> dict[int, float]:
     return {int(row["episode"]): float(row["time_to_target_s"]) for row in rows if row["time_to_target_s"]}
 
 
-def time_to_target_table(out: Path, runs: list[str]) -> str:
+def time_to_target_table(out: Path, runs: list[str], expert: str = "planner") -> str:
     """Markdown: each plan-free run's time to the hard targets against the planner's, on the episodes both reach.
 
-    Per run, the mean over those episodes of the plan-free policy's time and of the planner's (``planner-hard``),
-    and of their ratio; the table gives the mean ± std of these over runs.
+    Per run, the mean over those episodes of the plan-free policy's time and of the planner's (the evaluation
+    folder ``{expert}-hard``), and of their ratio; the table gives the mean ± std of these over runs.
     """
-    planner = _times_to_target(out / "planner-hard")
+    planner = _times_to_target(out / f"{expert}-hard")
     columns: dict[str, list[float]] = {"pairs": [], "policy": [], "planner": [], "ratio": []}
     for run in runs:
         policy = _times_to_target(out / f"{Path(run).name}-hard")
@@ -132,6 +137,9 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     common = ["--env", args.env, "--episodes", str(args.episodes), "--seed", str(args.seed)]
     groups: dict[str, list[dict]] = {}
+    force = gym.make(args.env).unwrapped.params.control == "force"
+    controllers = ("planner-computed-torque", "computed-torque") if force else CONTROLLERS
+    expert = controllers[0]
 
     def add(label: str, folder: Path, source: list[str]) -> None:
         def evaluate_into(folder: Path) -> None:
@@ -145,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
 
     for targets in ("standard", "hard"):
         tail = [*common, "--targets", targets]
-        for controller in ("planner", "resolved-rate", "singularity-aware"):
+        for controller in controllers:
             add(f"{controller} @ {targets}", out / f"{controller}-{targets}", ["--controller", controller, *tail])
         for run in args.runs:
             name = Path(run).name
@@ -169,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
 
     # time per decision of each plan-free run (normalise, one forward pass of one observation) against the
     # planner's planning time per episode on the same hard episodes, measured here one after the other
-    planner_metrics = json.loads((out / "planner-hard" / "metrics.json").read_text())
+    planner_metrics = json.loads((out / f"{expert}-hard" / "metrics.json").read_text())
     planning_ms = 1e3 * planner_metrics["planner"]["planning_s"]["mean"]
     with tempfile.TemporaryDirectory() as scratch:
         seconds = [_decision_seconds(run, args.env, Path(scratch)) for run in args.runs]
@@ -186,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         "same policy.\n\n"
         "Time to the target (the end of the first step within the success tolerances), mean over the hard "
         "episodes both the plan-free run and the planner reach, mean ± std over runs:\n\n"
-        + time_to_target_table(out, args.runs)
+        + time_to_target_table(out, args.runs, expert)
     )
 
     # the planner's and the first plan-free run's paths on the same hard episodes
@@ -194,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     workspace = getattr(env.unwrapped, "workspace", None)
     if workspace is not None:
         runs = {}
-        planner = evaluate.load_controller("planner", env)
+        planner = evaluate.load_controller(expert, env)
         runs["planner"] = evaluate.evaluate_agent(planner, env, 4, args.seed, "hard")
         agent, config = evaluate.load_run(args.runs[0])
         runs["plan-free"] = evaluate.evaluate_agent(agent, evaluate.wrap_for_run(env, config), 4, args.seed, "hard")

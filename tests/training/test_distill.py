@@ -123,14 +123,16 @@ def test_the_labels_are_the_planner_controllers_actions():
 
 
 def test_under_force_control_the_labels_are_planner_computed_torques_actions():
-    """On a force env the expert is computed torque along the planner's path: each label equals a fresh
-    PlannerComputedTorqueAgent's action at the recorded observation (same plans), not a rate law's."""
+    """On a force env the expert is computed torque along the planner's path.
+
+    Each label equals a fresh PlannerComputedTorqueAgent's action at the recorded observation (same plans).
+    """
     from robot_control.controllers import PlannerComputedTorqueAgent
 
     env = gym.make("Planar3RPRForceReach-v0", targets="mixed")
     expert = distill._expert(env, DistillConfig(replan_distance=None))
     assert isinstance(expert, PlannerComputedTorqueAgent)
-    obs, act, k, figures, states = collect(env, expert, None, 2, 1.0, 77, np.random.default_rng(0))
+    obs, act, _, figures, _ = collect(env, expert, None, 2, 1.0, 77, np.random.default_rng(0))
     assert act.shape == (400, 3) and len(expert.log) == 2  # one plan per episode
     reference = PlannerComputedTorqueAgent(env.unwrapped.params)
     for i in (0, 200):
@@ -460,20 +462,30 @@ def test_a_damped_and_holding_run_reads_the_raw_observation_through_its_normalis
     assert len(evaluate_agent(agent, wrap_for_run(gym.make("Planar3RRRReach-v0"), run_config), 2, 5000, "hard")) == 2
 
 
-@pytest.mark.parametrize("previous_action", [False, True])
-def test_the_plan_free_report_tabulates_every_agent(tmp_path, previous_action):
-    """A tiny run through experiments.plan_free_report: each agent's row, the timing and the paths picture."""
+@pytest.mark.parametrize(
+    ("env_id", "previous_action", "controllers"),
+    [
+        ("Planar3RPRReach-v0", False, ("planner", "resolved-rate", "singularity-aware")),
+        ("Planar3RPRForceReach-v0", True, ("planner-computed-torque", "computed-torque")),
+    ],
+)
+def test_the_plan_free_report_tabulates_every_agent(tmp_path, env_id, previous_action, controllers):
+    """A tiny run through experiments.plan_free_report: each agent's row, the timing and the paths picture.
+
+    Under force control the classical rows are computed torque's, along the planner's path (the expert) and straight.
+    """
     from experiments import plan_free_report
 
     run = tmp_path / "run"
-    config = DistillConfig(expert_episodes=2, iterations=0, epochs=1, previous_action=previous_action)
+    config = DistillConfig(env_id=env_id, expert_episodes=2, iterations=0, epochs=1, previous_action=previous_action)
     distill.distill(config, run, log=lambda _: None)
     out = tmp_path / "report"
-    plan_free_report.main(["--runs", str(run), "--env", "Planar3RPRReach-v0", "--episodes", "1", "--out", str(out)])
+    plan_free_report.main(["--runs", str(run), "--env", env_id, "--episodes", "1", "--out", str(out)])
     table = (out / "table.md").read_text()
-    for label in ("planner", "resolved-rate", "singularity-aware", "plan-free", "plan-free + shield"):
+    for label in (*controllers, "plan-free", "plan-free + shield"):
         for targets in ("standard", "hard"):
             assert f"| {label} @ {targets} | " in table
+    assert table.split("The planner's plans")[0].count(" @ standard | ") == len(controllers) + 2
     timing = (out / "timing.md").read_text()
     assert "ratio, exported" in timing and "time to the target" in timing
     assert (out / "paths_hard.png").stat().st_size > 0
