@@ -263,12 +263,13 @@ def test_shipped_crank_policies_keep_their_recorded_performance(run):
     assert_keeps_record(metrics, record)
 
 
-#: The shipped plan-free (``training.distill``) and residual policies of the other robots, with their regression.json.
+#: The shipped plan-free (``training.distill``) and residual policies of the other robots, and the 3-RPR's plan-free
+#: force-control policy (distilled from computed torque along the planner's path), with their regression.json.
 PLAN_FREE_RUNS = [
     demo._pretrained(f"{kind}-{env_id}")
     for env_id in ("Planar3RRRReach-v0", "StewartGoughReachHard-v0", "DeltaReachHard-v0")
     for kind in ("distill", "ppo-residual")
-]
+] + [demo._pretrained("distill-Planar3RPRForceReach-v0")]
 
 
 @pytest.mark.slow
