@@ -245,7 +245,7 @@ def distill(config: DistillConfig, run_dir: Path, log=print) -> dict[str, Any]:
         "seed": config.seed,
         "vec": "dummy",
         "hyperparams": hyperparams,
-        "distilled_from": "planner",
+        "distilled_from": config.expert,
     }
     (run_dir / "config.yml").write_text(yaml.safe_dump(run_config, sort_keys=False))
     (run_dir / "command.txt").write_text(" ".join(["python -m training.distill", *sys.argv[1:]]) + "\n")

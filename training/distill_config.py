@@ -11,7 +11,10 @@ import numpy as np
 import envs
 from training.evaluate import EvaluationError, parse_env_kwargs
 
-__all__ = ["DistillConfig", "FinetuneConfig", "build_parser", "config_from_args"]
+__all__ = ["EXPERTS", "DistillConfig", "FinetuneConfig", "build_parser", "config_from_args"]
+
+#: The labelling experts ``training.distill`` knows (``DistillConfig.expert``).
+EXPERTS = ("planner", "computed-torque")
 
 
 @dataclass(frozen=True)
@@ -73,8 +76,18 @@ class DistillConfig:
     platform_loss: float = 0.0
     #: σ ≥ 0 of the Gaussian noise on every training episode's executed action (DART; 0: none).
     action_noise: float = 0.0
+    #: The labelling expert: "planner" (the planner controller; under force control, computed torque along the
+    #: planner's path) or "computed-torque" (force control: computed torque toward the observed target, on Track
+    #: ids with the reference's observed velocity fed forward).
+    expert: str = "planner"
+    #: ω [rad/s] of the computed-torque experts' error dynamics (K_p = ω², K_d = 2 ω).
+    bandwidth: float = 4.0
 
     def __post_init__(self) -> None:
+        if self.expert not in EXPERTS:
+            raise ValueError(f"expert must be one of {EXPERTS}, got {self.expert!r}")
+        if not (np.isfinite(self.bandwidth) and self.bandwidth > 0.0):
+            raise ValueError(f"bandwidth must be finite and > 0 [rad/s], got {self.bandwidth}")
         if not (np.isfinite(self.action_noise) and 0.0 <= self.action_noise < 1.0):
             raise ValueError(f"action_noise must be in [0, 1), got {self.action_noise}")
         if not (np.isfinite(self.platform_loss) and self.platform_loss >= 0.0):
@@ -119,7 +132,11 @@ def build_parser(description: str) -> argparse.ArgumentParser:
     """The command line of ``python -m training.distill`` (``description``: its first line of help)."""
     defaults = DistillConfig()
     parser = argparse.ArgumentParser(prog="python -m training.distill", description=description)
-    parser.add_argument("--env", default=defaults.env_id, help="a Reach id (default %(default)s)")
+    parser.add_argument(
+        "--env",
+        default=defaults.env_id,
+        help="a Reach id, or a Track id with --expert computed-torque (default %(default)s)",
+    )
     parser.add_argument("--seed", type=int, default=defaults.seed)
     parser.add_argument("--run-dir", required=True)
     parser.add_argument(
@@ -139,6 +156,16 @@ def build_parser(description: str) -> argparse.ArgumentParser:
         help="the learner's hidden layer widths (default %(default)s)",
     )
     parser.add_argument("--planner", default=defaults.planner, choices=("auto", "ompl", "grid"))
+    parser.add_argument(
+        "--expert",
+        default=defaults.expert,
+        choices=EXPERTS,
+        help="the labelling expert: the planner controller (force control: computed torque along its path) or "
+        "computed torque toward the observed target (force control; default %(default)s)",
+    )
+    parser.add_argument(
+        "--bandwidth", type=float, default=defaults.bandwidth, help="ω [rad/s] of a computed-torque expert"
+    )
     parser.add_argument(
         "--select-round",
         default=defaults.select_round,
@@ -224,8 +251,13 @@ def build_parser(description: str) -> argparse.ArgumentParser:
 
 def config_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> DistillConfig:
     """The distillation the parsed command line asks for; ``parser.error`` (exit 2) on a refused option."""
-    if args.env not in envs.ENV_IDS or "Reach" not in args.env:
-        parser.error(f"--env must be a Reach id of {envs.ENV_IDS}, got {args.env!r}")
+    kinds = ("Reach", "Track") if args.expert == "computed-torque" else ("Reach",)
+    if args.env not in envs.ENV_IDS or not any(kind in args.env for kind in kinds):
+        parser.error(f"--env must be a {' or '.join(kinds)} id of {envs.ENV_IDS}, got {args.env!r}")
+    if "Track" in args.env and args.select_round == "validated":
+        parser.error("--select-round validated scores standard and hard targets: a Reach id only")
+    if not (np.isfinite(args.bandwidth) and args.bandwidth > 0.0):
+        parser.error(f"--bandwidth must be finite and > 0, got {args.bandwidth}")
     for name in ("expert_episodes", "epochs", "batch_size", "select_episodes", "start_steps"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
@@ -287,4 +319,6 @@ def config_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) 
         start_steps=args.start_steps,
         platform_loss=args.platform_loss,
         action_noise=args.action_noise,
+        expert=args.expert,
+        bandwidth=args.bandwidth,
     )

@@ -8,7 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from robot_control.controllers import PlannerComputedTorqueAgent, PlannerController
+from robot_control.controllers import ComputedTorqueAgent, PlannerComputedTorqueAgent, PlannerController
 from robot_control.planner import PathFollower
 from training.distill_config import DistillConfig
 from training.episodes import SINGULARITY_REASONS, evaluate_agent
@@ -16,16 +16,23 @@ from training.episodes import SINGULARITY_REASONS, evaluate_agent
 __all__ = ["collect", "validate"]
 
 
-def _expert(env: gym.Env, config: DistillConfig) -> PlannerController | PlannerComputedTorqueAgent:
-    """The labelling planner controller of ``config`` on the robot of ``env``.
+def _expert(env: gym.Env, config: DistillConfig) -> PlannerController | ComputedTorqueAgent:
+    """The labelling expert of ``config`` on the robot of ``env``.
 
-    Under force control (``control="force"``) the expert is computed torque along the planner's path
-    (``PlannerComputedTorqueAgent``); the rate-control expert's options (damping, first-order step) do not apply.
+    ``config.expert`` "planner": the planner controller; under force control (``control="force"``) computed torque
+    along the planner's path (``PlannerComputedTorqueAgent``), where the rate-control expert's options (damping,
+    first-order step) do not apply. "computed-torque" (force control only): ``ComputedTorqueAgent`` toward the
+    observed target. The computed-torque experts use ``config.bandwidth``.
 
     Raises:
-        ValueError: If a rate-control expert option is set on a force-control env.
+        ValueError: If a rate-control expert option is set on a force-control env, or the computed-torque expert
+            on a rate-control env.
     """
     params = env.unwrapped.params
+    if config.expert == "computed-torque":
+        if params.control != "force":
+            raise ValueError(f"the computed-torque expert commands efforts (control='force'), got {params.control!r}")
+        return ComputedTorqueAgent(params, bandwidth=config.bandwidth)
     if params.control == "force":
         rate_only = {
             "expert_damping": config.expert_damping,
@@ -35,7 +42,7 @@ def _expert(env: gym.Env, config: DistillConfig) -> PlannerController | PlannerC
         if any(rate_only.values()):
             raise ValueError(f"these options label stroke rates (control='rate'), got {rate_only} on a force env")
         return PlannerComputedTorqueAgent(
-            params, lookahead=config.lookahead, planner=config.planner, replan_distance=config.replan_distance
+            params, config.bandwidth, config.lookahead, config.planner, config.replan_distance
         )
     follower = PathFollower(params, config.lookahead, config.planner, config.replan_distance)
     return PlannerController(
@@ -50,7 +57,7 @@ def _expert(env: gym.Env, config: DistillConfig) -> PlannerController | PlannerC
 
 def collect(
     env: gym.Env,
-    expert: PlannerController,
+    expert: PlannerController | ComputedTorqueAgent,
     learner: Any | None,
     episodes: int,
     beta: float,
@@ -64,7 +71,8 @@ def collect(
     Args:
         env: A ``gym.make`` Reach environment, possibly wrapped in ``envs.PreviousActionWrapper`` (the expert then
             reads the env's own observation, the first columns).
-        expert: The labelling planner controller (its plan log is cleared first, then holds these episodes' plans).
+        expert: The labelling expert (``_expert``); a planner's plan log is cleared first, then holds these
+            episodes' plans.
         learner: A function of one observation (D,) to an action (n,), or None (the expert acts).
         episodes: Number of episodes; episode i resets with seed ``first_seed + i``.
         beta: Probability that the expert's action is executed at a step.
@@ -89,7 +97,9 @@ def collect(
         raise ValueError(f"noise must be finite and ≥ 0, got {noise}")
     observations, actions, conditioning, states = [], [], [], []
     successes = singular = steps = 0
-    expert.log.clear()  # the plans of these episodes alone
+    log = getattr(expert, "log", None)  # the planner's plans (computed torque plans nothing)
+    if log is not None:
+        log.clear()  # the plans of these episodes alone
     width = env.unwrapped.observation_space.shape[0]  # the env's own observation, without a wrapper's columns
     for i in range(episodes):
         obs, info = env.reset(seed=first_seed + i)
@@ -109,7 +119,7 @@ def collect(
                 successes += bool(info.get("is_success", False))
                 singular += info.get("termination_reason") in SINGULARITY_REASONS
                 break
-    plans = list(expert.log)
+    plans = [] if log is None else list(log)
     figures = {
         "success_rate": successes / episodes,
         "singular_terminations": singular / episodes,

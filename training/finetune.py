@@ -35,7 +35,7 @@ def finetune(source: Path, run_dir: Path, config: FinetuneConfig, log=print) -> 
     from training.train import make_training_env
 
     source_config = yaml.safe_load((source / "config.yml").read_text())
-    if source_config.get("distilled_from") != "planner":
+    if not source_config.get("distilled_from"):
         raise ValueError(
             f"--from-run must be a training.distill run folder, got {source} ({source_config.get('algo')})"
         )

@@ -9,6 +9,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 
 from robot_control.controllers import PlannerController
 from robot_control.planner import PathFollower
@@ -143,6 +144,34 @@ def test_under_force_control_the_labels_are_planner_computed_torques_actions():
     for option in ("expert_damping", "first_order_expert"):
         with pytest.raises(ValueError, match=option):
             distill._expert(env, DistillConfig(**{option: True}))
+
+
+def test_the_computed_torque_expert_labels_a_track_env_with_computed_torques_actions(tmp_path):
+    """expert="computed-torque" labels with ComputedTorqueAgent's action (the config's bandwidth).
+
+    Each label is that action at the recorded observation; the expert is refused on a rate-control env; a tiny run
+    on a Track id names its expert in its run folder.
+    """
+    from robot_control.controllers import ComputedTorqueAgent
+
+    env = gym.make("DeltaForceTrack-v0", dt=0.01)
+    config = DistillConfig(
+        env_id="DeltaForceTrack-v0", env_kwargs={"dt": 0.01}, expert="computed-torque", bandwidth=40.0
+    )
+    obs, act, _, figures, _ = collect(env, distill._expert(env, config), None, 1, 1.0, 3, np.random.default_rng(0))
+    reference = ComputedTorqueAgent(env.unwrapped.params, bandwidth=40.0)
+    np.testing.assert_allclose(reference(obs), act, atol=1e-6)
+    assert np.max(np.abs(ComputedTorqueAgent(env.unwrapped.params, bandwidth=4.0)(obs) - act)) > 0.02
+    assert figures["plans_per_episode"] == 0.0
+    with pytest.raises(ValueError, match="control='force'"):
+        distill._expert(gym.make("DeltaTrack-v0"), config)
+    for bad in ({"expert": "oracle"}, {"bandwidth": -1.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            DistillConfig(**bad)
+    tiny = dataclasses.replace(config, expert_episodes=1, iterations=1, episodes=1, epochs=1)
+    distill.distill(tiny, tmp_path, log=lambda _: None)
+    run_config = yaml.safe_load((tmp_path / "config.yml").read_text())
+    assert run_config["distilled_from"] == "computed-torque" and run_config["env_id"] == "DeltaForceTrack-v0"
 
 
 def test_cut_episodes_are_the_first_steps_of_the_full_ones():
@@ -397,6 +426,12 @@ def test_bad_options_are_refused(capsys):
         (["--start-steps", "0"], "--start-steps must be ≥ 1, got 0"),
         (["--hold-fraction", "1"], "--hold-fraction must be in [0, 1), got 1.0"),
         (["--net-arch", "64", "0"], "--net-arch widths must be ≥ 1, got [64, 0]"),
+        (["--env", "DeltaForceTrack-v0"], "--env must be a Reach id"),
+        (
+            ["--expert", "computed-torque", "--env", "DeltaForceTrack-v0", "--select-round", "validated"],
+            "Reach id only",
+        ),
+        (["--expert", "computed-torque", "--bandwidth", "0"], "--bandwidth must be finite and > 0, got 0.0"),
         (["--damped-output"], "--damped-output needs --expert-damping and --damping-kind scale, got no --expert"),
         (
             ["--damped-output", "--expert-damping", "--damping-kind", "cap"],
