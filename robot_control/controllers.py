@@ -402,13 +402,18 @@ class ComputedTorqueAgent:
         pose, error, velocity = decode_observation(params, obs)
         target, velocity = self._reference(obs, pose, error, velocity)
         q = robot.inverse_kinematics(pose, validate=False)
-        command = self.controller.compute(q, pose, obs[:, self._layout["twist"]], target, velocity)
+        twist = obs[:, self._layout["twist"]]
+        command = self.controller.compute(q, pose, twist, target, velocity, self._acceleration(obs))
         hold = params.dynamics.holding_forces(q, pose)
         return actions_of_efforts(hold, command.tau, params.force_limit_array).astype(np.float32)
 
     def _reference(self, obs, pose, error, velocity) -> tuple[np.ndarray, np.ndarray]:
         """(x_d, ẋ_d) of each row (N, m): the observed target and its velocity."""
         return _decode_pose(self.params.robot.pose_space.name, obs[:, self._layout["target"]]), velocity
+
+    def _acceleration(self, obs: np.ndarray) -> np.ndarray | None:
+        """ẍ_d of each row (N, m) fed forward, or None: zero (the observation holds no acceleration)."""
+        return None
 
 
 class PlannerComputedTorqueAgent(ComputedTorqueAgent):

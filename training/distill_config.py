@@ -82,12 +82,17 @@ class DistillConfig:
     expert: str = "planner"
     #: ω [rad/s] of the computed-torque experts' error dynamics (K_p = ω², K_d = 2 ω).
     bandwidth: float = 4.0
+    #: The computed-torque expert also feeds forward the Track reference's acceleration, read from the env's
+    #: state (``training.distill_rollouts.ReferenceTeacher``, a privileged teacher).
+    reference_acceleration: bool = False
 
     def __post_init__(self) -> None:
         if self.expert not in EXPERTS:
             raise ValueError(f"expert must be one of {EXPERTS}, got {self.expert!r}")
         if not (np.isfinite(self.bandwidth) and self.bandwidth > 0.0):
             raise ValueError(f"bandwidth must be finite and > 0 [rad/s], got {self.bandwidth}")
+        if self.reference_acceleration and self.expert != "computed-torque":
+            raise ValueError(f"reference_acceleration needs the computed-torque expert, got {self.expert!r}")
         if not (np.isfinite(self.action_noise) and 0.0 <= self.action_noise < 1.0):
             raise ValueError(f"action_noise must be in [0, 1), got {self.action_noise}")
         if not (np.isfinite(self.platform_loss) and self.platform_loss >= 0.0):
@@ -165,6 +170,11 @@ def build_parser(description: str) -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--bandwidth", type=float, default=defaults.bandwidth, help="ω [rad/s] of a computed-torque expert"
+    )
+    parser.add_argument(
+        "--reference-acceleration",
+        action="store_true",
+        help="the computed-torque expert also feeds forward the Track reference's acceleration (a privileged teacher)",
     )
     parser.add_argument(
         "--select-round",
@@ -258,6 +268,8 @@ def config_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) 
         parser.error("--select-round validated scores standard and hard targets: a Reach id only")
     if not (np.isfinite(args.bandwidth) and args.bandwidth > 0.0):
         parser.error(f"--bandwidth must be finite and > 0, got {args.bandwidth}")
+    if args.reference_acceleration and args.expert != "computed-torque":
+        parser.error("--reference-acceleration needs --expert computed-torque")
     for name in ("expert_episodes", "epochs", "batch_size", "select_episodes", "start_steps"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
@@ -321,4 +333,5 @@ def config_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) 
         action_noise=args.action_noise,
         expert=args.expert,
         bandwidth=args.bandwidth,
+        reference_acceleration=args.reference_acceleration,
     )

@@ -8,6 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from envs.kernels.evaluation import reference_batch
 from robot_control.controllers import ComputedTorqueAgent, PlannerComputedTorqueAgent, PlannerController
 from robot_control.planner import PathFollower
 from training.distill_config import DistillConfig
@@ -16,13 +17,40 @@ from training.episodes import SINGULARITY_REASONS, evaluate_agent
 __all__ = ["collect", "validate"]
 
 
+class ReferenceTeacher(ComputedTorqueAgent):
+    """``ComputedTorqueAgent`` that also feeds forward the reference's acceleration over the coming period.
+
+    A privileged teacher: ẍ_d = (ẋ*(t + 1) − ẋ*(t)) / dt, ẋ* the Track reference's velocity at the env's step t,
+    read from the env's state (the observation holds ẋ*(t) only); the learner it labels for sees the observation
+    alone. On a Reach env the target is at rest and ẍ_d = 0.
+
+    Args:
+        env: The force-control env whose episodes it labels (its current state is the observation's).
+        bandwidth: ω [rad/s] of the error dynamics.
+    """
+
+    name = "reference-computed-torque"
+
+    def __init__(self, env: gym.Env, bandwidth: float) -> None:
+        super().__init__(env.unwrapped.params, bandwidth)
+        self._env = env
+
+    def _acceleration(self, obs: np.ndarray) -> np.ndarray:
+        state, packed, dt = self._env.unwrapped.state, self.params.packed, self.params.dt
+        ref = state.reference
+        now = reference_batch(packed, state.t, ref.center, ref.amplitude, ref.phase)[1]
+        later = reference_batch(packed, state.t + 1, ref.center, ref.amplitude, ref.phase)[1]
+        return (later - now) / dt
+
+
 def _expert(env: gym.Env, config: DistillConfig) -> PlannerController | ComputedTorqueAgent:
     """The labelling expert of ``config`` on the robot of ``env``.
 
     ``config.expert`` "planner": the planner controller; under force control (``control="force"``) computed torque
     along the planner's path (``PlannerComputedTorqueAgent``), where the rate-control expert's options (damping,
     first-order step) do not apply. "computed-torque" (force control only): ``ComputedTorqueAgent`` toward the
-    observed target. The computed-torque experts use ``config.bandwidth``.
+    observed target, or with ``config.reference_acceleration`` the ``ReferenceTeacher``. The computed-torque
+    experts use ``config.bandwidth``.
 
     Raises:
         ValueError: If a rate-control expert option is set on a force-control env, or the computed-torque expert
@@ -32,6 +60,8 @@ def _expert(env: gym.Env, config: DistillConfig) -> PlannerController | Computed
     if config.expert == "computed-torque":
         if params.control != "force":
             raise ValueError(f"the computed-torque expert commands efforts (control='force'), got {params.control!r}")
+        if config.reference_acceleration:
+            return ReferenceTeacher(env, config.bandwidth)
         return ComputedTorqueAgent(params, bandwidth=config.bandwidth)
     if params.control == "force":
         rate_only = {

@@ -174,6 +174,36 @@ def test_the_computed_torque_expert_labels_a_track_env_with_computed_torques_act
     assert run_config["distilled_from"] == "computed-torque" and run_config["env_id"] == "DeltaForceTrack-v0"
 
 
+def test_the_reference_teacher_feeds_forward_the_references_acceleration_over_the_next_period():
+    """With reference_acceleration, the labels feed forward the reference's acceleration over the next period.
+
+    Each label is computed torque with ẍ_d = (ẋ*_next − ẋ*) / dt, the difference of the reference velocities the
+    next observation and this one show (the teacher reads them from the env's state).
+    """
+    from robot_control.controllers import ComputedTorqueAgent, decode_observation
+
+    env = gym.make("DeltaForceTrack-v0", dt=0.01, track_period=1.0)
+    config = DistillConfig(
+        env_id="DeltaForceTrack-v0", expert="computed-torque", bandwidth=40.0, reference_acceleration=True
+    )
+    obs, act, _, _, _ = collect(env, distill._expert(env, config), None, 1, 1.0, 5, np.random.default_rng(0))
+    params = env.unwrapped.params
+    velocity = decode_observation(params, obs.astype(np.float64))[2]
+    acceleration = np.diff(velocity, axis=0) / params.dt
+    assert np.max(np.abs(acceleration)) > 1.0  # the cycle does accelerate
+    plain = ComputedTorqueAgent(params, bandwidth=40.0)
+    rows = np.arange(0, len(obs) - 1, 7)
+    expected = []
+    for i in rows:
+        plain._acceleration = lambda _obs, a=acceleration[i]: a[None]
+        expected.append(plain(obs[i : i + 1].astype(np.float64))[0])
+    np.testing.assert_allclose(np.array(expected), act[rows], atol=2e-5)
+    plain._acceleration = lambda _obs: None
+    assert np.max(np.abs(plain(obs[rows].astype(np.float64)) - act[rows])) > 0.05
+    with pytest.raises(ValueError, match="reference_acceleration needs the computed-torque expert"):
+        DistillConfig(reference_acceleration=True)
+
+
 def test_cut_episodes_are_the_first_steps_of_the_full_ones():
     """With max_steps each episode stops after that many steps: its pairs are the full episode's first ones."""
     env = gym.make(ENV)
@@ -432,6 +462,7 @@ def test_bad_options_are_refused(capsys):
             "Reach id only",
         ),
         (["--expert", "computed-torque", "--bandwidth", "0"], "--bandwidth must be finite and > 0, got 0.0"),
+        (["--reference-acceleration"], "--reference-acceleration needs --expert computed-torque"),
         (["--damped-output"], "--damped-output needs --expert-damping and --damping-kind scale, got no --expert"),
         (
             ["--damped-output", "--expert-damping", "--damping-kind", "cap"],
