@@ -3,7 +3,7 @@
 Usage::
 
     python -m experiments.pick_and_place --out docs/results/pick_and_place [--dt 0.002] [--bandwidth 40]
-        [--policy RUN --periods 1.0 1.2 1.5 2.0]
+        [--policy RUN [RUN ...] --periods 1.0 1.2 1.5 2.0]
 
 The adept cycle (25 mm up, 305 mm across, 25 mm down to the place point, and back the same way; centred on the
 Delta's home pose, along x) is parametrised time-optimally from rest to rest at every corner with the drives'
@@ -15,10 +15,11 @@ limits) follows each trajectory in ``DeltaForceReach-v0`` (the compiled force-co
 of the pick point at the end of the cycle. ``table.md`` lists every σ (cycle time, those errors, the largest
 tracking error, peak effort, saturated periods); ``cycle.gif`` shows the shortest cycle that counts.
 
-With ``--policy``, a policy trained on ``DeltaForceTrack-v0`` (the same cycle as a moving target, rest at every
-corner, cosine time law, a random heading per episode) runs ``--cycles`` cycles of ``--episodes`` episodes at
-each period of ``--periods`` (its run's env settings, ``track_period`` replaced): the errors at the place and
-pick points are read when its reference arrives there, and a period counts when every one is ≤ 1 mm.
+With ``--policy``, each policy trained on ``DeltaForceTrack-v0`` (the same cycle as a moving target, rest at every
+corner, cosine time law, a random heading per episode; ``training.train`` or ``training.distill``) runs
+``--cycles`` cycles of ``--episodes`` episodes at each period of ``--periods`` (its run's env settings,
+``track_period`` replaced): the errors at the place and pick points are read when its reference arrives there, and
+a period counts when every one is ≤ 1 mm.
 """
 
 from __future__ import annotations
@@ -151,7 +152,7 @@ def policy_cycles(agent, env_kwargs: dict, period: float, episodes: int, cycles:
     return out
 
 
-def _policy_table(rows: list[dict], run: Path, episodes: int, cycles: int) -> str:
+def _policy_table(rows: list[dict], run: Path, config: dict, episodes: int, cycles: int) -> str:
     command = run / "command.txt"
     trained = ""
     if command.is_file():  # the training command without the interpreter's path and the run folder
@@ -162,7 +163,7 @@ def _policy_table(rows: list[dict], run: Path, episodes: int, cycles: int) -> st
         trained = f", trained by `{' '.join(words)}`"
     lines = [
         "",
-        f"A PPO policy of `DeltaForceTrack-v0` (`{run.name}`{trained}) on the same cycle as a moving target: "
+        f"{_policy_kind(config)} of `DeltaForceTrack-v0` (`{run.name}`{trained}) on the same cycle as a moving target: "
         f"{episodes} episodes of {cycles} cycles per period, errors when the reference arrives (median / largest).",
         "",
         "| cycle time [s] | place error [mm] | pick error [mm] | peak abs(τ)/τ_max | saturated periods | ended early "
@@ -178,6 +179,16 @@ def _policy_table(rows: list[dict], run: Path, episodes: int, cycles: int) -> st
             f"{row['ended']} | {'yes' if ok else 'no'} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def _policy_kind(config: dict) -> str:
+    """The kind of a run's policy: "A PPO policy", or "A policy distilled from ..." for a training.distill run."""
+    expert = config.get("distilled_from")
+    if not expert:
+        return f"A {config.get('algo', 'ppo').upper()} policy"
+    if expert == "computed-torque" and "--reference-acceleration" in config.get("command", ""):
+        expert = "computed torque with the reference's acceleration fed forward"
+    return f"A policy distilled from {expert.replace('-', ' ')} (`training.distill`)"
 
 
 def _table(rows: list[dict], command: str, dt: float, bandwidth: float, limits: np.ndarray) -> str:
@@ -217,7 +228,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bandwidth", type=float, default=40.0, help="ω of computed torque [rad/s]")
     parser.add_argument("--margins", type=float, nargs="+", default=[1.0, 0.95, 0.9, 0.8, 0.6])
     parser.add_argument("--grid", type=int, default=100, help="TOPP-RA grid intervals per segment")
-    parser.add_argument("--policy", type=Path, help="a DeltaForceTrack-v0 run folder (training.train)")
+    parser.add_argument(
+        "--policy", type=Path, nargs="+", default=[], help="DeltaForceTrack-v0 run folders (training.train, .distill)"
+    )
     parser.add_argument("--model", default="final", choices=("final", "best"))
     parser.add_argument("--periods", type=float, nargs="+", default=[1.0, 1.2, 1.5, 2.0], help="policy cycle times [s]")
     parser.add_argument("--episodes", type=int, default=5, help="policy episodes per period")
@@ -241,15 +254,17 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python -m experiments.pick_and_place " + " ".join(argv if argv is not None else sys.argv[1:])
     table, policy_rows = _table(rows, command, args.dt, args.bandwidth, limits), []
-    if args.policy is not None:
-        from training.runs import load_run, run_env_kwargs
+    from training.runs import load_run, run_env_kwargs
 
-        agent, config = load_run(args.policy, args.model)
+    for run in args.policy:
+        agent, config = load_run(run, args.model)
+        config = {**config, "command": (run / "command.txt").read_text() if (run / "command.txt").is_file() else ""}
+        policy_rows.append([])
         for period in args.periods:
-            policy_rows.append(policy_cycles(agent, run_env_kwargs(config), period, args.episodes, args.cycles))
-            print(json.dumps(policy_rows[-1]), flush=True)
-        table += _policy_table(policy_rows, args.policy, args.episodes, args.cycles)
-    results = {"command": command, "rows": rows, "policy": policy_rows}
+            policy_rows[-1].append(policy_cycles(agent, run_env_kwargs(config), period, args.episodes, args.cycles))
+            print(json.dumps(policy_rows[-1][-1]), flush=True)
+        table += _policy_table(policy_rows[-1], run, config, args.episodes, args.cycles)
+    results = {"command": command, "rows": rows, "policies": [str(run) for run in args.policy], "policy": policy_rows}
     (args.out / "results.json").write_text(json.dumps(results, indent=1) + "\n")
     (args.out / "table.md").write_text(table)
     counted = [r for r in rows if r["place_error_mm"] <= 1.0 and r["pick_error_mm"] <= 1.0]

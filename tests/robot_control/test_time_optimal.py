@@ -119,15 +119,32 @@ def test_bad_arguments_are_refused(kwargs, match):
 
 
 def test_the_adept_cycle_experiment_writes_its_table(tmp_path):
-    """``experiments.pick_and_place`` through the compiled force-control env: table, results and GIF."""
-    from experiments import pick_and_place
+    """``experiments.pick_and_place`` through the compiled force-control env: table, results and GIF.
 
-    assert pick_and_place.main(["--out", str(tmp_path), "--margins", "0.8", "--dt", "0.004", "--grid", "30"]) == 0
-    rows = json.loads((tmp_path / "results.json").read_text())["rows"]
+    And a policy's table per ``--policy`` run, named by how it was trained (here a tiny ``training.distill`` run).
+    """
+    from experiments import pick_and_place
+    from training.distill import DistillConfig, distill
+
+    run = tmp_path / "run"
+    config = DistillConfig(
+        env_id="DeltaForceTrack-v0", env_kwargs={"dt": 0.01}, expert="computed-torque", expert_episodes=1,
+        iterations=0, epochs=1,
+    )  # fmt: skip
+    distill(config, run, log=lambda _: None)
+    out = tmp_path / "out"
+    argv = ["--out", str(out), "--margins", "0.8", "--dt", "0.004", "--grid", "30", "--policy", str(run)]
+    assert pick_and_place.main([*argv, "--periods", "1.0", "--episodes", "1", "--cycles", "1"]) == 0
+    results = json.loads((out / "results.json").read_text())
+    rows = results["rows"]
     assert len(rows) == 1 and rows[0]["termination"] is None and rows[0]["max_residual"] < 1e-10
     assert rows[0]["place_error_mm"] < 1.0 and rows[0]["pick_error_mm"] < 1.0
-    assert "| 0.80 |" in (tmp_path / "table.md").read_text()
-    assert (tmp_path / "cycle.gif").stat().st_size > 0
+    table = (out / "table.md").read_text()
+    assert "| 0.80 |" in table
+    assert (out / "cycle.gif").stat().st_size > 0
+    assert results["policies"] == [str(run)] and len(results["policy"]) == 1 and len(results["policy"][0]) == 1
+    assert "A policy distilled from computed torque (`training.distill`) of `DeltaForceTrack-v0` (`run`" in table
+    assert "| 1.00 |" in table
 
 
 def test_a_track_policy_is_scored_when_the_reference_reaches_the_place_and_pick_points():
