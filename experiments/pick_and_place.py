@@ -111,7 +111,7 @@ def follow(env: gym.Env, path: TimeOptimalPath, bandwidth: float, frame_every: i
     }
 
 
-def policy_cycles(agent, env_kwargs: dict, period: float, episodes: int, cycles: int) -> dict:
+def policy_cycles(agent, env_kwargs: dict, period: float, episodes: int, cycles: int, frame_every: int = 0) -> dict:
     """A Track policy on the adept cycle at ``period`` [s]: its errors at the place and pick points [mm].
 
     The reference reaches the place point at half the period and the pick point at its end (``ADEPT_CYCLE``'s
@@ -119,12 +119,14 @@ def policy_cycles(agent, env_kwargs: dict, period: float, episodes: int, cycles:
 
     Returns:
         The period, the median and largest errors at the place and pick points over every cycle of every
-        episode, the peak effort, the saturated fraction and the episodes that ended early.
+        episode, the peak effort, the saturated fraction, the episodes that ended early and, with
+        ``frame_every`` > 0, the first episode's frames every ``frame_every`` control periods ("frames").
 
     Raises:
         ValueError: If half the period is not a whole number of control periods.
     """
-    env = gym.make(TRACK_ID, **{**env_kwargs, "track_period": period}, max_episode_steps=10**6)
+    render = {"render_mode": "rgb_array"} if frame_every else {}
+    env = gym.make(TRACK_ID, **{**env_kwargs, "track_period": period}, max_episode_steps=10**6, **render)
     dt = env.unwrapped.params.dt
     half = period / 2.0 / dt
     if abs(half - round(half)) > 1e-6:
@@ -132,7 +134,7 @@ def policy_cycles(agent, env_kwargs: dict, period: float, episodes: int, cycles:
     place, whole = round(half), 2 * round(half)
     limits = env.unwrapped.params.force_limit_array
     errors: dict[str, list[float]] = {"place": [], "pick": []}
-    peak, saturated, steps, ended = 0.0, 0, 0, 0
+    peak, saturated, steps, ended, frames = 0.0, 0, 0, 0, []
     for episode in range(episodes):
         obs, _ = env.reset(seed=episode)
         for step in range(1, cycles * whole + 1):
@@ -144,8 +146,12 @@ def policy_cycles(agent, env_kwargs: dict, period: float, episodes: int, cycles:
                 break
             if step % whole in (place, 0):
                 errors["place" if step % whole == place else "pick"].append(1e3 * float(info["position_error"]))
+            if frame_every and episode == 0 and step % frame_every == 0:
+                frames.append(env.render())
     env.close()
     out = {"period_s": period, "peak_effort": peak, "saturated_fraction": saturated / max(steps, 1), "ended": ended}
+    if frame_every:
+        out["frames"] = frames
     for name, values in errors.items():
         values = values or [float("nan")]
         out[f"{name}_error_mm"] = {"median": float(np.median(values)), "max": float(np.max(values))}
@@ -172,13 +178,26 @@ def _policy_table(rows: list[dict], run: Path, config: dict, episodes: int, cycl
     ]
     for row in rows:
         place, pick = row["place_error_mm"], row["pick_error_mm"]
-        ok = row["ended"] == 0 and max(place["max"], pick["max"]) <= TOLERANCE * 1e3
+        ok = _counts(row)
         lines.append(
             f"| {row['period_s']:.2f} | {place['median']:.2f} / {place['max']:.2f} | {pick['median']:.2f} / "
             f"{pick['max']:.2f} | {row['peak_effort']:.2f} | {100 * row['saturated_fraction']:.1f} % | "
             f"{row['ended']} | {'yes' if ok else 'no'} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def _counts(row: dict) -> bool:
+    """Whether a ``policy_cycles`` row counts: no episode ended early, every error ≤ ``TOLERANCE``."""
+    worst = max(row["place_error_mm"]["max"], row["pick_error_mm"]["max"])
+    return row["ended"] == 0 and worst <= TOLERANCE * 1e3
+
+
+def config_dt(config: dict) -> float:
+    """The control period [s] of a run's Track env (its ``env_kwargs``' dt, else the id's own)."""
+    from training.runs import run_env_kwargs
+
+    return float(gym.make(TRACK_ID, **run_env_kwargs(config)).unwrapped.params.dt)
 
 
 def _policy_kind(config: dict) -> str:
@@ -264,6 +283,16 @@ def main(argv: list[str] | None = None) -> int:
             policy_rows[-1].append(policy_cycles(agent, run_env_kwargs(config), period, args.episodes, args.cycles))
             print(json.dumps(policy_rows[-1][-1]), flush=True)
         table += _policy_table(policy_rows[-1], run, config, args.episodes, args.cycles)
+    fastest = min(
+        ((row["period_s"], i) for i, rows_ in enumerate(policy_rows) for row in rows_ if _counts(row)), default=None
+    )
+    if fastest is not None:  # the shortest cycle a policy makes within 1 mm, one cycle of its first episode
+        period, i = fastest
+        agent, config = load_run(args.policy[i], args.model)
+        every = max(1, int(round(0.02 / config_dt(config))))
+        frames = policy_cycles(agent, run_env_kwargs(config), period, 1, 1, frame_every=every)["frames"]
+        save_gif(frames, args.out / "policy_cycle.gif", fps=1.0 / (every * config_dt(config)))
+        table += f"\n`{args.policy[i].name}` at {period:.2f} s, one cycle:\n\n![the policy's cycle](policy_cycle.gif)\n"
     results = {"command": command, "rows": rows, "policies": [str(run) for run in args.policy], "policy": policy_rows}
     (args.out / "results.json").write_text(json.dumps(results, indent=1) + "\n")
     (args.out / "table.md").write_text(table)

@@ -11,6 +11,7 @@ import json
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from kinematics import Delta, StewartGough
 from kinematics.dynamics import RobotDynamics, default_inertia
@@ -118,7 +119,7 @@ def test_bad_arguments_are_refused(kwargs, match):
         TimeOptimalPath(dynamics, args["waypoints"], args["force_limits"], grid=args["grid"])
 
 
-def test_the_adept_cycle_experiment_writes_its_table(tmp_path):
+def test_the_adept_cycle_experiment_writes_its_table(tmp_path, monkeypatch):
     """``experiments.pick_and_place`` through the compiled force-control env: table, results and GIF.
 
     And a policy's table per ``--policy`` run, named by how it was trained (here a tiny ``training.distill`` run).
@@ -134,6 +135,8 @@ def test_the_adept_cycle_experiment_writes_its_table(tmp_path):
     distill(config, run, log=lambda _: None)
     out = tmp_path / "out"
     argv = ["--out", str(out), "--margins", "0.8", "--dt", "0.004", "--grid", "30", "--policy", str(run)]
+    counted = []
+    monkeypatch.setattr(pick_and_place, "_counts", lambda row: counted.append(row["period_s"]) or True)
     assert pick_and_place.main([*argv, "--periods", "1.0", "--episodes", "1", "--cycles", "1"]) == 0
     results = json.loads((out / "results.json").read_text())
     rows = results["rows"]
@@ -145,6 +148,10 @@ def test_the_adept_cycle_experiment_writes_its_table(tmp_path):
     assert results["policies"] == [str(run)] and len(results["policy"]) == 1 and len(results["policy"][0]) == 1
     assert "A policy distilled from computed torque (`training.distill`) of `DeltaForceTrack-v0` (`run`" in table
     assert "| 1.00 |" in table
+    # the shortest period the policy makes (every one here) is drawn: one cycle at 1.0 s, a frame every 20 ms
+    assert counted and "![the policy's cycle](policy_cycle.gif)" in table
+    with Image.open(out / "policy_cycle.gif") as gif:
+        assert gif.n_frames == 50
 
 
 def test_a_track_policy_is_scored_when_the_reference_reaches_the_place_and_pick_points():
