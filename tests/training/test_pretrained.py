@@ -316,3 +316,24 @@ def test_demo_reports_the_delta_on_the_adept_cycle(tmp_path):
     for m in metrics.values():
         assert 0.0 < m["tracking"]["max_position_mm"]["mean"] < 50.0
     assert "DeltaTrack-v0" in (tmp_path / "track_delta.md").read_text()
+
+
+@pytest.mark.slow
+def test_the_shipped_adept_policy_places_and_picks_within_a_millimetre():
+    """The distilled ``DeltaForceTrack-v0`` policy keeps its adept-cycle record.
+
+    At its recorded cycle time every place and pick error is ≤ 1 mm, the largest within 0.05 mm of the recorded one
+    (two-sided).
+    """
+    from experiments.pick_and_place import policy_cycles
+
+    run = demo._pretrained("distill-DeltaForceTrack-v0")
+    record = json.loads((run / "regression.json").read_text())
+    assert set(record) == {"env_id", "period_s", "episodes", "cycles", "max_error_mm"}
+    agent, config = load_run(run)
+    assert config["env_id"] == record["env_id"] == "DeltaForceTrack-v0"
+    assert config["distilled_from"] == "computed-torque"
+    row = policy_cycles(agent, run_env_kwargs(config), record["period_s"], record["episodes"], record["cycles"])
+    worst = max(row["place_error_mm"]["max"], row["pick_error_mm"]["max"])
+    assert row["ended"] == 0 and worst <= 1.0, row
+    assert worst == pytest.approx(record["max_error_mm"], abs=0.05)
