@@ -169,8 +169,9 @@ def _policy_table(rows: list[dict], run: Path, config: dict, episodes: int, cycl
         trained = f", trained by `{' '.join(words)}`"
     lines = [
         "",
-        f"{_policy_kind(config)} of `DeltaForceTrack-v0` (`{run.name}`{trained}) on the same cycle as a moving target: "
-        f"{episodes} episodes of {cycles} cycles per period, errors when the reference arrives (median / largest).",
+        f"{_policy_kind(run, config)} of `DeltaForceTrack-v0` (`{run.name}`{trained}) on the same cycle as a moving "
+        f"target: {episodes} episodes of {cycles} cycles per period, errors when the reference arrives "
+        "(median / largest).",
         "",
         "| cycle time [s] | place error [mm] | pick error [mm] | peak abs(τ)/τ_max | saturated periods | ended early "
         "| counts |",
@@ -193,21 +194,26 @@ def _counts(row: dict) -> bool:
     return row["ended"] == 0 and worst <= TOLERANCE * 1e3
 
 
-def config_dt(config: dict) -> float:
+def _track_dt(config: dict) -> float:
     """The control period [s] of a run's Track env (its ``env_kwargs``' dt, else the id's own)."""
     from training.runs import run_env_kwargs
 
     return float(gym.make(TRACK_ID, **run_env_kwargs(config)).unwrapped.params.dt)
 
 
-def _policy_kind(config: dict) -> str:
+#: How the tables name the experts of ``training.distill`` (``distilled_from``).
+_EXPERT_NAMES = {"planner": "the planner", "computed-torque": "computed torque"}
+
+
+def _policy_kind(run: Path, config: dict) -> str:
     """The kind of a run's policy: "A PPO policy", or "A policy distilled from ..." for a training.distill run."""
     expert = config.get("distilled_from")
     if not expert:
         return f"A {config.get('algo', 'ppo').upper()} policy"
-    if expert == "computed-torque" and "--reference-acceleration" in config.get("command", ""):
+    settings = json.loads((run / "distill.json").read_text())["config"] if (run / "distill.json").is_file() else {}
+    if settings.get("reference_acceleration"):
         expert = "computed torque with the reference's acceleration fed forward"
-    return f"A policy distilled from {expert.replace('-', ' ')} (`training.distill`)"
+    return f"A policy distilled from {_EXPERT_NAMES.get(expert, expert)} (`training.distill`)"
 
 
 def _table(rows: list[dict], command: str, dt: float, bandwidth: float, limits: np.ndarray) -> str:
@@ -277,7 +283,6 @@ def main(argv: list[str] | None = None) -> int:
 
     for run in args.policy:
         agent, config = load_run(run, args.model)
-        config = {**config, "command": (run / "command.txt").read_text() if (run / "command.txt").is_file() else ""}
         policy_rows.append([])
         for period in args.periods:
             policy_rows[-1].append(policy_cycles(agent, run_env_kwargs(config), period, args.episodes, args.cycles))
@@ -289,9 +294,9 @@ def main(argv: list[str] | None = None) -> int:
     if fastest is not None:  # the shortest cycle a policy makes within 1 mm, one cycle of its first episode
         period, i = fastest
         agent, config = load_run(args.policy[i], args.model)
-        every = max(1, int(round(0.02 / config_dt(config))))
+        every = max(1, int(round(0.02 / _track_dt(config))))
         frames = policy_cycles(agent, run_env_kwargs(config), period, 1, 1, frame_every=every)["frames"]
-        save_gif(frames, args.out / "policy_cycle.gif", fps=1.0 / (every * config_dt(config)))
+        save_gif(frames, args.out / "policy_cycle.gif", fps=1.0 / (every * _track_dt(config)))
         table += f"\n`{args.policy[i].name}` at {period:.2f} s, one cycle:\n\n![the policy's cycle](policy_cycle.gif)\n"
     results = {"command": command, "rows": rows, "policies": [str(run) for run in args.policy], "policy": policy_rows}
     (args.out / "results.json").write_text(json.dumps(results, indent=1) + "\n")
