@@ -7,7 +7,11 @@ Usage::
 
 The *expert* is ``robot_control.controllers.PlannerController`` whose ``robot_control.planner.PathFollower`` plans
 afresh whenever the platform is more than ``replan_distance`` from its path, so that its action is a function of the
-pose and the target alone (what a policy that sees only the observation can learn). The *learner* is Stable-Baselines3
+pose and the target alone (what a policy that sees only the observation can learn); under force control
+(``control="force"``) it is computed torque along that path (``PlannerComputedTorqueAgent``). With ``--expert
+computed-torque`` it is computed torque toward the observed target (Reach and Track ids), and with
+``--reference-acceleration`` a privileged teacher that also feeds forward the Track reference's acceleration, read
+from the env's state (``training.distill_rollouts.ReferenceTeacher``). The *learner* is Stable-Baselines3
 PPO's ``MlpPolicy`` on the env's own observation, normalised by fixed statistics of the expert's data (no planner
 at run time). Training (the DAgger of Ross, Gordon and Bagnell, 2011, written on SB3's policy class because the
 ``imitation`` library pins Gymnasium 0.29):
