@@ -49,21 +49,22 @@ def test_family_report_tables_are_their_metrics(table, tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("folder", "runs", "env_id", "with_residual"),
+    ("folder", "runs", "env_id", "with_residual", "first_seed"),
     [
-        ("plan_free_planar3rpr", "distill-3rpr", "Planar3RPRReach-v0", True),
-        ("plan_free_planar3rpr_damped", "distill-3rpr-damped", "Planar3RPRReach-v0", True),
-        ("plan_free_planar3rpr_finetuned", "ft-3rpr", "Planar3RPRReach-v0", True),
-        ("plan_free_planar3rpr_best", "distill-3rpr-best", "Planar3RPRReach-v0", True),
-        ("plan_free_planar3rrr", "distill-3rrr", "Planar3RRRReach-v0", False),
+        ("plan_free_planar3rpr", "distill-3rpr", "Planar3RPRReach-v0", True, 5000),
+        ("plan_free_planar3rpr_damped", "distill-3rpr-damped", "Planar3RPRReach-v0", True, 5000),
+        ("plan_free_planar3rpr_finetuned", "ft-3rpr", "Planar3RPRReach-v0", True, 5000),
+        ("plan_free_planar3rpr_best", "distill-3rpr-best", "Planar3RPRReach-v0", True, 5000),
+        ("plan_free_planar3rrr", "distill-3rrr", "Planar3RRRReach-v0", False, 5000),
+        ("force_control/plan_free", "fd-3rpr", "Planar3RPRForceReach-v0", False, 0),
     ],
 )
-def test_plan_free_tables_are_their_metrics(folder, runs, env_id, with_residual, tmp_path):
+def test_plan_free_tables_are_their_metrics(folder, runs, env_id, with_residual, first_seed, tmp_path):
     """``plan_free_report --from-metrics`` writes the stored table from the stored evaluations, and only that."""
     _copy_metrics(RESULTS / folder, tmp_path)
     run_dirs = [f"runs/{runs}-s{seed}" for seed in range(3)]
     residual = ["--residual", "training/pretrained/ppo-Planar3RPRReachMixed-v0"] if with_residual else []
-    argv = ["--runs", *run_dirs, "--env", env_id, *residual, "--out", str(tmp_path)]
+    argv = ["--runs", *run_dirs, "--env", env_id, *residual, "--seed", str(first_seed), "--out", str(tmp_path)]
     assert plan_free_report.main([*argv, "--from-metrics"]) == 0
     assert (tmp_path / "table.md").read_text() == (RESULTS / folder / "table.md").read_text()
     assert not (tmp_path / "timing.md").exists() and not (tmp_path / "paths_hard.png").exists()
