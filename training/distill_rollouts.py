@@ -14,7 +14,7 @@ from robot_control.planner import PathFollower
 from training.distill_config import DistillConfig
 from training.episodes import SINGULARITY_REASONS, evaluate_agent
 
-__all__ = ["collect", "validate"]
+__all__ = ["ReferenceTeacher", "collect", "validate"]
 
 
 class ReferenceTeacher(ComputedTorqueAgent):
