@@ -46,8 +46,19 @@ def force_info(params: FamilyParams, state: FamilyState, outcome: FamilyOutcome 
         hold = force.holding_batch(params.packed_rows, params.packed_inertia, state.q, state.x)
         return {"actuator_forces": np.zeros_like(hold), "holding_forces": hold, "saturated": np.zeros(len(hold), bool)}
     effort = outcome.effort.copy()
-    saturated = (np.abs(effort) >= params.force_limit_array).any(axis=-1)
-    return {"actuator_forces": effort, "holding_forces": outcome.hold.copy(), "saturated": saturated}
+    return {"actuator_forces": effort, "holding_forces": outcome.hold.copy(), "saturated": _saturated(params, effort)}
+
+
+def _saturated(params: FamilyParams, effort: np.ndarray) -> np.ndarray:
+    """Whether a drive of each robot is at its limit, |τ_i| ≥ τ_max,i, shape (N,) of bool, from efforts (N, n).
+
+    One robot (the single env's step) is compared in Python floats: a NumPy reduction over three numbers costs
+    about 1.5 µs, a third of what the env adds to the compiled step.
+    """
+    limits = params.force_limit_array
+    if effort.shape[0] == 1:
+        return np.array([any(abs(t) >= m for t, m in zip(effort[0].tolist(), limits.tolist(), strict=True))])
+    return (np.abs(effort) >= limits).any(axis=-1)
 
 
 def step_info(
