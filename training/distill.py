@@ -267,8 +267,14 @@ def main(argv: list[str] | None = None) -> int:
         if steps < 1 or args.warmup_steps < 0:
             parser.error(f"--ppo-steps must be ≥ 1 and --warmup-steps ≥ 0, got {steps} and {args.warmup_steps}")
         try:
+            if not np.isfinite(args.log_std):
+                parser.error(f"--log-std must be finite, got {args.log_std}")
             config = FinetuneConfig(
-                steps, args.warmup_steps, seed=args.seed, reward_kwargs=parse_env_kwargs(args.reward_kwargs)
+                steps,
+                args.warmup_steps,
+                log_std=args.log_std,
+                seed=args.seed,
+                reward_kwargs=parse_env_kwargs(args.reward_kwargs),
             )
             finetune(Path(args.from_run), Path(args.run_dir), config)
         except (ValueError, FileNotFoundError, EvaluationError) as exc:

@@ -250,6 +250,12 @@ def build_parser(description: str) -> argparse.ArgumentParser:
     )
     parser.add_argument("--warmup-steps", type=int, default=FinetuneConfig.warmup_steps, help="critic-only steps")
     parser.add_argument(
+        "--log-std",
+        type=float,
+        default=FinetuneConfig.log_std,
+        help="the fine-tuned policy's initial log σ of its Gaussian (default %(default)s)",
+    )
+    parser.add_argument(
         "--reward-kwargs",
         nargs="*",
         default=[],

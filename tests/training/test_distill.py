@@ -623,6 +623,17 @@ def test_validated_selection_keeps_the_round_with_the_best_validation_score(tmp_
     assert result["kept_round"] == max(i for i, v in enumerate(scores) if v == max(scores))
 
 
+def test_the_command_line_sets_the_finetuning_log_std(tmp_path, monkeypatch, capsys):
+    """``--from-run RUN --log-std S`` fine-tunes with that initial log σ; a non-finite one is refused."""
+    seen = []
+    monkeypatch.setattr(distill, "finetune", lambda source, run_dir, config: seen.append(config))
+    assert distill.main(["--from-run", "x", "--run-dir", str(tmp_path), "--log-std", "-2.5"]) == 0
+    assert seen[0].log_std == -2.5 and seen[0].steps == distill.FinetuneConfig.steps
+    with pytest.raises(SystemExit):
+        distill.main(["--from-run", "x", "--run-dir", str(tmp_path), "--log-std", "nan"])
+    assert "--log-std must be finite, got nan" in capsys.readouterr().err
+
+
 def test_finetuning_fits_the_critic_alone_first_then_both(tmp_path):
     """The warm-up changes the critic and leaves the actor's weights as distilled; the PPO phase then moves them."""
     import torch
