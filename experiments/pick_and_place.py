@@ -194,11 +194,9 @@ def _counts(row: dict) -> bool:
     return row["ended"] == 0 and worst <= TOLERANCE * 1e3
 
 
-def _track_dt(config: dict) -> float:
-    """The control period [s] of a run's Track env (its ``env_kwargs``' dt, else the id's own)."""
-    from training.runs import run_env_kwargs
-
-    return float(gym.make(TRACK_ID, **run_env_kwargs(config)).unwrapped.params.dt)
+def _frame_every(dt: float) -> int:
+    """The control periods between two frames of a GIF: about 20 ms (at least one)."""
+    return max(1, int(round(0.02 / dt)))
 
 
 #: How the tables name the experts of ``training.distill`` (``distilled_from``).
@@ -281,8 +279,8 @@ def main(argv: list[str] | None = None) -> int:
     table, policy_rows = _table(rows, command, args.dt, args.bandwidth, limits), []
     from training.runs import load_run, run_env_kwargs
 
-    for run in args.policy:
-        agent, config = load_run(run, args.model)
+    agents = [load_run(run, args.model) for run in args.policy]
+    for run, (agent, config) in zip(args.policy, agents, strict=True):
         policy_rows.append([])
         for period in args.periods:
             policy_rows[-1].append(policy_cycles(agent, run_env_kwargs(config), period, args.episodes, args.cycles))
@@ -293,10 +291,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     if fastest is not None:  # the shortest cycle a policy makes within 1 mm, one cycle of its first episode
         period, i = fastest
-        agent, config = load_run(args.policy[i], args.model)
-        every = max(1, int(round(0.02 / _track_dt(config))))
+        agent, config = agents[i]
+        dt = float(gym.make(TRACK_ID, **run_env_kwargs(config)).unwrapped.params.dt)  # the run's control period
+        every = _frame_every(dt)
         frames = policy_cycles(agent, run_env_kwargs(config), period, 1, 1, frame_every=every)["frames"]
-        save_gif(frames, args.out / "policy_cycle.gif", fps=1.0 / (every * _track_dt(config)))
+        save_gif(frames, args.out / "policy_cycle.gif", fps=1.0 / (every * dt))
         table += f"\n`{args.policy[i].name}` at {period:.2f} s, one cycle:\n\n![the policy's cycle](policy_cycle.gif)\n"
     results = {"command": command, "rows": rows, "policies": [str(run) for run in args.policy], "policy": policy_rows}
     (args.out / "results.json").write_text(json.dumps(results, indent=1) + "\n")
@@ -305,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
     if counted:
         fastest = min(counted, key=lambda r: r["cycle_time_s"])
         path = TimeOptimalPath(params.dynamics, points, fastest["margin"] * limits, grid=args.grid)
-        every = max(1, int(round(0.02 / args.dt)))
+        every = _frame_every(args.dt)
         frames = follow(env, path, args.bandwidth, frame_every=every)["frames"]
         save_gif(frames, args.out / "cycle.gif", fps=1.0 / (every * args.dt))
     env.close()

@@ -266,9 +266,9 @@ def main(argv: list[str] | None = None) -> int:
         steps = args.ppo_steps or FinetuneConfig.steps
         if steps < 1 or args.warmup_steps < 0:
             parser.error(f"--ppo-steps must be ≥ 1 and --warmup-steps ≥ 0, got {steps} and {args.warmup_steps}")
+        if not np.isfinite(args.log_std):
+            parser.error(f"--log-std must be finite, got {args.log_std}")
         try:
-            if not np.isfinite(args.log_std):
-                parser.error(f"--log-std must be finite, got {args.log_std}")
             config = FinetuneConfig(
                 steps,
                 args.warmup_steps,
