@@ -7,6 +7,7 @@ Both envs step through ``envs.physics``; ``envs.vector`` batches N of them.
 
 from __future__ import annotations
 
+import operator
 from collections import deque
 from collections.abc import Sequence
 from typing import Any, ClassVar
@@ -16,7 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envs import hardware
-from envs.info import force_info, measurement_info
+from envs.info import force_info, force_info_of_one, measurement_info
 from envs.kernels import generic as fk
 from envs.params import RENDER_MODE, ROBOT, TARGET_MODES, TARGETS, FamilyParams, Parameter, arguments_table
 from envs.physics import (
@@ -93,12 +94,18 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._streams: np.ndarray | None = None
         self._buffers = (StepBuffers(params, 1, self.with_velocity), StepBuffers(params, 1, self.with_velocity))
         self._next = 0
+        self._action = np.zeros((1, params.robot.n_actuators))
         self._terminated = False
         self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
         rows = params.evaluation_rows
         self._reward_row = rows["reward"]
-        self._info_rows = tuple((name, rows[name]) for name in INFO_KEYS)
-        self._pose_rows, self._target_rows = rows["pose"], rows["target"]
+        # info's scalars in its key order (the Type I entries last) and its pose and target (adjacent rows)
+        self._info_names = tuple(name for name in INFO_KEYS if name not in TYPE_I_INFO)
+        self._info_values = operator.itemgetter(*(rows[name] for name in self._info_names))
+        self._type_i_values = operator.itemgetter(*(rows[name] for name in TYPE_I_INFO))
+        pose, target = rows["pose"], rows["target"]
+        self._pose_target = np.r_[pose, target]  # one gather, two views
+        self._n_pose = pose.stop - pose.start
         self._window: HumanWindow | None = None
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -122,7 +129,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         )
         if self.render_mode == "human":
             self.render()
-        return observations[0], self._info(evaluation[:, 0], 0, None)
+        return observations[0], self._info(evaluation[:, 0], 0, None)[0]
 
     def step(self, action: Any):
         """Apply normalised stroke rates for one period dt (see the class docstring)."""
@@ -130,28 +137,32 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             raise gym.error.ResetNeeded("Cannot call step() before reset()")
         if self._terminated:
             raise gym.error.ResetNeeded("The episode has terminated; call reset() before step()")
-        n = self.params.robot.n_actuators
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"action must be an array of {n} real numbers, got {action!r}") from exc
-        if a.shape != (n,):
-            raise ValueError(f"action must have shape ({n},), got shape {a.shape}")
+        a = self._action  # (1, n) float64, read by the step only
+        if type(action) is np.ndarray and action.shape == a.shape[1:] and action.dtype.kind == "f":
+            a[0] = action
+        else:
+            n = self.params.robot.n_actuators
+            try:
+                given = np.asarray(action, dtype=np.float64)
+            except (TypeError, ValueError) as exc:
+                raise TypeError(f"action must be an array of {n} real numbers, got {action!r}") from exc
+            if given.shape != (n,):
+                raise ValueError(f"action must have shape ({n},), got shape {given.shape}")
+            a[0] = given
         out = self._buffers[self._next]
         state, outcome, evaluation, observations = step(
-            self.params, self._state, a.reshape(1, n), self.with_velocity, out, validate=False, streams=self._streams
+            self.params, self._state, a, self.with_velocity, out, validate=False, streams=self._streams
         )
         self._next ^= 1
         self._state = state
-        reason = int(outcome.reason[0])
+        reason = outcome.reason.item()
         self._terminated = reason != 0
-        row = evaluation[:, 0]
-        info = self._info(row, reason, outcome)
+        info, reward = self._info(evaluation[:, 0], reason, outcome)
         if self.render_mode is not None:
             self._trail.append(self.params.robot.pose_space.position(info["pose"]).copy())
         if self.render_mode == "human":
             self.render()
-        return observations[0].copy(), float(row[self._reward_row]), self._terminated, False, info
+        return observations[0].copy(), reward, self._terminated, False, info
 
     def render(self):
         """An RGB frame (``rgb_array``, headless), or a window update (``human``); None without a render mode."""
@@ -185,21 +196,25 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         """A copy of the current batched state (N = 1), or None before the first reset."""
         return None if self._state is None else copy_state(self._state)
 
-    def _info(self, row: np.ndarray, reason: int, outcome: FamilyOutcome | None) -> dict[str, Any]:
+    def _info(self, row: np.ndarray, reason: int, outcome: FamilyOutcome | None) -> tuple[dict[str, Any], float]:
+        """(info, reward) of the robot's evaluation column ``row`` (see the class docstring's Info)."""
         v = row.tolist()
-        info = {name: v[index] for name, index in self._info_rows}
+        info = dict(zip(self._info_names, self._info_values(v)))
         info["is_success"] = info["is_success"] != 0.0
         info["termination_reason"] = TERMINATION_REASONS[reason]
-        info["pose"] = row[self._pose_rows].copy()
-        info["target"] = row[self._target_rows].copy()
-        for name in TYPE_I_INFO:
-            info[name] = info.pop(name)
+        pose_target = row[self._pose_target]
+        info["pose"], info["target"] = pose_target[: self._n_pose], pose_target[self._n_pose :]
+        info.update(zip(TYPE_I_INFO, self._type_i_values(v)))
         state = self._state
+        reward = v[self._reward_row]
         if state.sensed is None and state.twist is None:  # rate control from the true pose: nothing more
-            return info
+            return info, reward
+        if outcome is not None and state.sensed is None:  # a force-control step
+            info.update(force_info_of_one(outcome))
+            return info, reward
         for name, value in (measurement_info(state) | force_info(self.params, state, outcome)).items():
             info[name] = (bool(value[0]) if value.dtype == bool else float(value[0])) if value.ndim == 1 else value[0]
-        return info
+        return info, reward
 
     def start_episodes(
         self, generators: Sequence[np.random.Generator], options: dict[str, Any], streams: np.ndarray | None = None

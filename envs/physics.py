@@ -8,6 +8,7 @@ vector environment, the shield, the HER goal view and the evaluation all call th
 
 from __future__ import annotations
 
+import operator
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -503,6 +504,30 @@ class StepBuffers:
         self.force = () if params.control != "force" else tuple(np.empty((n, params.robot.n_pose)) for _ in range(3))
         if self.force:
             self.outcome = self.outcome._replace(effort=self.force[1], hold=self.force[2])
+        #: The one-thread step's ``StepCall`` into these buffers, and what it reads (``call_for``).
+        self._call: fk.StepCall | None = None
+        self._reads: tuple = (object(),)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (and copied) without the ``StepCall``, which the next step builds again."""
+        return self.__dict__ | {"_call": None, "_reads": (object(),)}
+
+    def call_for(
+        self, params: FamilyParams, state: FamilyState, reference: FamilyReference, observation: tuple
+    ) -> fk.StepCall:
+        """The ``StepCall`` that steps ``state`` (with ``reference``) into these buffers.
+
+        ``observation`` is (low, high, with_velocity) of ``observation_bounds``, whose cached ``low`` tells
+        ``with_velocity``. The call is built when the arrays it reads change (an env's reset), else the one built
+        before is returned: every step of an episode reads the arrays the step before wrote, in the other buffers.
+        """
+        reads = (observation[0], *_motion(state), state.twist, reference, state.plant, state.geometry)
+        if not all(map(operator.is_, reads, self._reads)):
+            force = _force(params, state) + self.force
+            model, plant = _model(params, state), _plant(params, state.plant)
+            self._call = fk.step_call(model, plant, observation, _motion(state), tuple(reference), self.arrays, force)
+            self._reads = reads
+        return self._call
 
 
 def step(
@@ -552,11 +577,15 @@ def step(
         if not np.isfinite(action).all():
             _non_finite(action)
         action, drive = hardware.drive(params, drive, action)
-    plant, model = _plant(params, state.plant), _model(params, state)
     if state.twist is not None and (state.plant is not None or state.sensed is not None) and state.geometry is None:
+        plant = _plant(params, state.plant)
         action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
-    force = _force(params, state) + out.force
-    if fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays, out.kernels, force):
+    if n >= fk.PARALLEL_MIN_BATCH:
+        force, model, plant = _force(params, state) + out.force, _model(params, state), _plant(params, state.plant)
+        failed = fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays, None, force)
+    else:
+        failed = out.kernels.step_serial(out.call_for(params, state, ref, observation), action)
+    if failed:
         _non_finite(action)
     q, x, t, k, k1, residual = out.fields
     twist = out.force[0] if out.force else None
@@ -564,7 +593,7 @@ def step(
     if params.observation_source == "encoders":
         if streams is None:
             raise ValueError("step needs the robots' random streams (streams=) with observation_source='encoders'")
-        new = new._replace(sensed=hardware.sense(params, q, state.sensed.x, streams, model))
+        new = new._replace(sensed=hardware.sense(params, q, state.sensed.x, streams, _model(params, state)))
         outcome = (out.outcome.action, out.outcome.reason)
         if twist is not None:  # the controller's twist and rates: the period's differences of its measurements
             outcome += hardware.sensed_motion(params, state.sensed, new.sensed)

@@ -20,6 +20,7 @@ from envs.kernels.packing import (
     read_only,
     row_path,
 )
+from envs.kernels.records import StepCall
 from envs.kernels.setup import PARALLEL_MIN_BATCH, random_streams
 from envs.kernels.step import (
     allocate_step,
@@ -27,6 +28,7 @@ from envs.kernels.step import (
     initial_batch,
     path_kernels,
     step_batch,
+    step_call,
     strokes_batch,
     transition_batch,
 )
@@ -55,6 +57,7 @@ __all__ = [
     "SAMPLER_TRIES",
     "SEGMENT_MAX_POINTS",
     "WAYPOINT_TRIES",
+    "StepCall",
     "allocate_step",
     "evaluate_batch",
     "evaluation_rows",
@@ -76,6 +79,7 @@ __all__ = [
     "segment_min_safety_batch",
     "singularity_batch",
     "step_batch",
+    "step_call",
     "strokes_batch",
     "transition_batch",
 ]

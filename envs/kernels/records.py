@@ -11,8 +11,21 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba.core import types
+from numba.experimental import structref
 
-__all__ = ["Dynamics", "Measured", "Motion", "Moved", "Observation", "Outcome", "Reference", "StepArrays"]
+__all__ = [
+    "Dynamics",
+    "Measured",
+    "Motion",
+    "Moved",
+    "Observation",
+    "Outcome",
+    "Reference",
+    "StepArrays",
+    "StepCall",
+    "StepCallType",
+]
 
 
 class Motion(NamedTuple):
@@ -100,3 +113,46 @@ class Dynamics(NamedTuple):
     effort: np.ndarray  #: applied efforts τ [N, N·m for cranks], (N, n)
     hold: np.ndarray  #: holding forces τ_h at the period's start, (N, n)
     work: np.ndarray  #: the dynamics work array of one thread (``dynamics._dynamics_work``)
+
+
+#: The fields of a ``StepCall``, in the order its constructor takes them.
+STEP_CALL_FIELDS = (
+    "model",  # packed constants the reward and the observation use, (N or 1, C_SIZE), read-only
+    "plant",  # packed constants of the robots that move, (N or 1, C_SIZE), read-only
+    "low",  # observation bounds, (D,) float32
+    "high",
+    "with_velocity",  # bool: the observation ends with the target velocity
+    "q",  # the state the step starts from: strokes (N, n)
+    "x",  # poses (N, m)
+    "t",  # step indices (N,) int64
+    "det_sign",  # sign(det J_x) of the working mode (N,)
+    "residual",  # constraint residuals (N,)
+    "center",  # the reference (``Reference``)
+    "amplitude",
+    "phase",
+    "strokes",
+    "outputs",  # the ``StepArrays`` written, then force control's (inertia, ẋ, ẋ', τ, τ_h) or nothing
+)
+
+
+@structref.register
+class StepCallType(types.StructRef):
+    """Numba's type of a ``StepCall``: one per combination of its fields' array types."""
+
+    def preprocess_fields(self, fields):
+        """The fields' types, literals widened (a ``with_velocity`` given as a constant types as a bool)."""
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class StepCall(structref.StructRefProxy):
+    """Every array one call of the one-thread step reads and writes, but the action, held by reference.
+
+    The single env and a small vector env step from the same arrays again and again (their state is the output of
+    the step before, in one of two buffers used in turn): they build a ``StepCall`` once per pair of buffers and
+    pass it with the action. Numba unboxes it as one pointer where it would type and unbox each of its thirty-odd
+    arrays on every call (about 0.06 µs each). Built by ``envs.kernels.step.step_call``; its fields are
+    ``STEP_CALL_FIELDS``.
+    """
+
+
+structref.define_proxy(StepCall, StepCallType, list(STEP_CALL_FIELDS))

@@ -154,9 +154,8 @@ def test_parallel_step_equals_serial_step_bit_for_bit(hexapod):
     grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 6, low.shape[0]) for _ in range(2)]
     assert not step_kernels._step_parallel(hexapod.packed_rows, hexapod.packed_rows, *grouped, outs[0])
-    assert not step_kernels._step_serial(
-        hexapod.packed_rows, hexapod.packed_rows, low, high, False, *motion, *state.reference, action, *outs[1]
-    )
+    call = step_kernels.step_call(hexapod.packed_rows, hexapod.packed_rows, *grouped[:3], outs[1])
+    assert not step_kernels.path_kernels(hexapod.packed_rows).step_serial(call, action)
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
 

@@ -227,7 +227,7 @@ def test_planar_cranks_are_drawn_from_their_angles() -> None:
     p = env.unwrapped.params
     target = env.unwrapped._info(
         physics.evaluate(p, state, np.zeros((1, 3)), np.zeros(1, dtype=np.int64), False)[0][:, 0], 0, None
-    )["target"]
+    )[0]["target"]
     common = {
         "safe_threshold": p.safe_threshold,
         "hard_threshold": p.hard_threshold,

@@ -124,9 +124,8 @@ def test_parallel_step_equals_serial_step_bit_for_bit():
     grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 3, low.shape[0]) for _ in range(2)]
     assert not step_kernels._step_parallel(params.packed_rows, params.packed_rows, *grouped, outs[0])
-    assert not step_kernels._step_serial(
-        params.packed_rows, params.packed_rows, low, high, False, *motion, *state.reference, action, *outs[1]
-    )
+    call = step_kernels.step_call(params.packed_rows, params.packed_rows, *grouped[:3], outs[1])
+    assert not step_kernels.path_kernels(params.packed_rows).step_serial(call, action)
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
 

@@ -381,6 +381,29 @@ def test_step_buffers_give_the_fresh_result(params, rng):
     np.testing.assert_array_equal(caught.value.rows, [3])
 
 
+@pytest.mark.parametrize("field", ["q", "x", "t", "det_sign", "residual", "reference", "twist"])
+def test_reused_buffers_read_a_state_changed_in_one_array(rng, field):
+    """Reused buffers step a state that differs from the last in one array as fresh buffers do.
+
+    The ``StepCall`` they keep must read that array (the twist under force control).
+    """
+    params = _params(control="force") if field == "twist" else _params()
+    state, other = _random_states(params, rng, 2), _random_states(params, rng, 2)
+    other = other._replace(t=other.t + 3, det_sign=-state.det_sign, residual=other.residual + 1e-3)
+    if field == "twist":
+        other = other._replace(twist=rng.uniform(-0.1, 0.1, size=other.twist.shape))
+    if field == "residual":  # read only where the correction fails (the robot keeps it): strokes that cannot assemble
+        state = state._replace(q=3.0 * state.q)
+    action = rng.uniform(-1, 1, size=(2, 3))
+    buffers = physics.StepBuffers(params, 2, False)
+    physics.step(params, state, action, False, buffers)
+    changed = state._replace(**{field: getattr(other, field)})
+    reused = physics.step(params, changed, action, False, buffers)
+    fresh = physics.step(params, changed, action, False)
+    for a, b in zip([*reused[0][:7], reused[2], reused[3]], [*fresh[0][:7], fresh[2], fresh[3]], strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_env_state_is_a_copy(rng):
     """env.unwrapped.state is a snapshot: kept across steps it does not change, and editing it changes nothing."""
     import gymnasium as gym
