@@ -580,12 +580,7 @@ def step(
     if state.twist is not None and (state.plant is not None or state.sensed is not None) and state.geometry is None:
         plant = _plant(params, state.plant)
         action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
-    if n >= fk.PARALLEL_MIN_BATCH:
-        force, model, plant = _force(params, state) + out.force, _model(params, state), _plant(params, state.plant)
-        failed = fk.step_batch(model, plant, observation, _motion(state), tuple(ref), action, out.arrays, None, force)
-    else:
-        failed = out.kernels.step_serial(out.call_for(params, state, ref, observation), action)
-    if failed:
+    if fk.step_batch(out.kernels, out.call_for(params, state, ref, observation), action):
         _non_finite(action)
     q, x, t, k, k1, residual = out.fields
     twist = out.force[0] if out.force else None
