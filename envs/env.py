@@ -20,23 +20,19 @@ from envs import hardware
 from envs.info import force_info, force_info_of_one, measurement_info
 from envs.kernels import generic as fk
 from envs.params import RENDER_MODE, ROBOT, TARGET_MODES, TARGETS, FamilyParams, Parameter, arguments_table
-from envs.physics import (
+from envs.physics import StepBuffers, evaluate, initial_state, observation_bounds, step
+from envs.presets import build_family_params
+from envs.rendering import HumanWindow, render_family_frame
+from envs.state import (
     INFO_KEYS,
     TERMINATION_REASONS,
     TYPE_I_INFO,
     FamilyOutcome,
     FamilyReference,
     FamilyState,
-    StepBuffers,
     copy_state,
-    evaluate,
-    initial_state,
-    observation_bounds,
     put_rows,
-    step,
 )
-from envs.presets import build_family_params
-from envs.rendering import HumanWindow, render_family_frame
 from envs.tasks import grid_kernels
 from envs.tasks.grid import WorkspaceMap
 

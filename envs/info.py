@@ -12,7 +12,7 @@ import numpy as np
 from envs.kernels import force
 from envs.kernels.force import actions_of_efforts, efforts_of_actions
 from envs.params import FamilyParams
-from envs.physics import _REASON_NAMES, INFO_KEYS, TYPE_I_INFO, FamilyOutcome, FamilyState
+from envs.state import _REASON_NAMES, INFO_KEYS, TYPE_I_INFO, FamilyOutcome, FamilyState
 
 __all__ = [
     "actions_of_efforts",

@@ -17,7 +17,8 @@ from envs.arguments import Parameter, Range, table
 from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv, render_frames
 from envs.info import step_info
 from envs.kernels.setup import random_streams
-from envs.physics import FamilyState, NonFiniteActionError, StepBuffers, evaluate
+from envs.physics import NonFiniteActionError, StepBuffers, evaluate
+from envs.state import FamilyState, copy_state, put_rows, state_arrays
 
 __all__ = ["FamilyReachVectorEnv", "FamilyTrackVectorEnv", "FamilyVectorEnv", "episode_starts"]
 
@@ -241,7 +242,7 @@ class FamilyVectorEnv(VectorEnv):
             self._state = fresh
             self._trails = [deque(maxlen=TRAIL_LENGTH) for _ in range(self.num_envs)]
         else:
-            physics.put_rows(self._state, rows, fresh)
+            put_rows(self._state, rows, fresh)
         self._ended[rows] = False
         observations, info = self._evaluate(fresh)
         if self._observations is None:
@@ -355,7 +356,7 @@ class FamilyVectorEnv(VectorEnv):
         The environment reuses its own arrays from step to step; the copy is yours to keep.
         """
         state = self._state
-        return None if state is None else physics.copy_state(state)
+        return None if state is None else copy_state(state)
 
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:
@@ -435,7 +436,7 @@ class FamilyVectorEnv(VectorEnv):
         """
         if self._state is None:
             return 0
-        return sum(field.nbytes for field in physics.state_arrays(self._state))
+        return sum(field.nbytes for field in state_arrays(self._state))
 
     # -- helpers ----------------------------------------------------------------------------------
 
@@ -465,7 +466,7 @@ class FamilyVectorEnv(VectorEnv):
             if self._generators[i] is None:  # pragma: no cover - every row was reset before stepping
                 self._new_generator(i, None)
         fresh = self._start_episodes(rows, {})
-        physics.put_rows(self._state, rows, fresh)
+        put_rows(self._state, rows, fresh)
         new_obs, new_info = self._evaluate(fresh)
         observations[rows] = new_obs
         for key, value in new_info.items():

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs
-from envs.physics import TERMINATION_REASONS
+from envs.state import TERMINATION_REASONS
 from kinematics import SingularConfigurationError
 from training.records import EpisodeRecord
 from training.runs import Agent, EvaluationError, evaluation_env_kwargs, wrap_for_run, wrap_vector_for_run

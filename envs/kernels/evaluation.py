@@ -72,7 +72,7 @@ drop_stale_caches(__file__)
 
 @jit
 def _reference_at(c, tau, center, amplitude, phase, i, o_pose, o_velocity):
-    """Target pose and rate of robot i at the angle τ = ω t [rad] of its reference (``envs.physics.FamilyReference``).
+    """Target pose and rate of robot i at the angle τ = ω t [rad] of its reference (``envs.state.FamilyReference``).
 
     Sinusoids (C_PATH = 0): x*_j = c_j + a_j sin(τ + θ_j). A polyline path of K vertices W_k: the period is cut
     into K segments (W_k → W_k+1 mod K, ending at the fractions C_PATH_T of the period, shifted by θ_0 / 2π);

@@ -160,6 +160,6 @@ EVALUATION: tuple[tuple[str, str], ...] = (
 E_FIXED = len(EVALUATION)
 globals().update({"E_" + name: row for row, (name, _) in enumerate(EVALUATION)})  # E_TRACKING, …
 
-# Termination reason codes (the order of ``envs.physics.TERMINATION_REASONS``).
+# Termination reason codes (the order of ``envs.state.TERMINATION_REASONS``).
 _NEWTON_FAILED, _ASSEMBLY_MODE_CHANGE, _SINGULARITY_CROSSED, _SINGULAR, _OUT_OF_BOUNDS = 1, 2, 3, 4, 5
 _ACTUATOR_SINGULAR = 6  # a Type I singularity (J_q singular): a crank's link in line with its arm

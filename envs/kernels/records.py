@@ -72,7 +72,7 @@ class Measured(NamedTuple):
 
 
 class Reference(NamedTuple):
-    """The targets of N robots (``envs.physics.FamilyReference`` without its optional field)."""
+    """The targets of N robots (``envs.state.FamilyReference`` without its optional field)."""
 
     center: np.ndarray  #: centres c, (N, m)
     amplitude: np.ndarray  #: amplitudes a, (N, m)

@@ -267,7 +267,7 @@ def evaluate_batch(cs, observation, measured, reference, outcome):
         measured: (q, x, t, k, k_I, residual): strokes [m] (N, n), poses (N, m), step indices (N,) int, inverse
             condition numbers (N,), actuator condition numbers (Type I measure, 1 for legs) (N,), constraint
             residuals [m²] (N,).
-        reference: (center, amplitude, phase, strokes) of the targets (``envs.physics.FamilyReference``), each
+        reference: (center, amplitude, phase, strokes) of the targets (``envs.state.FamilyReference``), each
             (N, m); strokes, the actuator coordinates of the centres (``strokes_batch``, (N, n)), are read for the
             robots whose target is fixed (a = 0, C_PATH = 0) instead of solving the inverse kinematics again.
         outcome: (action, reason): applied actions (N, n) and termination reason codes (N,); with force control
@@ -349,8 +349,6 @@ class PathKernels(NamedTuple):
     step_parallel: Any
     initial: Any
     strokes: Any
-
-
 
 
 def _path_kernels(path: int, space: int) -> PathKernels:

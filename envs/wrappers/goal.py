@@ -19,7 +19,8 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.kernels.packing import observation_layout
-from envs.physics import TERMINATION_REASONS, reward_terms
+from envs.physics import reward_terms
+from envs.state import TERMINATION_REASONS
 
 __all__ = ["OBSERVATION_INDEX", "GoalReachWrapper", "goal_free_index"]
 

@@ -11,6 +11,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from envs import physics
+from envs import state as family_state
 from envs.kernels import generic as fk
 from envs.presets import build_family_params
 from kinematics.dynamics import RobotDynamics
@@ -309,7 +310,9 @@ def test_the_multi_core_step_is_the_one_thread_step(robot, monkeypatch):
 
     def arrays(result):
         new, outcome, evaluation, obs = result
-        return [a.copy() for a in (*physics.state_arrays(new), *(o for o in outcome if o is not None), evaluation, obs)]
+        return [
+            a.copy() for a in (*family_state.state_arrays(new), *(o for o in outcome if o is not None), evaluation, obs)
+        ]
 
     parallel = arrays(physics.step(params, state, action, False))
     assert numba.threading_layer() is not None

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from envs import physics
+from envs import state as family_state
 from envs.kernels import generic as fk
 from envs.kernels import layout as family_layout
 from envs.kernels import linalg as linalg_kernels
@@ -90,15 +91,15 @@ def oracle_transition(params: FamilyParams, state: FamilyState, action: np.ndarr
         k_new, det = robot.singularity_measures(q_k[0], x_k[0], validate=False)
         out = bool(np.any((x_k[0] < params.pose_low) | (x_k[0] > params.pose_high)))
         if failed:
-            reason[i] = physics.NEWTON_FAILED
+            reason[i] = family_state.NEWTON_FAILED
         elif jump > params.jump_tolerance:
-            reason[i] = physics.ASSEMBLY_MODE_CHANGE
+            reason[i] = family_state.ASSEMBLY_MODE_CHANGE
         elif np.sign(det) != state.det_sign[i]:
-            reason[i] = physics.SINGULARITY_CROSSED
+            reason[i] = family_state.SINGULARITY_CROSSED
         elif k_new < params.hard_threshold:
-            reason[i] = physics.SINGULAR
+            reason[i] = family_state.SINGULAR
         elif out:
-            reason[i] = physics.OUT_OF_BOUNDS
+            reason[i] = family_state.OUT_OF_BOUNDS
         q_next[i], x_next[i], residual[i], jumps[i] = q_k[0], x_k[0], res, jump
     return q_next, x_next, residual, a, q_rate, reason, jumps
 
@@ -305,7 +306,7 @@ def test_threading_layer_falls_back_without_tbb(monkeypatch):
 def _step_arrays(result) -> list[np.ndarray]:
     """Every array of a ``physics.step`` result: the state's (reference included), the outcome's, evaluation, obs."""
     new, outcome, evaluation, obs = result
-    return [*physics.state_arrays(new), *(a for a in outcome if a is not None), evaluation, obs]
+    return [*family_state.state_arrays(new), *(a for a in outcome if a is not None), evaluation, obs]
 
 
 def test_parallel_kernel_equals_serial(params, rng, monkeypatch):

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from envs import physics
+from envs import state as family_state
 from robot_control.controllers import ResolvedRateController
 from tests.envs import oracle
 
@@ -81,7 +82,7 @@ def test_reward_terms_pay_the_bonus_only_without_termination(path):
     target = np.tile(info["target"], (4, 1))
     x = target.copy()
     x[3, 0] += 2.0 * params.success_position_tolerance  # off the target
-    reason = np.array([0, physics.SINGULAR, physics.OUT_OF_BOUNDS, 0])
+    reason = np.array([0, family_state.SINGULAR, family_state.OUT_OF_BOUNDS, 0])
     n = params.robot.n_actuators
     terms = physics.reward_terms(params, x, target, np.full(4, 0.5), np.zeros((4, n)), reason, np.ones(4))
     np.testing.assert_array_equal(terms["reward_success"], [B, 0.0, 0.0, 0.0])
