@@ -17,7 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envs import hardware
-from envs.info import force_info, force_info_of_one, measurement_info
+from envs.info import force_info_of_one, measurement_info
 from envs.kernels import generic as fk
 from envs.params import RENDER_MODE, ROBOT, TARGET_MODES, TARGETS, FamilyParams, Parameter, arguments_table
 from envs.physics import StepBuffers, evaluate, initial_state, observation_bounds, step
@@ -94,7 +94,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         self._terminated = False
         self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
         rows = params.evaluation_rows
-        self._reward_row = rows["reward"]
+        self._reward_row, self._saturated_row = rows["reward"], rows["saturated"]
         # info's scalars in its key order (the Type I entries last) and its pose and target (adjacent rows)
         self._info_names = tuple(name for name in INFO_KEYS if name not in TYPE_I_INFO)
         self._info_values = operator.itemgetter(*(rows[name] for name in self._info_names))
@@ -202,15 +202,13 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         info["pose"], info["target"] = pose_target[: self._n_pose], pose_target[self._n_pose :]
         info.update(zip(TYPE_I_INFO, self._type_i_values(v)))
         state = self._state
-        reward = v[self._reward_row]
-        if state.sensed is None and state.twist is None:  # rate control from the true pose: nothing more
-            return info, reward
-        if outcome is not None and state.sensed is None:  # a force-control step
-            info.update(force_info_of_one(outcome))
-            return info, reward
-        for name, value in (measurement_info(state) | force_info(self.params, state, outcome)).items():
-            info[name] = (bool(value[0]) if value.dtype == bool else float(value[0])) if value.ndim == 1 else value[0]
-        return info, reward
+        if state.sensed is not None:
+            for name, value in measurement_info(state).items():
+                info[name] = float(value[0]) if value.ndim == 1 else value[0]
+        if state.twist is not None:
+            info.update(force_info_of_one(self.params, state, outcome))
+            info["saturated"] = v[self._saturated_row] != 0.0
+        return info, v[self._reward_row]
 
     def start_episodes(
         self, generators: Sequence[np.random.Generator], options: dict[str, Any], streams: np.ndarray | None = None

@@ -41,34 +41,25 @@ def measurement_info(state: FamilyState) -> dict[str, np.ndarray]:
 
 
 def force_info(params: FamilyParams, state: FamilyState, outcome: FamilyOutcome | None) -> dict[str, np.ndarray]:
-    """The info entries of force control, per robot (empty under rate control).
+    """The info entries of force control's efforts, per robot (empty under rate control).
 
     ``actuator_forces`` (N, n): the applied efforts τ; ``holding_forces`` (N, n): τ_h at the period's start (at the
-    start pose when ``outcome`` is None: an episode's start, at rest, τ = 0); ``saturated`` (N,): whether a drive
-    was at its limit.
+    start pose when ``outcome`` is None: an episode's start, at rest, τ = 0). ``saturated`` (a drive at its limit)
+    is an entry of the evaluation (``step_info``).
     """
     if state.twist is None:
         return {}
     if outcome is None:
         hold = force.holding_batch(params.packed_rows, params.packed_inertia, state.q, state.x)
-        return {"actuator_forces": np.zeros_like(hold), "holding_forces": hold, "saturated": np.zeros(len(hold), bool)}
-    saturated = (np.abs(outcome.action) >= 1.0).any(axis=-1)
-    return {"actuator_forces": outcome.effort.copy(), "holding_forces": outcome.hold.copy(), "saturated": saturated}
+        return {"actuator_forces": np.zeros_like(hold), "holding_forces": hold}
+    return {"actuator_forces": outcome.effort.copy(), "holding_forces": outcome.hold.copy()}
 
 
-def force_info_of_one(outcome: FamilyOutcome) -> dict[str, object]:
-    """``force_info`` of a step of one robot (the single env's), as its info holds them: (n,) arrays and a bool.
-
-    A drive is saturated where |τ_i| ≥ τ_max,i, that is where the applied action τ_i / τ_max,i (``outcome.action``,
-    exactly ±1 at a limit) reaches ±1; one robot's three to six numbers are compared in Python floats, which costs
-    a fifth of a NumPy reduction.
-    """
-    applied = outcome.action[0].tolist()
-    return {
-        "actuator_forces": outcome.effort[0].copy(),
-        "holding_forces": outcome.hold[0].copy(),
-        "saturated": max(applied) >= 1.0 or min(applied) <= -1.0,
-    }
+def force_info_of_one(params: FamilyParams, state: FamilyState, outcome: FamilyOutcome | None) -> dict[str, object]:
+    """``force_info`` of one robot (the single env's), as its info holds them: (n,) arrays."""
+    if outcome is None:
+        return {name: value[0] for name, value in force_info(params, state, None).items()}
+    return {"actuator_forces": outcome.effort[0].copy(), "holding_forces": outcome.hold[0].copy()}
 
 
 def step_info(
@@ -81,7 +72,8 @@ def step_info(
     """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order.
 
     ``INFO_KEYS`` in order (``is_success`` as bools, the reasons as names, pose and target as (N, m)), the Type I
-    entries last, then ``measurement_info(state)`` and ``force_info(params, state, outcome)`` if a state is given.
+    entries last, then ``measurement_info(state)``, and under force control ``force_info(params, state, outcome)``
+    and ``saturated`` (the evaluation's row, as bools), if a state is given.
     """
     rows = params.evaluation_rows
     info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS if name not in TYPE_I_INFO}
@@ -93,5 +85,7 @@ def step_info(
         info[name] = evaluation[rows[name]].copy()
     if state is not None:
         info.update(measurement_info(state))
-        info.update(force_info(params, state, outcome))
+        if state.twist is not None:
+            info.update(force_info(params, state, outcome))
+            info["saturated"] = evaluation[rows["saturated"]] != 0.0
     return info

@@ -52,6 +52,7 @@ from envs.kernels.layout import (
     E_POSITION_ERROR,
     E_RESIDUAL,
     E_REWARD,
+    E_SATURATED,
     E_SINGULARITY,
     E_SUCCESS,
     E_TERMINATION,
@@ -235,6 +236,29 @@ def _stroke_errors(target_q, q, m, span, o_obs, i, col, low, high):
         _clip32(o_obs, i, col + j, (target_q[j] - q[j]) / span, low, high)
 
 
+def _saturation(motion, action, i):
+    """Row i's ``saturated`` entry: 1.0 while a drive of force control is at its limit, else 0.0.
+
+    Under force control (``motion`` not None) the applied actions are τ_j / τ_max,j, exactly ±1 at a limit (the
+    step clips the efforts to ±τ_max); under rate control the entry is 0.0.
+    """
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_saturation, jit_options=_OVERLOAD_OPTIONS)
+def _saturation_of(motion, action, i):
+    if isinstance(motion, types.NoneType):
+        return lambda motion, action, i: 0.0
+
+    def saturation(motion, action, i):
+        for j in range(action.shape[1]):
+            if abs(action[i, j]) >= 1.0:
+                return 1.0
+        return 0.0
+
+    return saturation
+
+
 def _encode_motion(motion, o_obs, i, col, low, high):
     """Observation columns of force control from col: row i's twist ẋ (m) and actuator rates (n); the next column."""
     raise NotImplementedError("compiled only (see its overload)")
@@ -302,6 +326,7 @@ def _evaluate_row(path, space, c, observation, measured, reference, outcome, mot
     o_eval[E_SUCCESS, i] = 1.0 if success else 0.0
     o_eval[E_COST, i] = 1.0 if ki < safe or k1i < safe1 else 0.0
     o_eval[E_COST1, i] = 1.0 if k1i < safe1 else 0.0
+    o_eval[E_SATURATED, i] = _saturation(motion, action, i)
     o_eval[E_K, i] = ki
     o_eval[E_RESIDUAL, i] = measured.residual[i]
     for j in range(m):

@@ -156,6 +156,7 @@ EVALUATION: tuple[tuple[str, str], ...] = (
     ("ACTUATOR", "reward_actuator_singularity"),  # the Type I penalty
     ("K1", "actuator_condition_number"),  # the Type I measure (1 for legs)
     ("COST1", "cost_actuator_singularity"),  # 1 while the actuator condition number is below its safe threshold
+    ("SATURATED", "saturated"),  # force control: 1 while a drive is at its limit (|τ_i / τ_max,i| ≥ 1); else 0
 )
 E_FIXED = len(EVALUATION)
 globals().update({"E_" + name: row for row, (name, _) in enumerate(EVALUATION)})  # E_TRACKING, …
