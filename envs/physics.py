@@ -396,11 +396,14 @@ class StepBuffers:
         """
         reads = (observation[0], *_motion(state), state.twist, reference, state.plant, state.geometry)
         if not all(map(operator.is_, reads, self._reads)):
-            force = _force(params, state) + self.force
-            model, plant = _model(params, state), _plant(params, state.plant)
-            self._call = fk.step_call(model, plant, observation, _motion(state), tuple(reference), self.arrays, force)
+            model, plant, motion, force = self.arguments(params, state)
+            self._call = fk.step_call(model, plant, observation, motion, tuple(reference), self.arrays, force)
             self._reads = reads
         return self._call
+
+    def arguments(self, params: FamilyParams, state: FamilyState) -> tuple:
+        """(model, plant, motion, force) of the compiled step of ``state`` into these buffers (``fk.step_call``)."""
+        return _model(params, state), _plant(params, state.plant), _motion(state), _force(params, state) + self.force
 
 
 def step(
@@ -453,7 +456,12 @@ def step(
     if state.twist is not None and (state.plant is not None or state.sensed is not None) and state.geometry is None:
         plant = _plant(params, state.plant)
         action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
-    if fk.step_batch(out.kernels, out.call_for(params, state, ref, observation), action):
+    if n < fk.PARALLEL_MIN_BATCH:  # one thread: the call the buffers keep
+        failed = out.kernels.step_serial(out.call_for(params, state, ref, observation), action)
+    else:  # every core (``step_parallel`` takes its records, not a call)
+        model, plant, motion, force = out.arguments(params, state)
+        failed = fk.step_batch(model, plant, observation, motion, tuple(ref), action, out.arrays, out.kernels, force)
+    if failed:
         _non_finite(action)
     q, x, t, k, k1, residual = out.fields
     twist = out.force[0] if out.force else None

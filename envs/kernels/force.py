@@ -81,6 +81,7 @@ __all__ = [
     "holding_batch",
     "motion_from",
     "motion_of",
+    "own_work",
     "with_dynamics",
 ]
 
@@ -371,12 +372,28 @@ def _advance_of_control(path, c, dynamics, i, q0, x0, action, residual, w):
     )
 
 
+def own_work(dynamics):
+    """``dynamics`` with a dynamics work array of its own (one per thread; None stays None)."""
+    return paths._compiled_only()
+
+
+@overload(own_work, jit_options=_OVERLOAD_OPTIONS)
+def _own_work_of(dynamics):
+    if isinstance(dynamics, types.NoneType):
+        return lambda dynamics: None
+
+    def own(dynamics):
+        d = dynamics
+        return Dynamics(d.inertia, d.twist, d.o_twist, d.effort, d.hold, _dynamics_work())
+
+    return own
+
+
 def from_extra(extra, n, m):
     """The ``Dynamics`` of a batch from an entry kernel's extra arguments.
 
     () for rate control (None); (inertia, twist), its outputs allocated here, or (inertia, twist, o_twist, effort,
-    hold) for force control. Each call allocates a dynamics work array of its own (one per chunk of the parallel
-    step).
+    hold) for force control.
     """
     return paths._compiled_only()
 

@@ -1,9 +1,8 @@
 """The compiled step of the family: transition (predict, correct, measure, terminate), then evaluation.
 
-The transition and evaluation kernels take their arrays flat, the fused step one ``StepCall`` (``step_call``);
-each gathers them in the records of ``envs.kernels.records``: the transition reads a ``Motion`` and writes a
-``Moved``; the evaluation reads an ``Observation``, a ``Measured``, a ``Reference`` and an ``Outcome``; the fused
-step writes a ``StepArrays``. One body steps every robot:
+The entry kernels take their arrays flat and gather them in the records of ``envs.kernels.records``: the
+transition reads a ``Motion`` and writes a ``Moved``; the evaluation reads an ``Observation``, a ``Measured``, a
+``Reference`` and an ``Outcome``; the fused step writes a ``StepArrays``. One body steps every robot:
 ``force.advance`` (predict, correct: ``rate.advance_rate`` under rate control, ``force.advance_force`` under force
 control, chosen at compile time by whether the step has a ``Dynamics`` record), then ``_transition_rows``
 (measure, terminate), on the vectors of its row path (``envs.kernels.paths``). The row path and the pose space
@@ -29,8 +28,9 @@ from numba.extending import overload
 from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
+from envs.kernels.dynamics import _dynamics_work
 from envs.kernels.evaluation import _evaluate_rows
-from envs.kernels.force import advance, beyond_stops, from_extra, motion_from, motion_of, with_dynamics
+from envs.kernels.force import advance, beyond_stops, from_extra, motion_from, motion_of, own_work, with_dynamics
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
@@ -58,6 +58,7 @@ from envs.kernels.layout import (
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
 from envs.kernels.records import (
+    Dynamics,
     Measured,
     Motion,
     Moved,
@@ -306,32 +307,16 @@ def _finite_actions(action):
     return True
 
 
-@jit_inline
-def _call_records(call):
-    """(model, plant, Observation, Motion, Reference, StepArrays, Dynamics or None) of a ``StepCall``."""
-    outputs = call.outputs
-    q = call.q
-    return (
-        call.model,
-        call.plant,
-        Observation(call.low, call.high, call.with_velocity),
-        Motion(q, call.x, call.t, call.det_sign, call.residual),
-        Reference(call.center, call.amplitude, call.phase, call.strokes),
-        StepArrays(*outputs[:N_STEP_ARRAYS]),
-        from_extra(outputs[N_STEP_ARRAYS:], q.shape[0], q.shape[1]),
-    )
-
-
 @jit
-def _step_range(path, space, call, action, span, lanes):
-    """Step robots span[0] .. span[1] − 1 of a ``StepCall`` in blocks of ``LANES``, over work arrays of their own.
+def _step_range(path, space, model, plant, observation, state, reference, action, span, out, dynamics):
+    """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
 
-    ``lanes``: the SIMD lanes of the spatial SVD (``allocate_lanes``: the parallel step), or None (robot by robot:
-    the one-thread step). Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's
-    parfor analysis never sees the records it builds and unpacks.
+    Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's parfor analysis
+    never sees the tuples it unpacks.
     """
-    model, plant, observation, state, reference, out, dynamics = _call_records(call)
     w = _work()
+    lanes = allocate_lanes()
+    dynamics = own_work(dynamics)
     begin, end = span
     for start in range(begin, end, LANES):
         count = min(LANES, end - start)
@@ -351,6 +336,10 @@ class PathKernels(NamedTuple):
     strokes: Any
 
 
+#: The entry kernels that run on every core (``numba.prange``).
+_PARALLEL = ("step_parallel",)
+
+
 def _path_kernels(path: int, space: int) -> PathKernels:
     """The entry kernels of the row path ``path`` and the pose space ``space``, both compile-time constants.
 
@@ -359,7 +348,7 @@ def _path_kernels(path: int, space: int) -> PathKernels:
     The parallel step compiles at the first batch of at least ``PARALLEL_MIN_BATCH`` robots.
     """
 
-    # transition and evaluate take their arrays flat: Numba types a named tuple argument about 0.8 µs slower per call.
+    # The entry kernels take their arrays flat: Numba types a named tuple argument about 0.8 µs slower per call.
     def transition(cs, q, x, t, det_sign, residual, action, *force):
         state = Motion(q, x, t, det_sign, residual)
         n, m = action.shape
@@ -383,22 +372,37 @@ def _path_kernels(path: int, space: int) -> PathKernels:
             _evaluate_rows(path, space, cs, observation, measured, reference, outcome, motion, start, stop, w, out)
         return out
 
-    # Both steps take one ``StepCall`` record rather than flat arrays: the single env steps at every call, and Numba
-    # types and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one pointer.
     def step_serial(call, action):
+        # One ``StepCall`` record rather than flat arrays: the single env calls it at every step, and Numba types
+        # and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one pointer.
         if not _finite_actions(action):
             return True
-        _step_range(path, space, call, action, (0, action.shape[0]), None)
+        outputs = call.outputs
+        out = StepArrays(*outputs[:N_STEP_ARRAYS])
+        q = call.q
+        n = q.shape[0]
+        dynamics = from_extra(outputs[N_STEP_ARRAYS:], n, q.shape[1])
+        observation = Observation(call.low, call.high, call.with_velocity)
+        state = Motion(q, call.x, call.t, call.det_sign, call.residual)
+        reference = Reference(call.center, call.amplitude, call.phase, call.strokes)
+        model, plant = call.model, call.plant
+        w = _work()
+        lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
+        for start in range(0, n, LANES):
+            count = min(LANES, n - start)
+            _step_block(
+                path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
+            )
         return False
 
-    def step_parallel(call, action):
+    def step_parallel(model, plant, observation, state, reference, action, out, dynamics):
         if not _finite_actions(action):
             return True
         n = action.shape[0]
         chunks = (n + CHUNK - 1) // CHUNK
         for chunk in numba.prange(chunks):
             span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
-            _step_range(path, space, call, action, span, allocate_lanes())
+            _step_range(path, space, model, plant, observation, state, reference, action, span, out, dynamics)
         return False
 
     def initial(c, x):
@@ -433,7 +437,7 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         # processes compiling two paths at once would then overwrite each other's entries, and a later process could
         # load one path's machine code for another's. A name per (path, space) gives each its own index.
         kernel.__qualname__ = kernel.__name__ = f"{name}_path{path}_space{space}"
-        compiled.append((jit_parallel if name == "step_parallel" else jit)(kernel))
+        compiled.append((jit_parallel if name in _PARALLEL else jit)(kernel))
     return PathKernels(*compiled)
 
 
@@ -451,24 +455,18 @@ def _new_step_call(
 
 
 def step_call(model, plant, observation, state, reference, out, force=()) -> StepCall:
-    """The ``StepCall`` that ``step_batch`` runs: every array of one step of N robots but the action.
+    """The ``StepCall`` of ``step_batch``'s arguments but the action (see there), for ``step_serial(call, action)``.
 
     It holds the arrays by reference: a call steps from whatever they hold when it runs.
-
-    Args:
-        model: Packed constants of the model the reward and the observation are computed with, shape (N, C_SIZE)
-            or (1, C_SIZE) (``transition_batch``'s ``cs``).
-        plant: Packed constants of the robots that move (the integrated geometry), shape (N, C_SIZE) or
-            (1, C_SIZE).
-        observation: (low, high, with_velocity), as ``evaluate_batch``.
-        state: (q, x, t, det_sign, residual), as ``transition_batch``.
-        reference: (center, amplitude, phase, strokes), as ``evaluate_batch``.
-        out: The arrays of ``allocate_step`` (a ``StepArrays``) the step writes.
-        force: () for rate control, or for force control (inertia (N or 1, C_INERTIA_SIZE), twists ẋ (N, m) and
-            the arrays the step writes: ẋ' (N, m), efforts τ (N, n), holding forces τ_h (N, n)); the observation
-            then holds ẋ' and the period's mean actuator rates after k, and ``out.action`` is τ / τ_max.
     """
     return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force))
+
+
+def _step_parallel(model, plant, observation, state, reference, action, out, force=()):
+    """The multi-core step of ``step_batch`` (records as tuples or ``envs.kernels.records``)."""
+    records = Observation(*observation), Motion(*state), Reference(*reference)
+    dynamics = Dynamics(*force, _dynamics_work()) if force else None
+    return path_kernels(plant).step_parallel(model, plant, *records, action, out, dynamics)
 
 
 def initial_batch(c, x):
@@ -511,17 +509,27 @@ def path_kernels(cs) -> PathKernels:
     return _PATH_KERNELS[row_path(cs), pose_space_code(cs)]
 
 
-def step_batch(kernels: PathKernels, call: StepCall, action: np.ndarray) -> bool:
-    """Transition and evaluation of N robots (a ``step_call``) into its outputs; True if an action is not finite.
+def step_batch(model, plant, observation, state, reference, action, out, kernels=None, force=()):
+    """Transition and evaluation of N robots into ``out`` (``allocate_step``); True if an action is not finite.
 
     Args:
-        kernels: ``path_kernels(plant)`` of the call's ``plant``.
-        call: The ``step_call`` of the N robots.
+        model: Packed constants of the model the reward and the observation are computed with, shape (N, C_SIZE)
+            or (1, C_SIZE) (``transition_batch``'s ``cs``).
+        plant: Packed constants of the robots that move (the integrated geometry), shape (N, C_SIZE) or
+            (1, C_SIZE).
+        observation: (low, high, with_velocity), as ``evaluate_batch``.
+        state: (q, x, t, det_sign, residual), as ``transition_batch``.
+        reference: (center, amplitude, phase, strokes), as ``evaluate_batch``.
         action: Normalised stroke rates, shape (N, n) (force control: offsets from the holding forces in units
             of the drive limits).
-
-    Batches of at least ``PARALLEL_MIN_BATCH`` robots run on every core, with the same results bit for bit.
+        out: The arrays of ``allocate_step`` (a ``StepArrays``).
+        kernels: ``path_kernels(plant)``, if the caller keeps them (the single env's step saves finding them).
+        force: () for rate control, or for force control (inertia (N or 1, C_INERTIA_SIZE), twists ẋ (N, m) and
+            the arrays the step writes: ẋ' (N, m), efforts τ (N, n), holding forces τ_h (N, n)); the observation
+            then holds ẋ' and the period's mean actuator rates after k, and ``out.action`` is τ / τ_max.
     """
+    if kernels is None:
+        kernels = path_kernels(plant)
     if action.shape[0] >= PARALLEL_MIN_BATCH:
-        return kernels.step_parallel(call, action)
-    return kernels.step_serial(call, action)
+        return _step_parallel(model, plant, observation, state, reference, action, out, force)
+    return kernels.step_serial(step_call(model, plant, observation, state, reference, out, force), action)

@@ -151,12 +151,11 @@ def test_parallel_step_equals_serial_step_bit_for_bit(hexapod):
     action = np.random.default_rng(1).uniform(-1, 1, size=(n, 6))
     low, high = physics.observation_bounds(hexapod, False)
     motion = (state.q, state.x, state.t, state.det_sign, state.residual)
-    grouped = ((low, high, False), motion, tuple(state.reference))
+    grouped = ((low, high, False), motion, tuple(state.reference), action)
     outs = [fk.allocate_step(n, 6, low.shape[0]) for _ in range(2)]
-    calls = [step_kernels.step_call(hexapod.packed_rows, hexapod.packed_rows, *grouped, out) for out in outs]
-    kernels = step_kernels.path_kernels(hexapod.packed_rows)
-    assert not kernels.step_parallel(calls[0], action)
-    assert not kernels.step_serial(calls[1], action)
+    assert not step_kernels._step_parallel(hexapod.packed_rows, hexapod.packed_rows, *grouped, outs[0])
+    call = step_kernels.step_call(hexapod.packed_rows, hexapod.packed_rows, *grouped[:3], outs[1])
+    assert not step_kernels.path_kernels(hexapod.packed_rows).step_serial(call, action)
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)
 
