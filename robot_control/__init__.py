@@ -23,8 +23,10 @@ from robot_control.controllers import (
 )
 from robot_control.planner import PLANNERS, PathFollower, Plan, SafeGraph, SafePlanner, make_planner, safe_graph
 from robot_control.wrappers import (
+    ComputedTorqueResidualWrapper,
     PlannerResidualWrapper,
     PlannerWaypointWrapper,
+    VectorComputedTorqueResidualWrapper,
     VectorPlannerResidualWrapper,
     VectorPlannerWaypointWrapper,
 )
@@ -35,6 +37,7 @@ __all__ = [
     "PLANNERS",
     "ComputedTorqueCommand",
     "ComputedTorqueController",
+    "ComputedTorqueResidualWrapper",
     "MinimumJerkPath",
     "PathFollower",
     "Plan",
@@ -46,6 +49,7 @@ __all__ = [
     "SafeGraph",
     "SafePlanner",
     "SingularityAwareController",
+    "VectorComputedTorqueResidualWrapper",
     "VectorPlannerResidualWrapper",
     "VectorPlannerWaypointWrapper",
     "damping_factor",

@@ -1,11 +1,12 @@
-"""The planner's wrappers: the carrot of a certified path in a policy's observation, or a residual on the planner.
+"""Wrappers over the classical controllers: the carrot of a certified path in a policy's observation, or residuals.
 
 ``PlannerWaypointWrapper`` shows a policy the carrot of ``robot_control.planner.PathFollower``;
 ``PlannerResidualWrapper`` adds a policy's correction to ``robot_control.controllers.PlannerController``'s action.
 Both wrap the Reach environment of any robot of the family (the planner: ``robot_control.planner``, the certified
-grid's graph where the env has one, else OMPL). ``VectorPlannerWaypointWrapper`` and
-``VectorPlannerResidualWrapper`` are the same wrappers on the native vector env (the ``vector_form`` of the single
-ones).
+grid's graph where the env has one, else OMPL). ``ComputedTorqueResidualWrapper`` adds a policy's correction to
+computed torque's efforts on any force-control env. ``VectorPlannerWaypointWrapper``,
+``VectorPlannerResidualWrapper`` and ``VectorComputedTorqueResidualWrapper`` are the same wrappers on the native
+vector env (the ``vector_form`` of the single ones).
 """
 
 from __future__ import annotations
@@ -19,12 +20,14 @@ from gymnasium import spaces
 from envs.kernels.packing import observation_layout
 from envs.params import FamilyParams
 from envs.vector import episode_starts
-from robot_control.controllers import PlannerController, pose_error
+from robot_control.controllers import ComputedTorqueAgent, PlannerController, pose_error
 from robot_control.planner import PathFollower
 
 __all__ = [
+    "ComputedTorqueResidualWrapper",
     "PlannerResidualWrapper",
     "PlannerWaypointWrapper",
+    "VectorComputedTorqueResidualWrapper",
     "VectorPlannerResidualWrapper",
     "VectorPlannerWaypointWrapper",
 ]
@@ -295,3 +298,134 @@ class VectorPlannerResidualWrapper(_VectorPlannerWrapper):
         info["planner_action"] = planner_action
         info["_planner_action"] = np.ones(self.num_envs, dtype=bool)
         return self._augment(obs, info), rewards, terminated, truncated, info
+
+
+def _force_params(env: Any, name: str) -> FamilyParams:
+    """The ``FamilyParams`` of a force-control env of ``envs`` (single or native vector), else TypeError."""
+    params = getattr(env.unwrapped, "params", None)
+    if not isinstance(params, FamilyParams) or params.control != "force":
+        control = getattr(params, "control", None)
+        raise TypeError(
+            f"{name} wraps the force-control envs of envs (control='force'), got {type(env.unwrapped).__name__}"
+            f" with control={control!r}"
+        )
+    return params
+
+
+def _with_actions(box: spaces.Box, n: int) -> spaces.Box:
+    """``box`` with n entries in [−1, 1] appended (float32)."""
+    extra = np.ones(n)
+    return spaces.Box(
+        np.concatenate([box.low, -extra]).astype(np.float32),
+        np.concatenate([box.high, extra]).astype(np.float32),
+        dtype=np.float32,
+    )
+
+
+class ComputedTorqueResidualWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Residual learning over computed torque: the policy's action corrects ``ComputedTorqueAgent``'s efforts.
+
+    The environment receives a = clip(a_c + ``scale`` · a_π, −1, 1), where a_c ∈ [−1, 1]ⁿ is the action of
+    ``robot_control.controllers.ComputedTorqueAgent`` (inverse dynamics of the env's model + PD toward the target,
+    the offset from the holding forces in units of the drive limits, read from the observation as a policy reads
+    it) and a_π ∈ [−1, 1]ⁿ the policy's. A policy that outputs zero is computed torque; training learns what to
+    change (where the drives saturate, or where the straight way to the target runs near a Type II singularity).
+    The observation gains a_c (n entries, float32). Rewards, terminations and infos are the wrapped env's, and
+    ``info["base_action"]`` holds a_c of the step's action. A ``SingularityShield`` inside this wrapper filters
+    the summed action.
+
+    Args:
+        env: A force-control env of ``envs`` (``gym.make("Planar3RPRForceReach-v0")``, any id with
+            ``control="force"``).
+        scale: Weight of the policy's action, in (0, 2].
+        bandwidth: ω [rad/s] of computed torque's error dynamics (``ComputedTorqueAgent``).
+    """
+
+    #: The name of the same wrapper on the native vector env.
+    vector_form = "VectorComputedTorqueResidualWrapper"
+
+    def __init__(self, env: gym.Env, scale: float = 0.5, bandwidth: float = 4.0) -> None:
+        """Wrap ``env``; see the class docstring."""
+        self.scale = _residual_scale(scale)
+        gym.utils.RecordConstructorArgs.__init__(self, scale=scale, bandwidth=bandwidth)
+        gym.Wrapper.__init__(self, env)
+        self.params = _force_params(env, type(self).__name__)
+        self.controller = ComputedTorqueAgent(self.params, bandwidth)
+        n = self.params.robot.n_actuators
+        self.observation_space = _with_actions(env.observation_space, n)
+        self._base_action = np.zeros(n, dtype=np.float32)
+
+    def _augment(self, obs: np.ndarray) -> np.ndarray:
+        self._base_action = self.controller(np.asarray(obs)[None])[0]
+        return np.concatenate([obs, self._base_action]).astype(np.float32)
+
+    def action(self, action: Any) -> np.ndarray:
+        """The summed action the wrapped env receives for the policy's ``action`` (shape (n,)), float32."""
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != self._base_action.shape or not np.all(np.isfinite(a)):
+            n = self._base_action.size
+            raise ValueError(f"action must be {n} finite numbers, got shape {a.shape} with values {a!r}")
+        return _summed(self._base_action, self.scale, a)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Reset the wrapped env; the observation gains computed torque's action."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        return self._augment(obs), info
+
+    def step(self, action: Any):
+        """Step the wrapped env with the summed action; the observation gains computed torque's next action."""
+        base_action = self._base_action
+        obs, reward, terminated, truncated, info = self.env.step(self.action(action))
+        info["base_action"] = base_action
+        return self._augment(obs), reward, terminated, truncated, info
+
+
+class VectorComputedTorqueResidualWrapper(gym.vector.VectorWrapper):
+    """``ComputedTorqueResidualWrapper`` on the native vector env (row i: the single wrapper on sub-environment i).
+
+    Computed torque is computed for all rows at once from the batch of observations; a row that starts its next
+    episode gets the action for its first observation, as the single wrapper at ``reset``, and the last observation
+    of an ended episode (``info["final_obs"]``, same-step autoreset) is augmented with the action for it.
+    """
+
+    def __init__(self, env: gym.vector.VectorEnv, scale: float = 0.5, bandwidth: float = 4.0) -> None:
+        """Wrap ``env``; see ``ComputedTorqueResidualWrapper``."""
+        self.scale = _residual_scale(scale)
+        gym.vector.VectorWrapper.__init__(self, env)
+        self.params = _force_params(env, type(self).__name__)
+        self.controller = ComputedTorqueAgent(self.params, bandwidth)
+        n = self.params.robot.n_actuators
+        self.single_observation_space = _with_actions(env.single_observation_space, n)
+        self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, env.num_envs)
+        self._base_action = np.zeros((env.num_envs, n), dtype=np.float32)
+
+    def _augment(self, obs: np.ndarray) -> np.ndarray:
+        self._base_action = self.controller(obs)
+        return np.concatenate([obs, self._base_action], axis=1).astype(np.float32)
+
+    def actions(self, actions: Any) -> np.ndarray:
+        """The summed actions the wrapped env receives for the policy's ``actions`` (shape (N, n)), float32."""
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != self._base_action.shape or not np.all(np.isfinite(a)):
+            raise ValueError(f"actions must be finite with shape {self._base_action.shape}, got shape {a.shape}")
+        return _summed(self._base_action, self.scale, a)
+
+    def reset(self, *, seed: Any = None, options: dict[str, Any] | None = None):
+        """Reset the wrapped vector env; each observation gains computed torque's action."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        return self._augment(obs), info  # a pure function of each row's observation, reset or not
+
+    def step(self, actions: Any):
+        """Step the wrapped vector env with the summed actions; each observation gains computed torque's action."""
+        base_action = self._base_action
+        obs, rewards, terminated, truncated, info = self.env.step(self.actions(actions))
+        info["base_action"] = base_action
+        info["_base_action"] = np.ones(self.num_envs, dtype=bool)
+        ended = np.flatnonzero(info.get("_final_obs", ()))
+        if ended.size:  # same-step autoreset: the ended episodes' last observations, augmented as they were
+            final = np.stack([info["final_obs"][i] for i in ended])
+            augmented = np.concatenate([final, self.controller(final)], axis=1).astype(np.float32)
+            info["final_obs"] = info["final_obs"].copy()
+            for row, i in enumerate(ended):
+                info["final_obs"][i] = augmented[row]
+        return self._augment(obs), rewards, terminated, truncated, info

@@ -27,6 +27,7 @@ __all__ = [
     "resolve_policy_kwargs",
     "resolve_replay_buffer",
     "resolve_schedules",
+    "vector_wrapper",
 ]
 
 #: Algorithms the project trains, by command-line name.
@@ -58,6 +59,7 @@ NOISE_TYPES = {"normal": "NormalActionNoise", "ornstein-uhlenbeck": "OrnsteinUhl
 #: Wrappers that ``env_wrapper`` may name (the RL Zoo's key; an allow-list, nothing is imported by name).
 ENV_WRAPPERS = (
     "envs.GoalReachWrapper",
+    "robot_control.ComputedTorqueResidualWrapper",
     "robot_control.PlannerResidualWrapper",
     "robot_control.PlannerWaypointWrapper",
     "envs.PreviousActionWrapper",
@@ -386,3 +388,27 @@ def resolve_replay_buffer(hyperparams: dict[str, Any]) -> dict[str, Any]:
 
     out["replay_buffer_class"] = HerReplayBuffer
     return out
+
+
+def vector_wrapper(wrapper: Any) -> Any:
+    """The vector form of a resolved ``env_wrapper`` (``resolve_env_wrapper``), with the same keyword arguments.
+
+    Args:
+        wrapper: A wrapper class, a ``functools.partial`` of one, or None.
+
+    Returns:
+        A callable that wraps a native vector env as ``wrapper`` wraps each single env (the class its
+        ``vector_form`` names, in the same module), or None when ``wrapper`` is None or has no vector form.
+    """
+    if wrapper is None:
+        return None
+    import functools
+    import sys
+
+    cls = getattr(wrapper, "func", wrapper)
+    form = getattr(cls, "vector_form", None)
+    if form is None:
+        return None
+    vector_cls = getattr(sys.modules[cls.__module__], form)
+    kwargs = getattr(wrapper, "keywords", {})
+    return functools.partial(vector_cls, **kwargs) if kwargs else vector_cls

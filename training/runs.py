@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -15,7 +14,7 @@ import yaml
 import envs  # noqa: F401  (registers the ids)
 from envs.params import REWARD_FIELDS
 from robot_control.controllers import CONTROLLERS
-from training.config import ConfigError, algorithm_class, resolve_env_wrapper
+from training.config import ConfigError, algorithm_class, resolve_env_wrapper, vector_wrapper
 
 __all__ = [
     "Agent",
@@ -283,10 +282,8 @@ def wrap_vector_for_run(venv: gym.vector.VectorEnv, config: dict[str, Any]) -> g
         raise EvaluationError(f"cannot wrap the vector env as the run was trained: {exc}") from exc
     if wrapper is None:
         return venv
-    cls = getattr(wrapper, "func", wrapper)
-    kwargs = getattr(wrapper, "keywords", {})
-    form = getattr(cls, "vector_form", None)
-    return None if form is None else getattr(sys.modules[cls.__module__], form)(venv, **kwargs)
+    form = vector_wrapper(wrapper)
+    return None if form is None else form(venv)
 
 
 def _shapes(space: gym.Space) -> Any:

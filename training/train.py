@@ -41,6 +41,7 @@ from training.config import (
     resolve_policy_kwargs,
     resolve_replay_buffer,
     resolve_schedules,
+    vector_wrapper,
 )
 
 __all__ = ["main", "make_training_env", "train"]
@@ -72,7 +73,8 @@ def make_training_env(
             ``VecMonitor``), "dummy" (one process) or "subproc" (one process per environment).
         monitor_dir: Folder for the Monitor CSV logs (with ``is_success`` and ``cost``), or None.
         env_kwargs: Keyword arguments for ``gym.make`` (or ``gym.make_vec`` for "native").
-        wrapper_class: A wrapper applied to each single env over its Monitor (not with "native").
+        wrapper_class: A wrapper applied to each single env over its Monitor; with "native", its vector form
+            (``vector_form``) wraps the native vector env.
 
     Returns:
         The SB3 ``VecEnv``.
@@ -88,10 +90,11 @@ def make_training_env(
 
         if gym.spec(env_id).vector_entry_point is None:
             raise ConfigError(f"{env_id} has no native vector env; use --vec dummy or subproc")
-        if wrapper_class is not None:
+        vector_form = vector_wrapper(wrapper_class)
+        if wrapper_class is not None and vector_form is None:
             name = getattr(wrapper_class, "__name__", None) or wrapper_class.func.__name__
             raise ConfigError(f"env_wrapper {name} wraps single envs; use --vec dummy or subproc")
-        adapter = NativeVecEnvAdapter.from_id(env_id, n_envs, **(env_kwargs or {}))
+        adapter = NativeVecEnvAdapter.from_id(env_id, n_envs, vector_form, **(env_kwargs or {}))
         adapter.seed(seed)
         filename = None if monitor_dir is None else str(Path(monitor_dir) / "native.monitor.csv")
         return VecMonitor(adapter, filename=filename, info_keywords=("is_success", "cost"))
@@ -246,8 +249,8 @@ def train(
             raise ConfigError(f"{name} must be an integer ≥ 1, got {value!r}")
     env_kwargs = hyper.pop("env_kwargs", None) or {}
     wrapper = resolve_env_wrapper(hyper.pop("env_wrapper", None))
-    if wrapper is not None and vec == "native":
-        vec = "dummy"  # a wrapper applies to single envs; the native vector env has none to wrap
+    if wrapper is not None and vec == "native" and vector_wrapper(wrapper) is None:
+        vec = "dummy"  # a wrapper without a vector form applies to single envs only
     if "policy_kwargs" in hyper:
         hyper["policy_kwargs"] = resolve_policy_kwargs(hyper["policy_kwargs"])
     hyper = resolve_replay_buffer(resolve_schedules(hyper))

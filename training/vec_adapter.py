@@ -64,28 +64,33 @@ class NativeVecEnvAdapter(VecEnv):
     ``env_is_wrapped`` is False for every wrapper.
 
     Args:
-        venv: A native vector env in ``SAME_STEP`` autoreset mode (see ``from_id``).
+        venv: A native vector env in ``SAME_STEP`` autoreset mode (see ``from_id``), or a vector wrapper over one
+            (the ``vector_form`` of a run's ``env_wrapper``): steps, resets and frames go through the wrapper,
+            attributes are the native env's.
     """
 
-    def __init__(self, venv: FamilyVectorEnv) -> None:
-        if not isinstance(venv, FamilyVectorEnv):
-            raise TypeError(f"venv must be a FamilyVectorEnv, got {type(venv).__name__}")
-        if venv.metadata.get("autoreset_mode") is not AutoresetMode.SAME_STEP:
+    def __init__(self, venv: FamilyVectorEnv | gym.vector.VectorWrapper) -> None:
+        native = venv.unwrapped
+        if not isinstance(native, FamilyVectorEnv):
+            raise TypeError(f"venv must be a FamilyVectorEnv or a wrapper of one, got {type(native).__name__}")
+        if native.metadata.get("autoreset_mode") is not AutoresetMode.SAME_STEP:
             raise ValueError(
                 "the native vector env must use autoreset_mode=AutoresetMode.SAME_STEP for SB3, "
-                f"got {venv.metadata.get('autoreset_mode')}"
+                f"got {native.metadata.get('autoreset_mode')}"
             )
         self.venv = venv
+        self._native = native
         self._actions: np.ndarray | None = None
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
 
     @classmethod
-    def from_id(cls, env_id: str, n_envs: int, **env_kwargs: Any) -> NativeVecEnvAdapter:
+    def from_id(cls, env_id: str, n_envs: int, wrapper: Any = None, **env_kwargs: Any) -> NativeVecEnvAdapter:
         """Make the native vector env of a registered id (``gym.make_vec``) in same-step mode and wrap it.
 
         Args:
             env_id: A registered id with a ``vector_entry_point`` (every id of ``envs.ENV_IDS``).
             n_envs: Number of environments.
+            wrapper: A callable that wraps the native vector env (a vector wrapper class), or None.
             **env_kwargs: Keyword arguments of the env (and ``max_episode_steps``, ``render_mode``).
 
         Returns:
@@ -98,7 +103,7 @@ class NativeVecEnvAdapter(VecEnv):
             autoreset_mode=AutoresetMode.SAME_STEP,
             **env_kwargs,
         )
-        return cls(venv)
+        return cls(venv if wrapper is None else wrapper(venv))
 
     # -- the VecEnv contract ---------------------------------------------------------------------
 
@@ -114,7 +119,7 @@ class NativeVecEnvAdapter(VecEnv):
             obs, infos = self.venv.reset(seed=seeds, options=dict(options[0]) or None)
             self.reset_infos = _split_infos(infos, self.num_envs)
         else:
-            if self.venv.state is None:
+            if self._native.state is None:
                 raise ValueError("per-environment options need a first reset with options common to every env")
             groups: list[tuple[dict[str, Any], np.ndarray]] = []
             for i, option in enumerate(options):
@@ -194,7 +199,7 @@ class NativeVecEnvAdapter(VecEnv):
         Returns:
             One value per selected environment.
         """
-        values = self.venv.get_attr(attr_name)
+        values = self._native.get_attr(attr_name)
         return [values[i] for i in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
@@ -210,14 +215,14 @@ class NativeVecEnvAdapter(VecEnv):
         """
         selected = list(self._get_indices(indices))
         if sorted(selected) != list(range(self.num_envs)):
-            current = self.venv.get_attr(attr_name)
+            current = self._native.get_attr(attr_name)
             if all(current[i] == value for i in selected):
                 return
             raise ValueError(
                 f"the native environments share {attr_name!r}; set it for all {self.num_envs} at once, "
                 f"not for indices {selected}"
             )
-        self.venv.set_attr(attr_name, value)
+        self._native.set_attr(attr_name, value)
 
     def env_method(self, method_name: str, *method_args, indices: VecEnvIndices = None, **method_kwargs) -> list[Any]:
         """Call a method of each selected environment: ``"render"`` (frames) or ``"get_wrapper_attr"``.

@@ -278,7 +278,8 @@ def test_sac_with_her_trains_and_evaluates(tmp_path):
         (
             "env_wrapper",
             "os.system",
-            r"env_wrapper 'os.system' is not one of \['envs.GoalReachWrapper', 'robot_control.PlannerResidualWrapper', "
+            r"env_wrapper 'os.system' is not one of \['envs.GoalReachWrapper', "
+            r"'robot_control.ComputedTorqueResidualWrapper', 'robot_control.PlannerResidualWrapper', "
             r"'robot_control.PlannerWaypointWrapper', 'envs.PreviousActionWrapper'\]",
         ),
         ("replay_buffer_class", "Evil", r"replay_buffer_class 'Evil' is not one of \['HerReplayBuffer'\]"),

@@ -150,3 +150,33 @@ def test_native_is_the_default_vectorisation():
         PLANAR_3RPR_IDS[0], num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode=AutoresetMode.SAME_STEP
     )
     assert isinstance(NativeVecEnvAdapter(native), VecEnv)
+
+
+def test_a_wrapper_with_a_vector_form_trains_on_the_native_env_like_dummy_envs():
+    """make_training_env(vec="native", wrapper_class=W) wraps the native env in W's vector form (not DummyVecEnv).
+
+    Its observations equal a DummyVecEnv of single envs wrapped in W, with the same seeds, step for step.
+    """
+    import robot_control
+
+    env_id, kwargs = "Planar3RPRForceReach-v0", {"max_episode_steps": 8}
+    wrapper = robot_control.ComputedTorqueResidualWrapper
+    native = make_training_env(env_id, 2, seed=5, vec="native", env_kwargs=kwargs, wrapper_class=wrapper)
+    dummy = make_training_env(env_id, 2, seed=5, vec="dummy", env_kwargs=kwargs, wrapper_class=wrapper)
+    assert isinstance(native.venv, NativeVecEnvAdapter)
+    assert isinstance(native.venv.venv, robot_control.VectorComputedTorqueResidualWrapper)
+    assert native.observation_space == dummy.observation_space
+    np.testing.assert_allclose(native.reset(), dummy.reset(), rtol=1e-6, atol=1e-6)
+    rng = np.random.default_rng(0)
+    for _ in range(12):  # past an autoreset
+        actions = rng.uniform(-1.0, 1.0, (2, 3)).astype(np.float32)
+        obs_n, rew_n, done_n, infos_n = native.step(actions)
+        obs_d, rew_d, done_d, infos_d = dummy.step(actions)
+        np.testing.assert_allclose(obs_n, obs_d, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(rew_n, rew_d, rtol=1e-6, atol=1e-6)
+        np.testing.assert_array_equal(done_n, done_d)
+        for i in np.flatnonzero(done_n):
+            np.testing.assert_allclose(
+                infos_n[i]["terminal_observation"], infos_d[i]["terminal_observation"], rtol=1e-6, atol=1e-6
+            )
+    assert native.get_attr("params")[0] is not None
