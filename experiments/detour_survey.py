@@ -16,15 +16,15 @@ pair at least ``min_distance`` apart, seeded) and sorts them into:
 * ``leaves``: the straight geodesic leaves the stroke limits less the margin (``leaves_strokes``) or only
   the task box (``leaves_box``) before it is known to stay safe; such pairs are not hard tasks;
 * ``dips``: it dips below k_safe inside both (``dips_below_hard``: below k_hard), split by a search of up to
-  ``waypoints`` random safe waypoints of the box, each certified like the env's (``segment_batch``, the
-  preset's spacing, inside the box) into ``detour`` (one found) and ``no_detour``; ``detour_env`` counts the
+  ``waypoints`` random safe waypoints of the box, each certified like the env's (``certified_segment_batch``,
+  inside the box) into ``detour`` (one found) and ``no_detour``; ``detour_env`` counts the
   detours found within the env's ``WAYPOINT_TRIES`` waypoints, the ones its sampler would keep.
 
-Every safety is the env's compiled certificate (``envs.tasks.certificate.safety_batch`` and ``segment_batch``
-on the box's packed constants ``FamilyParams.packed``). For every box whose ``detour_env`` share of the pairs
-reaches ``--min-share``, ``resets`` resets of ``ParallelRobotReachHard-v0`` with the box's settings and
-``hard_kind="detour"`` are timed, and each task is checked to be a detour task. The JSON holds the counts and
-timings; the Markdown table is generated from it.
+Every safety is the env's compiled certificate (``envs.tasks.certificate.safety_batch``, ``segment_batch`` and
+``certified_segment_batch`` on the box's packed constants ``FamilyParams.packed``). For every box whose
+``detour_env`` share of the pairs reaches ``--min-share``, ``resets`` resets of ``ParallelRobotReachHard-v0``
+with the box's settings and ``hard_kind="detour"`` are timed, and each task is checked to be a detour task. The
+JSON holds the counts and timings; the Markdown table is generated from it.
 """
 
 from __future__ import annotations
@@ -233,11 +233,11 @@ def _first_detour(
     for begin in range(0, waypoints, _WAYPOINT_CHUNK):
         size = min(_WAYPOINT_CHUNK, waypoints - begin)
         w, _ = draw_safe_poses(params, size, rng)
-        first = fk.segment_batch(c, np.repeat(start[None], size, axis=0), w) >= safe
+        first = fk.certified_segment_batch(c, np.repeat(start[None], size, axis=0), w, safe) >= safe
         if not first.any():
             continue
         rows = np.flatnonzero(first)
-        second = fk.segment_batch(c, w[rows], np.repeat(target[None], rows.size, axis=0)) >= safe
+        second = fk.certified_segment_batch(c, w[rows], np.repeat(target[None], rows.size, axis=0), safe) >= safe
         if second.any():
             row = int(rows[np.argmax(second)])
             return begin + row, w[row]

@@ -34,6 +34,7 @@ from envs.kernels.step import (
 )
 from envs.tasks.certificate import (
     SEGMENT_MAX_POINTS,
+    certified_segment_batch,
     safe_batch,
     safety_batch,
     segment_batch,
@@ -59,6 +60,7 @@ __all__ = [
     "WAYPOINT_TRIES",
     "StepCall",
     "allocate_step",
+    "certified_segment_batch",
     "evaluate_batch",
     "evaluation_rows",
     "forward_batch",

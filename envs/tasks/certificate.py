@@ -24,6 +24,8 @@ from envs.kernels import three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _inverse_kinematics, _singularity, _work
 from envs.kernels.layout import (
+    C_HARD,
+    C_HARD1,
     C_LEGS,
     C_LMAX,
     C_LMIN,
@@ -44,10 +46,12 @@ from envs.kernels.pose import _difference, _metric, _retract
 from envs.kernels.setup import jit, jit_inline
 
 __all__ = [
+    "ADAPTIVE_STEP_LIMIT",
     "SEGMENT_MAX_POINTS",
     "CertificateKernels",
     "certificate_kernels",
     "certificate_path",
+    "certified_segment_batch",
     "safe_batch",
     "safety_batch",
     "segment_batch",
@@ -59,6 +63,9 @@ drop_stale_caches(__file__)
 
 #: Most points checked along one segment.
 SEGMENT_MAX_POINTS = 2000
+#: Longest step [m] between the checked points of the samplers' segments (the default ``segment_spacing``); robots
+#: whose spacing is at least this are checked at fixed points.
+ADAPTIVE_STEP_LIMIT = 0.01
 
 
 @jit
@@ -188,8 +195,28 @@ def _safe(path, c, x, w, strokes):
     return safety >= c[C_SAFE]
 
 
+@jit_inline
+def _segment_point(path, c, start, direction, fraction, point, w, strokes, box):
+    """(``_pose_safety``, sign) of the point ``fraction`` along the geodesic; safety −1 outside the box (``box``)."""
+    _retract(c, start, direction, fraction, point)
+    if box and not _in_box(c, point):
+        return -1.0, 0.0
+    return _pose_safety(path, c, point, w, strokes)
+
+
+@jit_inline
+def _spacing_margin(c):
+    """The safety a certified segment may lose between checked points ``segment_spacing`` apart, on k's scale.
+
+    min(safe − hard, (safe_I − hard_I) · safe / safe_I): the margin ``envs.presets.certificate_spacing`` derives
+    the spacing from (the spacing is margin / L for the safety's largest slope L, so the safety falls by at most
+    margin / 2 between two checked points).
+    """
+    return min(c[C_SAFE] - c[C_HARD], (c[C_SAFE1] - c[C_HARD1]) * c[C_SAFE] / c[C_SAFE1])
+
+
 @jit
-def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box):
+def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box, margin):
     """Smallest ``_pose_safety`` along the geodesic start → target (p linear, R along exp).
 
     Checked points are at most ``spacing`` apart in ‖(δp, ℓ_c δθ)‖ (ends included; at most
@@ -197,7 +224,14 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box)
     that leaves the sampling box) makes the segment −1; a point where sign(det J_x) differs from the start's
     counts as safety 0 (the segment crossed a Type II singularity between checked points). Stops early once
     below ``stop_below``.
+
+    With ``margin`` > 0, a finite ``stop_below`` and ``spacing`` < ``ADAPTIVE_STEP_LIMIT``, the points are
+    spaced by the safety met instead (``_segment_min_k_adaptive``): the same guarantee between checked points,
+    fewer points where the safety is well above ``stop_below``. The result is then only compared with
+    ``stop_below``: its value above it is the smallest at the checked points.
     """
+    if margin > 0.0 and stop_below > -np.inf and spacing < ADAPTIVE_STEP_LIMIT:
+        return _segment_min_k_adaptive(path, c, start, target, w, strokes, stop_below, spacing, box, margin)
     direction, point = w[W_SEG_D], w[W_SEG]
     _difference(c, target, start, direction)
     count = int(min(max(math.ceil(_metric(c, direction) / spacing), 1), SEGMENT_MAX_POINTS))
@@ -220,6 +254,41 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box)
     return worst
 
 
+@jit
+def _segment_min_k_adaptive(path, c, start, target, w, strokes, stop_below, spacing, box, margin):
+    """``_segment_min_k`` with steps set by the safety: as sound as checked points ``spacing`` apart, fewer of them.
+
+    Points ``spacing`` apart suppose that the safety's slope along z = (p, ℓ_c θ) is at most L = margin / spacing
+    (``envs.presets.certificate_spacing``), so that between two checked points ≥ T = ``stop_below`` it stays
+    ≥ T − margin / 2. After a point of safety s ≥ T, the next is h_s = spacing · (1 + (s − T) / margin) further:
+    by the same slope, between points a, b at most h_{s_a} apart with s_a, s_b ≥ T the safety stays
+    ≥ (s_a + s_b − L h_{s_a}) / 2 ≥ T − margin / 2, the same bound. Steps are at most ``ADAPTIVE_STEP_LIMIT``
+    (the default spacing, which bounds what the strokes and the box may do between points) and at least the
+    segment's length / ``SEGMENT_MAX_POINTS``. Signs of det J_x, strokes and box are checked at every point as
+    in ``_segment_min_k``.
+    """
+    direction, point = w[W_SEG_D], w[W_SEG]
+    _difference(c, target, start, direction)
+    length = _metric(c, direction)
+    least = length / SEGMENT_MAX_POINTS
+    worst = np.inf
+    first_sign = 0.0
+    u = 0.0
+    while True:
+        safety, sign = _segment_point(path, c, start, direction, u, point, w, strokes, box)
+        if safety < 0.0:
+            return -1.0
+        if u == 0.0:
+            first_sign = sign
+        elif sign != first_sign:
+            safety = 0.0
+        worst = min(worst, safety)
+        if worst < stop_below or u >= 1.0 or not length > 0.0:
+            return worst
+        step = max(min(spacing * (1.0 + (safety - stop_below) / margin), ADAPTIVE_STEP_LIMIT), least)
+        u = min(1.0, u + step / length)
+
+
 def certificate_path(c) -> int:
     """The code the certificate of the robot of ``c`` compiles: ``THREE`` (scalars) or ``WORK_ARRAYS``.
 
@@ -237,6 +306,7 @@ class CertificateKernels(NamedTuple):
     safe: Any
     segment: Any
     safety: Any
+    certified: Any
 
 
 def _certificate_kernels(path: int) -> CertificateKernels:
@@ -257,7 +327,7 @@ def _certificate_kernels(path: int) -> CertificateKernels:
         w = _work()
         strokes = np.empty(6)
         for i in range(start.shape[0]):
-            out[i] = _segment_min_k(path, c, start[i], target[i], w, strokes, -np.inf, spacing, box)
+            out[i] = _segment_min_k(path, c, start[i], target[i], w, strokes, -np.inf, spacing, box, 0.0)
 
     def safety(c, x, o_safety, o_sign):
         w = _work()
@@ -266,7 +336,14 @@ def _certificate_kernels(path: int) -> CertificateKernels:
             inside, k, o_sign[i], k1 = _measures(path, c, x[i], w, strokes, np.bool_(True))
             o_safety[i] = _safety(c, inside, k, k1)
 
-    kernels = (safe, segment, safety)
+    def certified(c, start, target, threshold, box, out):
+        w = _work()
+        strokes = np.empty(6)
+        margin = _spacing_margin(c)
+        for i in range(start.shape[0]):
+            out[i] = _segment_min_k(path, c, start[i], target[i], w, strokes, threshold, c[C_SPACING], box, margin)
+
+    kernels = (safe, segment, safety, certified)
     for kernel in kernels:
         kernel.__qualname__ = kernel.__name__ = f"certificate_{kernel.__name__}_path{path}"
     return CertificateKernels(*(jit(kernel) for kernel in kernels))
@@ -298,14 +375,40 @@ def safe_batch(c, x):
 
 
 def segment_batch(c, start, target):
-    """Smallest safety along each geodesic start → target as the samplers check it, shape (N,).
+    """Smallest safety along each geodesic start → target at points ``segment_spacing`` apart, shape (N,).
 
-    Points ``segment_spacing`` apart; −1 if one leaves the sampling box or the stroke limits less the margin.
+    −1 if one leaves the sampling box or the stroke limits less the margin. The samplers' decision, whose points
+    may be spaced by the safety, is ``certified_segment_batch``.
     """
     start = np.ascontiguousarray(start, dtype=np.float64)
     target = np.ascontiguousarray(target, dtype=np.float64)
     out = np.empty(start.shape[0])
     certificate_kernels(c).segment(c, start, target, c[C_SPACING], True, out)
+    return out
+
+
+def certified_segment_batch(c, start, target, threshold):
+    """Each geodesic start → target checked at ``threshold`` as the samplers check it, shape (N,).
+
+    A segment is certified where the result is ≥ ``threshold``: every checked point in the sampling box and the
+    stroke margin, with one sign of det J_x and safety ≥ ``threshold``, the points spaced by ``_segment_min_k``
+    (by the safety met where ``segment_spacing`` < ``ADAPTIVE_STEP_LIMIT``, else ``segment_spacing`` apart).
+
+    Args:
+        c: Packed constants (``pack_family``).
+        start: Poses, shape (N, m).
+        target: Poses, shape (N, m).
+        threshold: The least safety, on k's scale (safe_threshold for standard tasks).
+
+    Returns:
+        The smallest safety at the points checked, float64, shape (N,): ≥ ``threshold`` where certified; else the
+        first checked point's below it (0 where the sign of det J_x changed, −1 where a point left the box or the
+        stroke margin).
+    """
+    start = np.ascontiguousarray(start, dtype=np.float64)
+    target = np.ascontiguousarray(target, dtype=np.float64)
+    out = np.empty(start.shape[0])
+    certificate_kernels(c).certified(c, start, target, float(threshold), True, out)
     return out
 
 

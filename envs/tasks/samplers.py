@@ -29,7 +29,7 @@ from envs.kernels.layout import (
 from envs.kernels.packing import THREE, WORK_ARRAYS, read_only
 from envs.kernels.pose import _TWO_PI, _difference, _metric
 from envs.kernels.setup import _next_double, jit, jit_inline, jit_parallel
-from envs.tasks.certificate import _measures, _safe, _segment_min_k, certificate_path
+from envs.tasks.certificate import _measures, _safe, _segment_min_k, _spacing_margin, certificate_path
 
 __all__ = [
     "PARALLEL_MIN_SAMPLES",
@@ -82,6 +82,7 @@ def _draw_band(path, c, fn, st, w, strokes, low, high, out):
 def _sample_reach_one(path, c, fn, st, hard, min_distance, w, strokes, start, target, waypoint, step):
     """One certified pair from the stream (fn, st) into start, target, waypoint (see ``_sample_reach``); success."""
     safe = c[C_SAFE]
+    margin = _spacing_margin(c)
     box = np.bool_(True)  # a bool, not the constant True: one compiled _segment_min_k for every caller
     band = hard and c[C_HARD_KIND] != 0.0
     floor = 2.0 * c[C_HARD]
@@ -97,18 +98,18 @@ def _sample_reach_one(path, c, fn, st, hard, min_distance, w, strokes, start, ta
         if not _metric(c, step) >= min_distance:
             continue
         if not hard:
-            if _segment_min_k(path, c, start, target, w, strokes, safe, c[C_SPACING], box) >= safe:
+            if _segment_min_k(path, c, start, target, w, strokes, safe, c[C_SPACING], box, margin) >= safe:
                 return True
         elif band:
-            if _segment_min_k(path, c, start, target, w, strokes, floor, c[C_SPACING], box) >= floor:
+            if _segment_min_k(path, c, start, target, w, strokes, floor, c[C_SPACING], box, margin) >= floor:
                 return True
-        elif 0.0 <= _segment_min_k(path, c, start, target, w, strokes, -np.inf, c[C_SPACING], box) < safe:
+        elif 0.0 <= _segment_min_k(path, c, start, target, w, strokes, -np.inf, c[C_SPACING], box, 0.0) < safe:
             for _ in range(WAYPOINT_TRIES):
                 if not _draw_safe(path, c, fn, st, w, strokes, waypoint):
                     return False
                 if (
-                    _segment_min_k(path, c, start, waypoint, w, strokes, safe, c[C_SPACING], box) >= safe
-                    and _segment_min_k(path, c, waypoint, target, w, strokes, safe, c[C_SPACING], box) >= safe
+                    _segment_min_k(path, c, start, waypoint, w, strokes, safe, c[C_SPACING], box, margin) >= safe
+                    and _segment_min_k(path, c, waypoint, target, w, strokes, safe, c[C_SPACING], box, margin) >= safe
                 ):
                     return True
     return False
@@ -189,6 +190,7 @@ def _sampler_kernels(path: int) -> SamplerKernels:
     def track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
         m = int(c[C_N])
         safe = c[C_SAFE]
+        margin = _spacing_margin(c)
         box = np.bool_(True)  # a bool, not the constant True (see ``_sample_reach_one``)
         path_kind = c[C_PATH] != 0.0
         shared = streams.shape[0] == 1
@@ -215,7 +217,7 @@ def _sampler_kernels(path: int) -> SamplerKernels:
                     _reference_at(c, _TWO_PI * step / n_check, o_center, o_amplitude, o_phase, i, point, rate)
                     if (
                         step > 0
-                        and _segment_min_k(path, c, previous, point, w, strokes, safe, c[C_SPACING], box) < safe
+                        and _segment_min_k(path, c, previous, point, w, strokes, safe, c[C_SPACING], box, margin) < safe
                     ):
                         ok = False
                         break

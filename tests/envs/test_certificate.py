@@ -90,18 +90,83 @@ def test_the_smallest_safety_along_a_segment_matches_the_kinematics_library(env_
     np.testing.assert_allclose(got, expected, rtol=1e-7, atol=1e-10)
 
 
+def _spacing_margin(params) -> float:
+    """The safety a segment may lose between checked points: min(safe − hard, (safe_I − hard_I) safe / safe_I)."""
+    safe, hard = params.safe_threshold, params.hard_threshold
+    safe1, hard1 = params.actuator_safe_threshold, params.actuator_hard_threshold
+    return min(safe - hard, (safe1 - hard1) * safe / safe1)
+
+
+def _walk(params, start: np.ndarray, target: np.ndarray, threshold: float) -> tuple[float, np.ndarray]:
+    """The samplers' check of one segment, by the kinematics library: (smallest safety met, the points checked).
+
+    Points ``segment_spacing`` apart where the spacing is at least ``ADAPTIVE_STEP_LIMIT``; else each step after a
+    point of safety s is spacing · (1 + (s − threshold) / margin), at most ``ADAPTIVE_STEP_LIMIT``. The walk stops
+    at the first point that leaves the stroke margin (−1), changes the sign of det J_x (0) or falls below the
+    threshold; the segment is certified when the result is ≥ threshold.
+    """
+    planar = params.robot.pose_space.name == "planar"
+    scale = np.array([1.0, 1.0, params.robot.characteristic_length if planar else 1.0])
+    length = np.linalg.norm((target - start) * scale)
+    spacing, limit = params.segment_spacing, certificate.ADAPTIVE_STEP_LIMIT
+    margin, u, points, first, worst = _spacing_margin(params), 0.0, [], None, np.inf
+    while True:
+        points.append(start + u * (target - start))
+        inside, safety, sign = _oracle(params, points[-1][None])
+        first = sign[0] if first is None else first
+        if not inside[0]:
+            return -1.0, np.array(points)
+        worst = min(worst, 0.0 if sign[0] != first else safety[0])
+        if worst < threshold or u >= 1.0:
+            return worst, np.array(points)
+        if spacing >= limit:
+            count = int(min(max(np.ceil(length / spacing), 1), fk.SEGMENT_MAX_POINTS))
+            u = min(1.0, (round(u * count) + 1) / count)
+        else:
+            step = spacing * (1.0 + (safety[0] - threshold) / margin)
+            u = min(1.0, u + max(min(step, limit), length / fk.SEGMENT_MAX_POINTS) / length)
+
+
 @pytest.mark.parametrize("env_id", THREE_ACTUATORS)
 def test_sampled_pairs_are_safe_at_every_checked_point_by_the_kinematics_library(env_id):
-    """Each standard pair's segment, at the points the sampler checks, is safe with one sign of det J_x."""
+    """Each standard pair's segment, at the points the samplers check, is safe with one sign of det J_x."""
     params = gym.make(env_id).unwrapped.params
     generators = [np.random.default_rng(40 + i) for i in range(12)]
     found = fk.sample_reach_batch(params.packed, fk.random_streams(generators), 12, 3, False, params.min_distance)
     assert found is not None
     for start, target in zip(found[0], found[1]):
-        inside, safety, sign = _oracle(params, _checked_points(params, start, target, params.segment_spacing))
-        assert inside.all()
-        assert safety.min() >= params.safe_threshold * (1.0 - 1e-9)
-        assert np.unique(sign).size == 1 and sign[0] != 0.0
+        worst, points = _walk(params, start, target, params.safe_threshold * (1.0 - 1e-9))
+        assert worst >= params.safe_threshold * (1.0 - 1e-9)
+        _, _, sign = _oracle(params, points)
+        assert sign[0] != 0.0
+
+
+@pytest.mark.parametrize("env_id", ["Planar3RRRReach-v0", "Planar3PRRReach-v0", "DeltaReach-v0"])
+def test_certified_segments_keep_the_spacing_bound_and_match_the_library_walk(env_id):
+    """certified_segment_batch checks the library walk's points, and what it certifies keeps safe − margin / 2.
+
+    Pairs of safe poses of the box (the 3-RRR's segments dip): the compiled result equals ``_walk``'s smallest
+    safety at its points (the same points checked), except where a point's safety is within 1e-6 of the
+    threshold (a step or a stop may differ); on every certified segment the safety at points a twentieth of the
+    spacing apart stays ≥ safe − margin / 2, the bound that points ``segment_spacing`` apart give.
+    """
+    params = gym.make(env_id).unwrapped.params
+    safe, margin = params.safe_threshold, _spacing_margin(params)
+    x = _poses(params, 3000, seed=11)
+    x = x[fk.safe_batch(params.packed, x)]
+    start, target = x[:150], x[150:300]
+    assert len(target) == 150
+    got = fk.certified_segment_batch(params.packed, start, target, safe)
+    if env_id == "Planar3RRRReach-v0":  # the others' safe poses are joined by safe segments
+        assert 0.3 < np.mean(got >= safe) < 1.0, "the pairs should hold segments that dip"
+    for i in range(len(start)):
+        worst, points = _walk(params, start[i], target[i], safe)
+        if abs(got[i] - worst) > 1e-7 * max(1.0, abs(worst)):
+            _, safety, _ = _oracle(params, points)
+            assert np.nanmin(np.abs(safety - safe)) < 1e-6, f"pair {i}: compiled {got[i]}, library {worst}"
+    for i in np.flatnonzero(got >= safe):
+        inside, safety, _ = _oracle(params, _checked_points(params, start[i], target[i], params.segment_spacing / 20))
+        assert inside.all() and safety.min() >= safe - margin / 2
 
 
 @pytest.mark.parametrize("env_id", THREE_ACTUATORS)
