@@ -196,15 +196,6 @@ def _safe(path, c, x, w, strokes):
 
 
 @jit_inline
-def _segment_point(path, c, start, direction, fraction, point, w, strokes, box):
-    """(``_pose_safety``, sign) of the point ``fraction`` along the geodesic; safety −1 outside the box (``box``)."""
-    _retract(c, start, direction, fraction, point)
-    if box and not _in_box(c, point):
-        return -1.0, 0.0
-    return _pose_safety(path, c, point, w, strokes)
-
-
-@jit_inline
 def _spacing_margin(c):
     """The safety a certified segment may lose between checked points ``segment_spacing`` apart, on k's scale.
 
@@ -225,20 +216,27 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box,
     counts as safety 0 (the segment crossed a Type II singularity between checked points). Stops early once
     below ``stop_below``.
 
-    With ``margin`` > 0, a finite ``stop_below`` and ``spacing`` < ``ADAPTIVE_STEP_LIMIT``, the points are
-    spaced by the safety met instead (``_segment_min_k_adaptive``): the same guarantee between checked points,
-    fewer points where the safety is well above ``stop_below``. The result is then only compared with
-    ``stop_below``: its value above it is the smallest at the checked points.
+    With ``margin`` > 0, a finite ``stop_below`` = T and ``spacing`` < ``ADAPTIVE_STEP_LIMIT``, the steps follow the
+    safety met instead. Points ``spacing`` apart suppose that the safety's slope along z is at most
+    L = margin / spacing (``envs.presets.certificate_spacing``), so that between two checked points ≥ T it stays
+    ≥ T − margin / 2. After a point of safety s ≥ T the next is h_s = spacing · (1 + (s − T) / margin) further: by
+    the same slope, between points a, b at most h_{s_a} apart with s_a, s_b ≥ T the safety stays
+    ≥ (s_a + s_b − L h_{s_a}) / 2 ≥ T − margin / 2, the same bound from fewer points. Steps are at most
+    ``ADAPTIVE_STEP_LIMIT`` (the default spacing, which bounds what the strokes and the box may do between points)
+    and at least the length / ``SEGMENT_MAX_POINTS``. The result is then only compared with T: above it, it is the
+    smallest safety at the checked points.
     """
-    if margin > 0.0 and stop_below > -np.inf and spacing < ADAPTIVE_STEP_LIMIT:
-        return _segment_min_k_adaptive(path, c, start, target, w, strokes, stop_below, spacing, box, margin)
     direction, point = w[W_SEG_D], w[W_SEG]
     _difference(c, target, start, direction)
-    count = int(min(max(math.ceil(_metric(c, direction) / spacing), 1), SEGMENT_MAX_POINTS))
+    length = _metric(c, direction)
+    count = int(min(max(math.ceil(length / spacing), 1), SEGMENT_MAX_POINTS))
+    adaptive = margin > 0.0 and stop_below > -np.inf and spacing < ADAPTIVE_STEP_LIMIT and length > 0.0
     worst = np.inf
     first_sign = 0.0
-    for s in range(count + 1):
-        _retract(c, start, direction, s / count, point)
+    u = 0.0
+    s = 0
+    while True:
+        _retract(c, start, direction, u, point)
         if box and not _in_box(c, point):
             return -1.0
         safety, sign = _pose_safety(path, c, point, w, strokes)
@@ -251,42 +249,16 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box,
         worst = min(worst, safety)
         if worst < stop_below:
             return worst
-    return worst
-
-
-@jit
-def _segment_min_k_adaptive(path, c, start, target, w, strokes, stop_below, spacing, box, margin):
-    """``_segment_min_k`` with steps set by the safety: as sound as checked points ``spacing`` apart, fewer of them.
-
-    Points ``spacing`` apart suppose that the safety's slope along z = (p, ℓ_c θ) is at most L = margin / spacing
-    (``envs.presets.certificate_spacing``), so that between two checked points ≥ T = ``stop_below`` it stays
-    ≥ T − margin / 2. After a point of safety s ≥ T, the next is h_s = spacing · (1 + (s − T) / margin) further:
-    by the same slope, between points a, b at most h_{s_a} apart with s_a, s_b ≥ T the safety stays
-    ≥ (s_a + s_b − L h_{s_a}) / 2 ≥ T − margin / 2, the same bound. Steps are at most ``ADAPTIVE_STEP_LIMIT``
-    (the default spacing, which bounds what the strokes and the box may do between points) and at least the
-    segment's length / ``SEGMENT_MAX_POINTS``. Signs of det J_x, strokes and box are checked at every point as
-    in ``_segment_min_k``.
-    """
-    direction, point = w[W_SEG_D], w[W_SEG]
-    _difference(c, target, start, direction)
-    length = _metric(c, direction)
-    least = length / SEGMENT_MAX_POINTS
-    worst = np.inf
-    first_sign = 0.0
-    u = 0.0
-    while True:
-        safety, sign = _segment_point(path, c, start, direction, u, point, w, strokes, box)
-        if safety < 0.0:
-            return -1.0
-        if u == 0.0:
-            first_sign = sign
-        elif sign != first_sign:
-            safety = 0.0
-        worst = min(worst, safety)
-        if worst < stop_below or u >= 1.0 or not length > 0.0:
+        s += 1
+        if adaptive:
+            if u >= 1.0:
+                return worst
+            step = max(min(spacing * (1.0 + (safety - stop_below) / margin), ADAPTIVE_STEP_LIMIT), length / count)
+            u = min(1.0, u + step / length)
+        elif s > count:
             return worst
-        step = max(min(spacing * (1.0 + (safety - stop_below) / margin), ADAPTIVE_STEP_LIMIT), least)
-        u = min(1.0, u + step / length)
+        else:
+            u = s / count
 
 
 def certificate_path(c) -> int:
