@@ -263,26 +263,28 @@ def test_shipped_crank_policies_keep_their_recorded_performance(run):
     assert_keeps_record(metrics, record)
 
 
-#: The shipped plan-free (``training.distill``) and residual policies of the other robots, and the 3-RPR's plan-free
-#: force-control policy (distilled from computed torque along the planner's path), with their regression.json.
+#: The shipped plan-free (``training.distill``) and residual policies of the other robots, and the 3-RPR's
+#: force-control policies (plan-free: distilled from computed torque along the planner's path; residual PPO over
+#: computed torque), with their regression.json.
 PLAN_FREE_RUNS = [
     demo._pretrained(f"{kind}-{env_id}")
     for env_id in ("Planar3RRRReach-v0", "StewartGoughReachHard-v0", "DeltaReachHard-v0")
     for kind in ("distill", "ppo-residual")
-] + [demo._pretrained("distill-Planar3RPRForceReach-v0")]
+] + [demo._pretrained("distill-Planar3RPRForceReach-v0"), demo._pretrained("ppo-residual-Planar3RPRForceReach-v0")]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("run", PLAN_FREE_RUNS, ids=lambda r: r.name)
 def test_shipped_plan_free_policies_keep_their_recorded_performance(run):
-    """A plan-free or residual policy keeps its record on its robot's hard targets (two-sided), with its wrapper."""
+    """A plan-free or residual policy keeps its record on its robot's targets (two-sided), with its wrapper."""
     if not (run / "regression.json").is_file():
         pytest.skip(f"{run.name} not shipped")
     record = json.loads((run / "regression.json").read_text())
     assert set(record) == set(REGRESSION_KEYS)
     agent, config = load_run(run)
     wrapper = str(config.get("hyperparams", {}).get("env_wrapper"))
-    assert config.get("distilled_from") == "planner" or "PlannerResidualWrapper" in wrapper
+    residual = ("PlannerResidualWrapper", "ComputedTorqueResidualWrapper")
+    assert config.get("distilled_from") == "planner" or any(name in wrapper for name in residual)
     assert config["env_id"] == record["env_id"]
     env = wrap_for_run(gym.make(record["env_id"], **run_env_kwargs(config)), config)
     try:
