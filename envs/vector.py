@@ -462,7 +462,7 @@ class FamilyVectorEnv(VectorEnv):
 
     def _restart(self, rows: np.ndarray, observations: np.ndarray, info: dict[str, np.ndarray]) -> None:
         """Autoreset the sub-environments ``rows``: new episodes, their observations and reset infos."""
-        for i in rows:
+        for i in rows.tolist():  # Python ints: indexing the list with NumPy integers costs 0.7 µs a row
             if self._generators[i] is None:  # pragma: no cover - every row was reset before stepping
                 self._new_generator(i, None)
         fresh = self._start_episodes(rows, {})
