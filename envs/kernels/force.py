@@ -110,9 +110,10 @@ def _holding3(c, ci, q, x):
         cs, sn, p2 = 1.0, 0.0, x[2]
     else:
         cs, sn, p2 = math.cos(x[2]), math.sin(x[2]), 0.0
-    a = _column3(c, 0, q, x[0], x[1], p2, cs, sn, translational)
-    b = _column3(c, 1, q, x[0], x[1], p2, cs, sn, translational)
-    d = _column3(c, 2, q, x[0], x[1], p2, cs, sn, translational)
+    # The indices as int64, not as constants: one compiled _column3 (and _direction, _anchor) instead of three.
+    a = _column3(c, np.int64(0), q, x[0], x[1], p2, cs, sn, translational)
+    b = _column3(c, np.int64(1), q, x[0], x[1], p2, cs, sn, translational)
+    d = _column3(c, np.int64(2), q, x[0], x[1], p2, cs, sn, translational)
     t0, t1, t2, _ = solve3(a[0], b[0], d[0], a[1], b[1], d[1], a[2], b[2], d[2], G[0], G[1], G[2])
     return t0, t1, t2
 
@@ -239,9 +240,9 @@ def _efforts(path, ci, hold, action, tau_out, applied_out):
         return rows
 
     def registers(path, ci, hold, action, tau_out, applied_out):
-        t0, a0 = _effort(ci, 0, hold[0], action[0])
-        t1, a1 = _effort(ci, 1, hold[1], action[1])
-        t2, a2 = _effort(ci, 2, hold[2], action[2])
+        t0, a0 = _effort(ci, np.int64(0), hold[0], action[0])  # int64 indices: one compiled _effort
+        t1, a1 = _effort(ci, np.int64(1), hold[1], action[1])
+        t2, a2 = _effort(ci, np.int64(2), hold[2], action[2])
         return (t0, t1, t2), (a0, a1, a2)
 
     return registers
