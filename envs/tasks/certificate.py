@@ -223,8 +223,8 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box,
     the same slope, between points a, b at most h_{s_a} apart with s_a, s_b ≥ T the safety stays
     ≥ (s_a + s_b − L h_{s_a}) / 2 ≥ T − margin / 2, the same bound from fewer points. Steps are at most
     ``ADAPTIVE_STEP_LIMIT`` (the default spacing, which bounds what the strokes and the box may do between points)
-    and at least the length / ``SEGMENT_MAX_POINTS``. The result is then only compared with T: above it, it is the
-    smallest safety at the checked points.
+    and at least the fixed walk's (longer than ``spacing`` only past ``SEGMENT_MAX_POINTS`` spacings). The result
+    is then only compared with T: above it, it is the smallest safety at the checked points.
     """
     direction, point = w[W_SEG_D], w[W_SEG]
     _difference(c, target, start, direction)
