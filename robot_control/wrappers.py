@@ -75,9 +75,21 @@ def _residual_scale(scale: Any) -> float:
     return float(scale)
 
 
-def _summed(planner_action: np.ndarray, scale: float, action: np.ndarray) -> np.ndarray:
-    """clip(a_p + scale · clip(a_π, −1, 1), −1, 1) as float32 (any leading shape)."""
-    return np.clip(planner_action + scale * np.clip(action, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+def _summed(base_action: np.ndarray, scale: float, action: Any) -> np.ndarray:
+    """clip(a_b + scale · clip(a_π, −1, 1), −1, 1) as float32, a_π refused unless finite with a_b's shape.
+
+    Args:
+        base_action: The base controller's action, shape (n,) (a single wrapper) or (N, n) (a vector wrapper).
+        scale: Weight of the policy's action.
+        action: The policy's action a_π, the shape of ``base_action``.
+    """
+    a = np.asarray(action, dtype=np.float64)
+    if a.shape != base_action.shape or not np.all(np.isfinite(a)):
+        if base_action.ndim == 1:
+            n = base_action.size
+            raise ValueError(f"action must be {n} finite numbers, got shape {a.shape} with values {a!r}")
+        raise ValueError(f"actions must be finite with shape {base_action.shape}, got shape {a.shape}")
+    return np.clip(base_action + scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
 
 
 class _PlannerWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -183,11 +195,7 @@ class PlannerResidualWrapper(_PlannerWrapper):
 
     def action(self, action: Any) -> np.ndarray:
         """The summed action the wrapped env receives for the policy's ``action`` (shape (n,)), float32."""
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != self._planner_action.shape or not np.all(np.isfinite(a)):
-            n = self._planner_action.size
-            raise ValueError(f"action must be {n} finite numbers, got shape {a.shape} with values {a!r}")
-        return _summed(self._planner_action, self.scale, a)
+        return _summed(self._planner_action, self.scale, action)
 
     def step(self, action: Any):
         """Step the wrapped env with the summed action; the observation gains the carrot and a_p."""
@@ -286,10 +294,7 @@ class VectorPlannerResidualWrapper(_VectorPlannerWrapper):
 
     def actions(self, actions: Any) -> np.ndarray:
         """The summed actions the wrapped env receives for the policy's ``actions`` (shape (N, n)), float32."""
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != self._planner_action.shape or not np.all(np.isfinite(a)):
-            raise ValueError(f"actions must be finite with shape {self._planner_action.shape}, got shape {a.shape}")
-        return _summed(self._planner_action, self.scale, a)
+        return _summed(self._planner_action, self.scale, actions)
 
     def step(self, actions: Any):
         """Step the wrapped vector env with the summed actions; each observation gains its carrot and a_p."""
@@ -361,11 +366,7 @@ class ComputedTorqueResidualWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs
 
     def action(self, action: Any) -> np.ndarray:
         """The summed action the wrapped env receives for the policy's ``action`` (shape (n,)), float32."""
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != self._base_action.shape or not np.all(np.isfinite(a)):
-            n = self._base_action.size
-            raise ValueError(f"action must be {n} finite numbers, got shape {a.shape} with values {a!r}")
-        return _summed(self._base_action, self.scale, a)
+        return _summed(self._base_action, self.scale, action)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Reset the wrapped env; the observation gains computed torque's action."""
@@ -405,10 +406,7 @@ class VectorComputedTorqueResidualWrapper(gym.vector.VectorWrapper):
 
     def actions(self, actions: Any) -> np.ndarray:
         """The summed actions the wrapped env receives for the policy's ``actions`` (shape (N, n)), float32."""
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != self._base_action.shape or not np.all(np.isfinite(a)):
-            raise ValueError(f"actions must be finite with shape {self._base_action.shape}, got shape {a.shape}")
-        return _summed(self._base_action, self.scale, a)
+        return _summed(self._base_action, self.scale, actions)
 
     def reset(self, *, seed: Any = None, options: dict[str, Any] | None = None):
         """Reset the wrapped vector env; each observation gains computed torque's action."""
