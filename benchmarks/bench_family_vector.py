@@ -83,10 +83,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     print(f"machine: {processor}, cpu_count {os.cpu_count()} (usable {affinity}), {platform.system()}")
     print(f"python {sys.version.split()[0]}, numpy {np.__version__}, gymnasium {gym.__version__}")
-    print(
-        f"numba {numba.__version__}, threading layer {numba_setup.THREADING_LAYER} ({numba.get_num_threads()} threads"
-        f" from N = {numba_setup.PARALLEL_MIN_BATCH})"
-    )
+    print(f"numba {numba.__version__}, {numba_setup.THREADS} threads from N = {numba_setup.PARALLEL_MIN_BATCH}")
     print(f"rounds: {args.rounds} (alternating order), median reported; warm-up {WARM_UP_STEPS} steps")
     print()
     sync_label = f"Sync@{args.anchor_n} steps/s"

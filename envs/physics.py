@@ -458,7 +458,7 @@ def step(
         action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
     if n < fk.PARALLEL_MIN_BATCH:  # one thread: the call the buffers keep
         failed = out.kernels.step_serial(out.call_for(params, state, ref, observation), action)
-    else:  # every core (``step_parallel`` takes its records, not a call)
+    else:  # every core (``step_chunks`` takes its records, not a call)
         model, plant, motion, force = out.arguments(params, state)
         failed = fk.step_batch(model, plant, observation, motion, tuple(ref), action, out.arrays, out.kernels, force)
     if failed:

@@ -7,7 +7,7 @@ gathers the public kernels (with the certificate and the samplers of ``envs.task
 operations on each row path (vectors in registers or in work arrays); ``three`` the algebra of three actuators
 in registers; ``dynamics`` the equations of motion (mass matrix, velocity-product and gravity terms, forward
 dynamics) on each row path, with the packed inertia of ``dynamics_layout`` (its table and ``pack_inertia``);
-``linalg`` the small dense linear algebra; ``setup`` the threading layer and NumPy's random streams; ``cache``
+``linalg`` the small dense linear algebra; ``setup`` the threads, borrowed arrays and NumPy's random streams; ``cache``
 keeps Numba's on-disk cache true.
 """
 

@@ -1,9 +1,10 @@
-"""Numba set-up of the compiled kernels: the threading layer, the parallel threshold and NumPy's random streams."""
+"""Numba set-up of the compiled kernels: their threads, the parallel threshold and NumPy's random streams."""
 
 from __future__ import annotations
 
 import ctypes
 import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -15,10 +16,13 @@ from envs.kernels.cache import drop_stale_caches
 
 __all__ = [
     "PARALLEL_MIN_BATCH",
-    "THREADING_LAYER",
+    "THREADS",
+    "borrow",
+    "claim",
     "jit",
     "jit_inline",
-    "jit_parallel",
+    "keep_alive",
+    "on_every_core",
     "random_streams",
     "uniform_batch",
 ]
@@ -36,54 +40,53 @@ def jit_inline(fn):
     return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
 
 
-def jit_parallel(fn):
-    """``jit`` with its ``numba.prange`` loops run on every core (in ``THREADING_LAYER``)."""
-    return numba.njit(cache=True, nogil=True, error_model="numpy", parallel=True)(fn)
-
-
-def _load_tbb() -> bool:
-    """Make Intel TBB (the ``tbb`` wheel) loadable by Numba; True if Numba's TBB threading layer then imports.
-
-    The wheel puts ``libtbb.so.12`` in the environment's ``lib`` folder, which is not on the dynamic
-    loader's path of a virtual environment, so Numba's ``tbbpool`` extension cannot find it by itself.
-    Loading the library first, by the path the wheel records, lets the loader resolve it by its soname.
-    """
-    import importlib.metadata
-
-    names = ("libtbb.so.12", "libtbb.12.dylib", "tbb12.dll")
-    try:
-        files = importlib.metadata.files("tbb") or []
-        paths = [f.locate() for f in files if f.name in names]
-        for path in paths:
-            ctypes.CDLL(os.fspath(path), mode=ctypes.RTLD_GLOBAL)
-        from numba.np.ufunc import parallel
-
-        check = getattr(parallel, "_check_tbb_version_compatible", None)  # private: absent in some versions
-        if check is not None:
-            check()  # TBB 2021.6 or newer, as Numba requires (raises ImportError otherwise)
-        from numba.np.ufunc import tbbpool  # noqa: F401  (the import is the check)
-    except (importlib.metadata.PackageNotFoundError, OSError, ImportError):
-        return False
-    return True
-
-
-#: Numba's threading layer for the parallel step: Intel TBB where the ``tbb`` wheel is installed (a
-#: dependency on x86-64), else the work-queue layer. The calling thread takes part in a TBB loop and idle
-#: workers steal work, so a parallel step uses both cores however the OS placed the threads; the
-#: work-queue layer hands each worker a fixed share, and on an idle machine the OS often wakes both
-#: workers on one core (measured: the 16384-robot step took 7.0 ms after other work in the same process,
-#: as long as on one thread, against 3.7 ms with TBB). OpenMP is not used: its barriers spin, and with
-#: one core busy a step ran 14× slower. TBB is also what Numba calls its "safe" layer (thread- and
-#: fork-safe; the work-queue layer aborts if two threads run parallel code at once). A user's
-#: ``NUMBA_THREADING_LAYER`` still wins.
-THREADING_LAYER = os.environ.get("NUMBA_THREADING_LAYER") or ("tbb" if _load_tbb() else "workqueue")
-numba.config.THREADING_LAYER = THREADING_LAYER
+#: Threads a large batch runs on (``on_every_core``): ``NUMBA_NUM_THREADS``, the machine's cores unless set.
+THREADS = max(1, int(numba.config.NUMBA_NUM_THREADS))
 
 #: ``step_batch`` (the environments' hot path) runs batches at least this large on every core
-#: (``numba.prange``); smaller ones stay on one thread, where waking the thread pool would cost more than
-#: it saves. Measured on two cores (Reach, random actions): with TBB, N = 64 runs 1.26× faster on both
-#: cores and N = 32 only 1.07×; the work-queue layer pays off later.
-PARALLEL_MIN_BATCH = 64 if THREADING_LAYER == "tbb" else 512
+#: (``on_every_core``); smaller ones stay on one thread, where waking the others (about 40 µs) would cost more
+#: than it saves. Measured on two cores, 3-RPR Reach, random actions: N = 128 took 101 µs on both cores and 81 µs
+#: on one, N = 256 141 and 159 µs, N = 512 223 and 317 µs.
+PARALLEL_MIN_BATCH = 256
+
+_pool: tuple[int, ThreadPoolExecutor] | None = None
+
+
+def _executor() -> ThreadPoolExecutor:
+    """The process's ``THREADS - 1`` worker threads (made again in a forked child, whose threads are gone)."""
+    global _pool
+    pid = os.getpid()
+    if _pool is None or _pool[0] != pid:
+        _pool = (pid, ThreadPoolExecutor(max_workers=THREADS - 1, thread_name_prefix="envs-kernels"))
+    return _pool[1]
+
+
+def on_every_core(kernel, *args) -> list:
+    """Run ``kernel(*args, counter)`` on ``THREADS`` threads at once (this one and the pool's); their results.
+
+    The kernel (compiled with ``jit``, so it runs without the GIL) shares the work out itself: each thread takes
+    the next chunk with ``claim(counter)`` until none is left, so a thread that runs ahead does more of them, as
+    with work stealing. ``counter`` is a fresh int64 array holding one zero.
+    """
+    counter = np.zeros(1, dtype=np.int64)
+    if THREADS == 1:
+        return [kernel(*args, counter)]
+    futures = [_executor().submit(kernel, *args, counter) for _ in range(THREADS - 1)]
+    results = [kernel(*args, counter)]
+    results.extend(future.result() for future in futures)
+    return results
+
+
+@intrinsic
+def claim(typingctx, counter):
+    """Atomically add one to ``counter[0]`` (an int64 array) and return the value before: the next chunk to do."""
+    sig = types.int64(counter)
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        return builder.atomic_rmw("add", data, ir.Constant(ir.IntType(64), 1), "monotonic")
+
+    return sig, codegen
 
 
 @intrinsic
@@ -161,3 +164,51 @@ def uniform_batch(streams, m):
     out = np.empty((streams.shape[0], m))
     _uniform_loop(streams, out)
     return out
+
+
+def _borrowed(context, builder, typ, value):
+    """``value`` of Numba type ``typ`` with its arrays borrowed (``borrow``), as a new reference."""
+    if isinstance(typ, types.Array):
+        source = context.make_array(typ)(context, builder, value)
+        out = context.make_array(typ)(context, builder)
+        for field in ("nitems", "itemsize", "data", "shape", "strides"):
+            setattr(out, field, getattr(source, field))
+        out.meminfo = context.get_constant_null(types.MemInfoPointer(types.voidptr))
+        out.parent = context.get_constant_null(types.pyobject)
+        return out._getvalue()
+    if isinstance(typ, types.BaseTuple):
+        members = [
+            _borrowed(context, builder, member, builder.extract_value(value, i)) for i, member in enumerate(typ.types)
+        ]
+        return context.make_tuple(builder, typ, members)
+    context.nrt.incref(builder, typ, value)
+    return value
+
+
+@intrinsic
+def borrow(typingctx, value):
+    """``value`` with its arrays borrowed: the same data, shape and strides, without a meminfo (nor parent).
+
+    Numba counts the references to an array each time it passes it on or takes a view of it (an atomic add and
+    subtract on its meminfo, most of a per-robot loop's time); views of a borrowed array have no meminfo, so the
+    counts are skipped. ``value``: an array, or a tuple or record of them (other members are returned as they
+    are). Only for arrays that outlive what borrows them: an entry kernel's arguments (its caller holds them), or
+    arrays held to the end of the loop by ``keep_alive``. A borrowed array must not be returned or stored.
+    """
+    sig = value(value)
+
+    def codegen(context, builder, signature, args):
+        return _borrowed(context, builder, signature.args[0], args[0])
+
+    return sig, codegen
+
+
+@intrinsic
+def keep_alive(typingctx, value):
+    """A use of ``value`` that compiles to nothing: its owner's reference lives (at least) until here."""
+    sig = types.none(value)
+
+    def codegen(context, builder, signature, args):
+        return context.get_dummy_value()
+
+    return sig, codegen

@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple
 
-import numba
 import numpy as np
 from numba.core import types
 from numba.extending import overload
@@ -68,7 +67,7 @@ from envs.kernels.records import (
     StepArrays,
     StepCall,
 )
-from envs.kernels.setup import PARALLEL_MIN_BATCH, jit, jit_inline, jit_parallel
+from envs.kernels.setup import PARALLEL_MIN_BATCH, borrow, claim, jit, jit_inline, keep_alive, on_every_core
 
 __all__ = [
     "allocate_step",
@@ -308,21 +307,30 @@ def _finite_actions(action):
 
 
 @jit
-def _step_range(path, space, model, plant, observation, state, reference, action, span, out, dynamics):
-    """Step robots span[0] .. span[1] − 1 in blocks of ``LANES``, over work arrays of their own.
+def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, counter):
+    """One thread's share of the multi-core step: chunks of ``CHUNK`` robots claimed from ``counter`` (``claim``).
 
-    Compiled on its own (not inlined): the parallel loop calls it once per chunk, so Numba's parfor analysis
-    never sees the tuples it unpacks.
+    Spatial robots go in blocks of ``LANES`` (their k in SIMD lanes), over work arrays of the thread's own. The
+    arrays are borrowed (``borrow``): the caller holds the arguments, and the work arrays are kept to the end.
     """
-    w = _work()
-    lanes = allocate_lanes()
-    dynamics = own_work(dynamics)
-    begin, end = span
-    for start in range(begin, end, LANES):
-        count = min(LANES, end - start)
-        _step_block(
-            path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
-        )
+    work, lane_work, owned = _work(), allocate_lanes(), own_work(dynamics)
+    w, lanes, dynamics = borrow(work), borrow(lane_work), borrow(owned)
+    model, plant, observation, state = borrow(model), borrow(plant), borrow(observation), borrow(state)
+    reference, action, out = borrow(reference), borrow(action), borrow(out)
+    n = action.shape[0]
+    chunks = (n + CHUNK - 1) // CHUNK
+    chunk = claim(counter)
+    while chunk < chunks:
+        end = min(n, (chunk + 1) * CHUNK)
+        for start in range(chunk * CHUNK, end, LANES):
+            count = min(LANES, end - start)
+            _step_block(
+                path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
+            )
+        chunk = claim(counter)
+    keep_alive(work)
+    keep_alive(lane_work)
+    keep_alive(owned)
 
 
 class PathKernels(NamedTuple):
@@ -331,13 +339,9 @@ class PathKernels(NamedTuple):
     transition: Any
     evaluate: Any
     step_serial: Any
-    step_parallel: Any
+    step_chunks: Any
     initial: Any
     strokes: Any
-
-
-#: The entry kernels that run on every core (``numba.prange``).
-_PARALLEL = ("step_parallel",)
 
 
 def _path_kernels(path: int, space: int) -> PathKernels:
@@ -349,66 +353,65 @@ def _path_kernels(path: int, space: int) -> PathKernels:
     """
 
     # The entry kernels take their arrays flat: Numba types a named tuple argument about 0.8 µs slower per call.
+    # Each borrows its arrays (``borrow``): the caller holds the arguments, and what it allocates is kept to the end.
     def transition(cs, q, x, t, det_sign, residual, action, *force):
-        state = Motion(q, x, t, det_sign, residual)
         n, m = action.shape
-        moved = _allocate_moved(n, m)
-        dynamics = from_extra(force, n, m)
-        w = _work()
-        lanes = allocate_lanes()
+        owned = (_allocate_moved(n, m), from_extra(force, n, m), _work(), allocate_lanes())
+        (moved, dynamics, w, lanes), cs, action = borrow((owned, cs, action))
+        state = borrow(Motion(q, x, t, det_sign, residual))
         for start in range(0, n, LANES):
             _transition_block(path, cs, state, action, start, min(LANES, n - start), w, lanes, moved, dynamics)
-        return with_dynamics(moved, dynamics)
+        return with_dynamics(owned[0], owned[1])
 
     def evaluate(cs, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, strokes, *outcome):
         observation, measured = Observation(low, high, with_velocity), Measured(q, x, t, k, k1, residual)
         reference, motion = Reference(center, amplitude, phase, strokes), motion_from(outcome[2:])
         outcome = Outcome(outcome[0], outcome[1])
         n, m = measured.x.shape
-        out = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation.low.shape[0]), dtype=np.float32))
-        w = _work()
+        owned = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation.low.shape[0]), dtype=np.float32), _work())
+        (out0, out1, w), cs, observation, measured = borrow((owned, cs, observation, measured))
+        reference, outcome, motion = borrow((reference, outcome, motion))
+        out = (out0, out1)
         for start in range(0, n, LANES):  # the step's blocks: one compiled _evaluate_rows for both
             stop = min(start + LANES, n)
             _evaluate_rows(path, space, cs, observation, measured, reference, outcome, motion, start, stop, w, out)
-        return out
+        return owned[0], owned[1]
 
     def step_serial(call, action):
         # One ``StepCall`` record rather than flat arrays: the single env calls it at every step, and Numba types
         # and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one pointer.
         if not _finite_actions(action):
             return True
+        # Borrowed (``borrow``): the caller holds the call's arrays, and the work arrays are kept to the end.
         outputs = call.outputs
-        out = StepArrays(*outputs[:N_STEP_ARRAYS])
-        q = call.q
+        out = borrow(StepArrays(*outputs[:N_STEP_ARRAYS]))
+        q = borrow(call.q)
         n = q.shape[0]
-        dynamics = from_extra(outputs[N_STEP_ARRAYS:], n, q.shape[1])
-        observation = Observation(call.low, call.high, call.with_velocity)
-        state = Motion(q, call.x, call.t, call.det_sign, call.residual)
-        reference = Reference(call.center, call.amplitude, call.phase, call.strokes)
-        model, plant = call.model, call.plant
-        w = _work()
+        owned = from_extra(outputs[N_STEP_ARRAYS:], n, q.shape[1])
+        dynamics = borrow(owned)
+        observation = borrow(Observation(call.low, call.high, call.with_velocity))
+        state = borrow(Motion(q, call.x, call.t, call.det_sign, call.residual))
+        reference = borrow(Reference(call.center, call.amplitude, call.phase, call.strokes))
+        model, plant, action = borrow(call.model), borrow(call.plant), borrow(action)
+        work = _work()
+        w = borrow(work)
         lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
         for start in range(0, n, LANES):
             count = min(LANES, n - start)
             _step_block(
                 path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
             )
+        keep_alive(work)
+        keep_alive(owned)
         return False
 
-    def step_parallel(model, plant, observation, state, reference, action, out, dynamics):
-        if not _finite_actions(action):
-            return True
-        n = action.shape[0]
-        chunks = (n + CHUNK - 1) // CHUNK
-        for chunk in numba.prange(chunks):
-            span = (chunk * CHUNK, min(n, (chunk + 1) * CHUNK))
-            _step_range(path, space, model, plant, observation, state, reference, action, span, out, dynamics)
-        return False
+    def step_chunks(model, plant, observation, state, reference, action, out, dynamics, counter):
+        _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, counter)
 
     def initial(c, x):
         n, m = x.shape
-        o_q, o_k, o_k1, o_sign, o_res = np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-        w = _work()
+        owned = (np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), _work())
+        (o_q, o_k, o_k1, o_sign, o_res, w), c, x = borrow((owned, c, x))
         for i in range(n):
             x0 = paths.vector(path, x[i])
             q = paths.inverse_kinematics(path, c, x0, w[W_KQ])
@@ -418,16 +421,16 @@ def _path_kernels(path: int, space: int) -> PathKernels:
             o_res[i] = paths.residual(path, c, q, anchors, rows, w)
             for j in range(m):
                 o_q[i, j] = q[j]
-        return o_q, o_k, o_k1, o_sign, o_res
+        return owned[:5]
 
     def strokes(c, x):
-        out = np.empty(x.shape)
-        w = _work()
+        owned = (np.empty(x.shape), _work())
+        (out, w), c, x = borrow((owned, c, x))
         for i in range(x.shape[0]):
             q = paths.inverse_kinematics(path, c, paths.vector(path, x[i]), w[W_KQ])
             for j in range(x.shape[1]):
                 out[i, j] = q[j]
-        return out
+        return owned[0]
 
     closures = locals()
     compiled = []
@@ -437,7 +440,7 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         # processes compiling two paths at once would then overwrite each other's entries, and a later process could
         # load one path's machine code for another's. A name per (path, space) gives each its own index.
         kernel.__qualname__ = kernel.__name__ = f"{name}_path{path}_space{space}"
-        compiled.append((jit_parallel if name in _PARALLEL else jit)(kernel))
+        compiled.append(jit(kernel))
     return PathKernels(*compiled)
 
 
@@ -464,9 +467,12 @@ def step_call(model, plant, observation, state, reference, out, force=()) -> Ste
 
 def _step_parallel(model, plant, observation, state, reference, action, out, force=()):
     """The multi-core step of ``step_batch`` (records as tuples or ``envs.kernels.records``)."""
+    if not np.isfinite(action).all():
+        return True
     records = Observation(*observation), Motion(*state), Reference(*reference)
     dynamics = Dynamics(*force, _dynamics_work()) if force else None
-    return path_kernels(plant).step_parallel(model, plant, *records, action, out, dynamics)
+    on_every_core(path_kernels(plant).step_chunks, model, plant, *records, action, out, dynamics)
+    return False
 
 
 def initial_batch(c, x):

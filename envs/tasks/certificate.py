@@ -43,7 +43,7 @@ from envs.kernels.layout import (
 )
 from envs.kernels.packing import _OVERLOAD_OPTIONS, THREE, WORK_ARRAYS, _literal_path, row_path
 from envs.kernels.pose import _difference, _metric, _retract
-from envs.kernels.setup import jit, jit_inline
+from envs.kernels.setup import borrow, jit, jit_inline, keep_alive
 
 __all__ = [
     "ADAPTIVE_STEP_LIMIT",
@@ -289,31 +289,36 @@ def _certificate_kernels(path: int) -> CertificateKernels:
     ``envs.kernels.step._path_kernels``).
     """
 
+    # The arrays borrowed (``borrow``): the caller holds the arguments, and the work arrays are kept to the end.
     def safe(c, x, out):
-        w = _work()
-        strokes = np.empty(6)
+        work = (_work(), np.empty(6))
+        (w, strokes), c, x, out = borrow((work, c, x, out))
         for i in range(x.shape[0]):
             out[i] = _safe(path, c, x[i], w, strokes)
+        keep_alive(work)
 
     def segment(c, start, target, spacing, box, out):
-        w = _work()
-        strokes = np.empty(6)
+        work = (_work(), np.empty(6))
+        (w, strokes), c, start, target, out = borrow((work, c, start, target, out))
         for i in range(start.shape[0]):
             out[i] = _segment_min_k(path, c, start[i], target[i], w, strokes, -np.inf, spacing, box, 0.0)
+        keep_alive(work)
 
     def safety(c, x, o_safety, o_sign):
-        w = _work()
-        strokes = np.empty(6)
+        work = (_work(), np.empty(6))
+        (w, strokes), c, x, o_safety, o_sign = borrow((work, c, x, o_safety, o_sign))
         for i in range(x.shape[0]):
             inside, k, o_sign[i], k1 = _measures(path, c, x[i], w, strokes, np.bool_(True))
             o_safety[i] = _safety(c, inside, k, k1)
+        keep_alive(work)
 
     def certified(c, start, target, threshold, box, out):
-        w = _work()
-        strokes = np.empty(6)
+        work = (_work(), np.empty(6))
+        (w, strokes), c, start, target, out = borrow((work, c, start, target, out))
         margin = _spacing_margin(c)
         for i in range(start.shape[0]):
             out[i] = _segment_min_k(path, c, start[i], target[i], w, strokes, threshold, c[C_SPACING], box, margin)
+        keep_alive(work)
 
     kernels = (safe, segment, safety, certified)
     for kernel in kernels:

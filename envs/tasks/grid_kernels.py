@@ -24,7 +24,7 @@ from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _work
 from envs.kernels.layout import C_DT, C_HARD, C_LC, C_LEGS, C_OMEGA, C_TRANSLATIONAL
 from envs.kernels.packing import THREE
-from envs.kernels.setup import _next_double, jit
+from envs.kernels.setup import _next_double, borrow, jit, keep_alive
 from envs.tasks.certificate import _safe
 
 __all__ = ["SAMPLER_TRIES", "SEGMENT_POINTS", "pack_workspace", "sample_circle_batch", "sample_reach_batch"]
@@ -168,9 +168,9 @@ def _sample_reach(c, ws, streams, hard, min_distance, fixed_kind, fixed, o_start
     Returns:
         −1 on success, else the index of the first pair for which ``SAMPLER_TRIES`` candidates were rejected.
     """
-    w = _work()
-    strokes = np.empty(6)
-    start, target, other = np.empty(3), np.empty(3), np.empty(3)
+    work = (_work(), np.empty(6), np.empty(3), np.empty(3), np.empty(3))
+    w, strokes, start, target, other = borrow(work)  # borrowed (``borrow``), kept to the end
+    c, ws, streams, o_start, o_target = borrow((c, ws, streams, o_start, o_target))
     fixed_j = -1
     if fixed_kind != 0:
         fixed_j = _component_index(ws, fixed)
@@ -204,6 +204,7 @@ def _sample_reach(c, ws, streams, hard, min_distance, fixed_kind, fixed, o_start
             break
         if not done:
             return i
+    keep_alive(work)
     return -1
 
 
@@ -241,8 +242,10 @@ def _sample_circle(c, ws, streams, r_lo, r_hi, a_lo, a_hi, n_check, o_center, o_
     Returns:
         −1 on success, else the index of the first reference that could not be drawn.
     """
-    w = _work()
-    strokes, center, point = np.empty(6), np.empty(3), np.empty(3)
+    work = (_work(), np.empty(6), np.empty(3), np.empty(3))
+    w, strokes, center, point = borrow(work)  # borrowed (``borrow``), kept to the end
+    c, ws, streams = borrow((c, ws, streams))
+    o_center, o_amplitude, o_phase = borrow((o_center, o_amplitude, o_phase))
     omega_dt = c[C_OMEGA] * c[C_DT]
     shared = streams.shape[0] == 1
     for i in range(o_center.shape[0]):
@@ -275,6 +278,7 @@ def _sample_circle(c, ws, streams, r_lo, r_hi, a_lo, a_hi, n_check, o_center, o_
                 break
         if not done:
             return i
+    keep_alive(work)
     return -1
 
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
-import numba
 import numpy as np
 
 from envs.kernels.cache import drop_stale_caches
@@ -28,7 +27,7 @@ from envs.kernels.layout import (
 )
 from envs.kernels.packing import THREE, WORK_ARRAYS, read_only
 from envs.kernels.pose import _TWO_PI, _difference, _metric
-from envs.kernels.setup import _next_double, jit, jit_inline, jit_parallel
+from envs.kernels.setup import _next_double, borrow, claim, jit, jit_inline, keep_alive, on_every_core
 from envs.tasks.certificate import _measures, _safe, _segment_min_k, _spacing_margin, certificate_path
 
 __all__ = [
@@ -46,8 +45,10 @@ drop_stale_caches(__file__)
 
 #: Candidates a sampler may reject before it reports failure.
 SAMPLER_TRIES = 2000
-#: Pairs from which the Reach sampler runs on every core (one generator per robot; each pair costs 10–70 µs).
-PARALLEL_MIN_SAMPLES = 8
+#: Pairs from which the Reach sampler runs on every core (one generator per robot; a pair costs 3–12 µs, waking
+#: the other threads about 40 µs: measured on two cores, 32 pairs took 3.2 µs each on both and 3.6 µs on one for the
+#: 3-PRR, 7.3 and 12.1 µs for the 3-RRR).
+PARALLEL_MIN_SAMPLES = 32
 #: Waypoints tried per hard pair to certify a detour.
 WAYPOINT_TRIES = 64
 
@@ -135,9 +136,9 @@ class SamplerKernels(NamedTuple):
     ill-conditioned band 2 hard_threshold ≤ k < safe_threshold, joined by a geodesic that keeps
     safety ≥ 2 hard_threshold. ``streams`` holds one stream for all pairs or one per pair.
 
-    ``reach_parallel`` is ``reach`` on every core, for one stream per robot (each robot's pair depends on its
-    stream only): every robot draws its pair (the serial kernel stops at the first failure); it returns the first
-    failing pair.
+    ``reach_chunks(..., ok, counter)`` is one thread's share of ``reach`` on every core (``on_every_core``), for
+    one stream per robot (each robot's pair depends on its stream only): it draws the pairs of the robots it claims
+    and sets ``ok[i]`` (the serial kernel stops at the first failure).
 
     ``track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase)`` fills references (centre,
     amplitude, phase) whose poses at ``n_check`` times of a period, and the segments between them, are all safe.
@@ -146,7 +147,7 @@ class SamplerKernels(NamedTuple):
     """
 
     reach: Any
-    reach_parallel: Any
+    reach_chunks: Any
     track: Any
 
 
@@ -158,34 +159,35 @@ def _sampler_kernels(path: int) -> SamplerKernels:
 
     def reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
         shared = streams.shape[0] == 1
-        w = _work()
-        strokes = np.empty(6)
-        start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+        work = (_work(), np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6))
+        w, strokes, start, target, waypoint, step = borrow(work)  # arrays borrowed (``borrow``), kept to the end
+        c, streams, o_start, o_target, o_waypoint = borrow((c, streams, o_start, o_target, o_waypoint))
+        failed = -1
         for i in range(o_start.shape[0]):
             s = 0 if shared else i
             if not _sample_reach_one(
                 path, c, streams[s, 0], streams[s, 1], hard, min_distance, w, strokes, start, target, waypoint, step
             ):
-                return i
+                failed = i
+                break
             _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
-        return -1
+        keep_alive(work)
+        return failed
 
-    def reach_parallel(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
+    def reach_chunks(c, streams, hard, min_distance, o_start, o_target, o_waypoint, ok, counter):
         n = o_start.shape[0]
-        ok = np.empty(n, dtype=np.bool_)
-        for i in numba.prange(n):
-            w = _work()
-            strokes = np.empty(6)
-            start, target, waypoint, step = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+        work = (_work(), np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6))
+        w, strokes, start, target, waypoint, step = borrow(work)
+        c, streams, o_start, o_target, o_waypoint = borrow((c, streams, o_start, o_target, o_waypoint))
+        i = claim(counter)
+        while i < n:
             ok[i] = _sample_reach_one(
                 path, c, streams[i, 0], streams[i, 1], hard, min_distance, w, strokes, start, target, waypoint, step
             )
             if ok[i]:
                 _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
-        for i in range(n):
-            if not ok[i]:
-                return i
-        return -1
+            i = claim(counter)
+        keep_alive(work)
 
     def track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
         m = int(c[C_N])
@@ -194,8 +196,10 @@ def _sampler_kernels(path: int) -> SamplerKernels:
         box = np.bool_(True)  # a bool, not the constant True (see ``_sample_reach_one``)
         path_kind = c[C_PATH] != 0.0
         shared = streams.shape[0] == 1
-        w = _work()
-        strokes, point, previous, rate = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+        work = (_work(), np.empty(6), np.empty(6), np.empty(6), np.empty(6))
+        w, strokes, point, previous, rate = borrow(work)
+        c, streams, max_amplitude = borrow((c, streams, max_amplitude))
+        o_center, o_amplitude, o_phase = borrow((o_center, o_amplitude, o_phase))
         for i in range(o_center.shape[0]):
             s = 0 if shared else i
             fn, st = streams[s, 0], streams[s, 1]
@@ -228,12 +232,13 @@ def _sampler_kernels(path: int) -> SamplerKernels:
                     break
             if not done:
                 return i
+        keep_alive(work)
         return -1
 
-    kernels = (reach, reach_parallel, track)
+    kernels = (reach, reach_chunks, track)
     for kernel in kernels:
         kernel.__qualname__ = kernel.__name__ = f"sample_{kernel.__name__}_path{path}"
-    return SamplerKernels(jit(reach), jit_parallel(reach_parallel), jit(track))
+    return SamplerKernels(jit(reach), jit(reach_chunks), jit(track))
 
 
 #: The samplers' entry kernels by ``certificate_path``.
@@ -263,8 +268,12 @@ def sample_reach_batch(c, streams, n, m, hard, min_distance):
     o_start, o_target, o_waypoint = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
     kernels = sampler_kernels(c)
     parallel = streams.shape[0] > 1 and n >= PARALLEL_MIN_SAMPLES
-    kernel = kernels.reach_parallel if parallel else kernels.reach
-    if kernel(c, streams, hard, min_distance, o_start, o_target, o_waypoint) >= 0:
+    if parallel:
+        ok = np.empty(n, dtype=np.bool_)
+        on_every_core(kernels.reach_chunks, c, streams, hard, min_distance, o_start, o_target, o_waypoint, ok)
+        if not ok.all():
+            return None
+    elif kernels.reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint) >= 0:
         return None
     return o_start, o_target, o_waypoint
 

@@ -356,12 +356,15 @@ def test_parallel_reach_sampler_equals_the_serial_one(hard):
     params = gym.make("Planar3RRRReach-v0").unwrapped.params
     n = 3 * fk.PARALLEL_MIN_SAMPLES + 1
     outs = []
-    kernels = samplers.sampler_kernels(params.packed)
-    for kernel in (kernels.reach, kernels.reach_parallel):
+    for parallel in (False, True):
         generators = [np.random.default_rng(100 + i) for i in range(n)]
         streams = fk.random_streams(generators)
-        arrays = [np.empty((n, 3)) for _ in range(3)]
-        assert kernel(params.packed, streams, hard, params.min_distance, *arrays) == -1
+        if parallel:  # every core: ``sample_reach_batch`` with one stream per robot
+            arrays = list(samplers.sample_reach_batch(params.packed, streams, n, 3, hard, params.min_distance))
+        else:
+            arrays = [np.empty((n, 3)) for _ in range(3)]
+            reach = samplers.sampler_kernels(params.packed).reach
+            assert reach(params.packed, streams, hard, params.min_distance, *arrays) == -1
         outs.append(arrays + [np.array([g.random() for g in generators])])  # the generators advanced alike
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)

@@ -8,9 +8,6 @@ against the lesson, SymPy and finite differences) and LAPACK.
 
 from __future__ import annotations
 
-import os
-
-import numba
 import numpy as np
 import pytest
 
@@ -277,30 +274,123 @@ def test_observation_and_rewards_match_numpy_formulas(params, rng):
     np.testing.assert_array_equal(terms["reward_actuator_singularity"], 0.0)
 
 
-def test_threading_layer_is_tbb_where_installed():
-    """With the ``tbb`` wheel installed (a dependency on x86-64), the parallel step runs on TBB, never OpenMP."""
-    import importlib.metadata
-
-    if "NUMBA_THREADING_LAYER" in os.environ:
-        pytest.skip("the user chose the threading layer")
-    try:
-        importlib.metadata.version("tbb")
-    except importlib.metadata.PackageNotFoundError:
-        assert numba_setup.THREADING_LAYER == "workqueue"
-    else:
-        assert numba_setup.THREADING_LAYER == "tbb"
-        assert numba_setup._load_tbb()
+@numba_setup.jit
+def _claim_all(hits, counter):
+    """Mark each index of ``hits`` this thread claims; the number it claimed (the test of ``claim``)."""
+    claimed = 0
+    i = numba_setup.claim(counter)
+    while i < hits.shape[0]:
+        hits[i] += 1
+        claimed += 1
+        i = numba_setup.claim(counter)
+    return claimed
 
 
-def test_threading_layer_falls_back_without_tbb(monkeypatch):
-    """Without the ``tbb`` wheel, ``_load_tbb`` says so (and the kernels use the work-queue layer), never raises."""
-    import importlib.metadata
+def test_threads_claim_every_chunk_exactly_once():
+    """``on_every_core``'s threads share the chunks out through ``claim``: each taken once, none left over.
 
-    def missing(name):
-        raise importlib.metadata.PackageNotFoundError(name)
+    Two million one-instruction chunks make the threads contend for the counter: a claim that is not atomic hands
+    some chunks out twice.
+    """
+    hits = np.zeros(2_000_000, dtype=np.int64)
+    claimed = numba_setup.on_every_core(_claim_all, hits)
+    assert len(claimed) == numba_setup.THREADS
+    assert sum(claimed) == hits.shape[0]
+    np.testing.assert_array_equal(hits, 1)
 
-    monkeypatch.setattr(importlib.metadata, "files", missing)
-    assert numba_setup._load_tbb() is False
+
+#: The kernels' allocations (what ``_unkept_borrows`` counts as made here).
+_ALLOCATORS = {
+    "empty",
+    "zeros",
+    "_work",
+    "allocate_lanes",
+    "_allocate_moved",
+    "from_extra",
+    "own_work",
+    "_dynamics_work",
+}
+
+
+def _unkept_borrows(source: str) -> list[str]:
+    """Locals of ``source``'s functions that are borrowed but neither kept alive nor returned (``setup.borrow``).
+
+    A local made by a call (an allocation, a record) and passed to ``borrow`` must be used by ``keep_alive`` or a
+    ``return`` after its last borrowed use: Numba frees it after its last use, and the borrowed views would then
+    read freed memory. Arguments (held by the caller) and plain names of them need nothing.
+    """
+    import ast
+
+    def allocates(node) -> bool:  # the value holds arrays allocated here (records of arguments do not)
+        if isinstance(node, ast.Call):
+            name = getattr(node.func, "id", getattr(node.func, "attr", ""))
+            if name == "borrow":
+                return False
+            if name in _ALLOCATORS:
+                return True
+        return any(allocates(child) for child in ast.iter_child_nodes(node))
+
+    def own_nodes(function):  # the function's own statements, not those of the functions it defines
+        stack = list(function.body)
+        while stack:
+            node = stack.pop()
+            yield node
+            stack += [c for c in ast.iter_child_nodes(node) if not isinstance(c, (ast.FunctionDef, ast.Lambda))]
+
+    problems = []
+    for function in (node for node in ast.walk(ast.parse(source)) if isinstance(node, ast.FunctionDef)):
+        owned = set()
+        for node in own_nodes(function):
+            if isinstance(node, ast.Assign) and allocates(node.value):
+                owned |= {n.id for t in node.targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+        borrowed, kept = set(), set()
+        for node in own_nodes(function):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", "") in ("borrow", "keep_alive"):
+                names = {n.id for a in node.args for n in ast.walk(a) if isinstance(n, ast.Name)}
+                (borrowed if node.func.id == "borrow" else kept).update(names)
+            if isinstance(node, ast.Return) and node.value is not None:
+                kept |= {n.id for n in ast.walk(node.value) if isinstance(n, ast.Name)}
+        problems += [f"{function.name}: {name}" for name in sorted((borrowed & owned) - kept)]
+    return problems
+
+
+def test_borrowed_locals_are_kept_alive():
+    """Every kernel keeps what it borrows alive to the end (the rule of ``_unkept_borrows``), and the rule bites."""
+    from pathlib import Path
+
+    root = Path(numba_setup.__file__).parents[1]
+    sources = [path for path in sorted(root.rglob("*.py")) if "borrow(" in path.read_text()]
+    assert len(sources) >= 4
+    for path in sources:
+        assert _unkept_borrows(path.read_text()) == [], path
+    planted = "def k(x):\n    work = _work()\n    w, x = borrow((work, x))\n    return w[0] + x[0]\n"
+    assert _unkept_borrows(planted) == ["k: work"]
+
+
+def _claims_in_a_child(queue):
+    hits = np.zeros(100_000, dtype=np.int64)
+    numba_setup.on_every_core(_claim_all, hits)
+    queue.put(int(hits.sum()))
+
+
+def test_a_forked_child_gets_threads_of_its_own():
+    """A child forked after the pool ran (``SubprocVecEnv``, ``AsyncVectorEnv``) runs its batches on new threads.
+
+    The parent's worker threads do not exist in the child: handing them work would wait forever.
+    """
+    import multiprocessing
+
+    numba_setup.on_every_core(_claim_all, np.zeros(1000, dtype=np.int64))  # the parent's pool exists
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    child = context.Process(target=_claims_in_a_child, args=(queue,))
+    child.start()
+    child.join(timeout=60)
+    if child.is_alive():
+        child.kill()
+        pytest.fail("the forked child's batch did not finish in 60 s")
+    assert child.exitcode == 0
+    assert queue.get(timeout=5) == 100_000
 
 
 def _step_arrays(result) -> list[np.ndarray]:
@@ -310,12 +400,11 @@ def _step_arrays(result) -> list[np.ndarray]:
 
 
 def test_parallel_kernel_equals_serial(params, rng, monkeypatch):
-    """Large batches run on every core (prange); the result is bit-identical to the one-thread loop."""
+    """Large batches run on every core (``on_every_core``); the result is bit-identical to the one-thread loop."""
     n = fk.PARALLEL_MIN_BATCH + 7
     state = _random_states(params, rng, n)
     action = rng.uniform(-1, 1, size=(n, 3))
     parallel = [a.copy() for a in _step_arrays(physics.step(params, state, action, False))]
-    assert numba.threading_layer() == numba_setup.THREADING_LAYER
     monkeypatch.setattr(step_kernels, "PARALLEL_MIN_BATCH", 10**9)
     serial = _step_arrays(physics.step(params, state, action, False))
     for a, b in zip(parallel, serial):
