@@ -84,8 +84,21 @@ def _relative_rotvec(a0, a1, a2, b0, b1, b2):
 
 @jit
 def _wrap(angle):
-    """Wrap an angle to [−π, π)."""
-    return (angle + math.pi) % _TWO_PI - math.pi
+    """Wrap an angle to [−π, π): (angle + π) % 2π − π, bit for bit as Python's ``%`` computes it.
+
+    Within (−2π, 4π) of angle + π, where the step's angles are, the remainder is one exact addition (Sterbenz)
+    instead of Numba's call of ``fmod`` and its sign fix-up.
+    """
+    a = angle + math.pi
+    if 0.0 <= a < _TWO_PI:
+        pass
+    elif -_TWO_PI < a < 0.0:
+        a += _TWO_PI
+    elif _TWO_PI <= a < 2.0 * _TWO_PI:
+        a -= _TWO_PI
+    else:
+        a = a % _TWO_PI
+    return a - math.pi
 
 
 @jit

@@ -299,6 +299,24 @@ def test_threads_claim_every_chunk_exactly_once():
     np.testing.assert_array_equal(hits, 1)
 
 
+def test_wrap_is_pythons_modulo_bit_for_bit():
+    """``pose._wrap`` (its fast range and its fallback) equals (a + π) % 2π − π in Python, to the last bit."""
+    import math
+
+    from envs.kernels import pose
+
+    rng = np.random.default_rng(3)
+    two_pi = 2.0 * math.pi
+    edges = [0.0, -0.0, math.pi, -math.pi, two_pi, -two_pi, 3 * math.pi, -3 * math.pi, 4 * math.pi, 1e-300, 1e300]
+    edges += [np.nextafter(e, s) for e in (math.pi, -math.pi, 3 * math.pi, -3 * math.pi) for s in (-np.inf, np.inf)]
+    values = [*edges, *rng.uniform(-4 * math.pi, 4 * math.pi, 20000), *rng.uniform(-1e3, 1e3, 2000), math.inf, math.nan]
+    for value in values:
+        want, got = (value + math.pi) % two_pi - math.pi, pose._wrap(value)
+        assert (math.isnan(want) and math.isnan(got)) or (
+            want == got and math.copysign(1, want) == math.copysign(1, got)
+        ), value
+
+
 #: The kernels' allocations (what ``_unkept_borrows`` counts as made here).
 _ALLOCATORS = {
     "empty",
