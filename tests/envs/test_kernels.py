@@ -429,6 +429,45 @@ def test_parallel_kernel_equals_serial(params, rng, monkeypatch):
         np.testing.assert_array_equal(a, b)
 
 
+def test_batches_from_two_threads_at_once_and_on_one_thread_equal_the_serial_step(params, rng, monkeypatch):
+    """Two Python threads stepping large batches at once share the pool (neither waits forever nor mixes rows), and
+    ``NUMBA_NUM_THREADS=1`` (``THREADS`` 1) runs them on the calling thread; every result is the one-thread loop's.
+
+    Overlap depends on timing: a counter shared by the batches (planted) failed this test in about half the runs.
+    """
+    import threading
+
+    n = 8 * fk.PARALLEL_MIN_BATCH + 3
+    cases = []
+    for _ in range(2):
+        state = _random_states(params, rng, n)
+        cases.append((state, rng.uniform(-1, 1, size=(n, 3))))
+    got: list = [None, None]
+    start = threading.Barrier(2)
+
+    def run(index):
+        state, action = cases[index]
+        start.wait()
+        for _ in range(60):  # many batches each, so that they overlap
+            result = [a.copy() for a in _step_arrays(physics.step(params, state, action, False))]
+        got[index] = result
+
+    threads = [threading.Thread(target=run, args=(index,)) for index in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=120)
+    assert not any(thread.is_alive() for thread in threads)
+    monkeypatch.setattr(numba_setup, "THREADS", 1)
+    one_thread = [[a.copy() for a in _step_arrays(physics.step(params, s, a, False))] for s, a in cases]
+    monkeypatch.setattr(step_kernels, "PARALLEL_MIN_BATCH", 10**9)
+    for (state, action), parallel, alone in zip(cases, got, one_thread):
+        serial = _step_arrays(physics.step(params, state, action, False))
+        for a, b, c in zip(parallel, alone, serial, strict=True):
+            np.testing.assert_array_equal(a, c)
+            np.testing.assert_array_equal(b, c)
+
+
 def test_step_equals_transition_then_evaluate(params, rng):
     """The fused step is transition followed by evaluate, to the last bit."""
     state = _random_states(params, rng, 300)
