@@ -430,10 +430,10 @@ def test_parallel_kernel_equals_serial(params, rng, monkeypatch):
 
 
 def test_batches_from_two_threads_at_once_and_on_one_thread_equal_the_serial_step(params, rng, monkeypatch):
-    """Two Python threads stepping large batches at once share the pool (neither waits forever nor mixes rows), and
-    ``NUMBA_NUM_THREADS=1`` (``THREADS`` 1) runs them on the calling thread; every result is the one-thread loop's.
+    """Batches of two Python threads at once, and batches on one thread, equal the one-thread loop's results.
 
-    Overlap depends on timing: a counter shared by the batches (planted) failed this test in about half the runs.
+    The two threads share the pool (neither waits forever nor mixes rows); ``NUMBA_NUM_THREADS=1`` (``THREADS`` 1)
+    runs a batch on the calling thread alone. Overlap depends on timing: a counter shared by the batches (planted) failed this test in about half the runs.
     """
     import threading
 
