@@ -433,7 +433,8 @@ def test_batches_from_two_threads_at_once_and_on_one_thread_equal_the_serial_ste
     """Batches of two Python threads at once, and batches on one thread, equal the one-thread loop's results.
 
     The two threads share the pool (neither waits forever nor mixes rows); ``NUMBA_NUM_THREADS=1`` (``THREADS`` 1)
-    runs a batch on the calling thread alone. Overlap depends on timing: a counter shared by the batches (planted) failed this test in about half the runs.
+    runs a batch on the calling thread alone. Overlap depends on timing: a counter shared by the batches (planted)
+    failed this test in about half the runs.
     """
     import threading
 
