@@ -456,11 +456,11 @@ def step(
     if state.twist is not None and (state.plant is not None or state.sensed is not None) and state.geometry is None:
         plant = _plant(params, state.plant)
         action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
-    if n < fk.PARALLEL_MIN_BATCH:  # one thread: the call the buffers keep
-        failed = out.kernels.step_serial(out.call_for(params, state, ref, observation), action)
-    else:  # every core (``step_chunks`` takes its records, not a call)
-        model, plant, motion, force = out.arguments(params, state)
-        failed = fk.step_batch(model, plant, observation, motion, tuple(ref), action, out.arrays, out.kernels, force)
+    call = out.call_for(params, state, ref, observation)  # the call the buffers keep
+    if n < fk.PARALLEL_MIN_BATCH:  # one thread
+        failed = out.kernels.step_serial(call, action)
+    else:
+        failed = fk.step_on_every_core(out.kernels, call, action)
     if failed:
         _non_finite(action)
     q, x, t, k, k1, residual = out.fields

@@ -29,6 +29,7 @@ from envs.kernels.step import (
     path_kernels,
     step_batch,
     step_call,
+    step_on_every_core,
     strokes_batch,
     transition_batch,
 )
@@ -82,6 +83,7 @@ __all__ = [
     "singularity_batch",
     "step_batch",
     "step_call",
+    "step_on_every_core",
     "strokes_batch",
     "transition_batch",
 ]

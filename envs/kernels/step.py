@@ -76,6 +76,7 @@ __all__ = [
     "path_kernels",
     "step_batch",
     "step_call",
+    "step_on_every_core",
     "strokes_batch",
     "transition_batch",
 ]
@@ -405,8 +406,17 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         keep_alive(owned)
         return False
 
-    def step_chunks(model, plant, observation, state, reference, action, out, dynamics, counter):
-        _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, counter)
+    def step_chunks(call, action, counter):
+        # A ``StepCall``, as ``step_serial`` takes: every thread unboxes its arguments holding the GIL, and a
+        # record is one pointer where the flat arrays would be some forty.
+        outputs = call.outputs
+        out = StepArrays(*outputs[:N_STEP_ARRAYS])
+        n, m = call.q.shape
+        dynamics = from_extra(outputs[N_STEP_ARRAYS:], n, m)
+        observation = Observation(call.low, call.high, call.with_velocity)
+        state = Motion(call.q, call.x, call.t, call.det_sign, call.residual)
+        reference = Reference(call.center, call.amplitude, call.phase, call.strokes)
+        _step_chunks(path, space, call.model, call.plant, observation, state, reference, action, out, dynamics, counter)
 
     def initial(c, x):
         n, m = x.shape
@@ -465,14 +475,21 @@ def step_call(model, plant, observation, state, reference, out, force=()) -> Ste
     return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force))
 
 
-def _step_parallel(model, plant, observation, state, reference, action, out, force=()):
-    """The multi-core step of ``step_batch`` (records as tuples or ``envs.kernels.records``)."""
+def step_on_every_core(kernels, call, action):
+    """``step_serial(call, action)`` on every core (``on_every_core``); True if an action is not finite.
+
+    ``kernels``: the ``path_kernels`` of the call's plant.
+    """
     if not np.isfinite(action).all():
         return True
-    records = Observation(*observation), Motion(*state), Reference(*reference)
-    dynamics = Dynamics(*force, _dynamics_work()) if force else None
-    on_every_core(path_kernels(plant).step_chunks, model, plant, *records, action, out, dynamics)
+    on_every_core(kernels.step_chunks, call, action)
     return False
+
+
+def _step_parallel(model, plant, observation, state, reference, action, out, force=()):
+    """The multi-core step of ``step_batch``."""
+    call = step_call(model, plant, observation, state, reference, out, force)
+    return step_on_every_core(path_kernels(plant), call, action)
 
 
 def initial_batch(c, x):
