@@ -27,7 +27,6 @@ from numba.extending import overload
 from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
-from envs.kernels.dynamics import _dynamics_work
 from envs.kernels.evaluation import _evaluate_rows
 from envs.kernels.force import advance, beyond_stops, from_extra, motion_from, motion_of, own_work, with_dynamics
 from envs.kernels.layout import (
@@ -57,7 +56,6 @@ from envs.kernels.layout import (
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
 from envs.kernels.records import (
-    Dynamics,
     Measured,
     Motion,
     Moved,
