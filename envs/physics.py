@@ -377,7 +377,7 @@ class StepBuffers:
         self.force = () if params.control != "force" else tuple(np.empty((n, params.robot.n_pose)) for _ in range(3))
         if self.force:
             self.outcome = self.outcome._replace(effort=self.force[1], hold=self.force[2])
-        #: The one-thread step's ``StepCall`` into these buffers, and what it reads (``call_for``).
+        #: The step's ``StepCall`` into these buffers (one thread or every core), and what it reads (``call_for``).
         self._call: fk.StepCall | None = None
         self._reads: tuple = (object(),)
 
