@@ -305,6 +305,25 @@ def _finite_actions(action):
     return True
 
 
+@jit_inline
+def _unpack(call):
+    """The records of a ``StepCall``: (model, plant, observation, state, reference, out, dynamics).
+
+    ``dynamics`` is None under rate control, else a ``Dynamics`` with a work array allocated here.
+    """
+    outputs = call.outputs
+    n, m = call.q.shape
+    return (
+        call.model,
+        call.plant,
+        Observation(call.low, call.high, call.with_velocity),
+        Motion(call.q, call.x, call.t, call.det_sign, call.residual),
+        Reference(call.center, call.amplitude, call.phase, call.strokes),
+        StepArrays(*outputs[:N_STEP_ARRAYS]),
+        from_extra(outputs[N_STEP_ARRAYS:], n, m),
+    )
+
+
 @jit
 def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, counter):
     """One thread's share of the multi-core step: chunks of ``CHUNK`` robots claimed from ``counter`` (``claim``).
@@ -382,18 +401,9 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         if not _finite_actions(action):
             return True
         # Borrowed (``borrow``): the caller holds the call's arrays, and the work arrays are kept to the end.
-        outputs = call.outputs
-        out = borrow(StepArrays(*outputs[:N_STEP_ARRAYS]))
-        q = borrow(call.q)
-        n = q.shape[0]
-        owned = from_extra(outputs[N_STEP_ARRAYS:], n, q.shape[1])
-        dynamics = borrow(owned)
-        observation = borrow(Observation(call.low, call.high, call.with_velocity))
-        state = borrow(Motion(q, call.x, call.t, call.det_sign, call.residual))
-        reference = borrow(Reference(call.center, call.amplitude, call.phase, call.strokes))
-        model, plant, action = borrow(call.model), borrow(call.plant), borrow(action)
-        work = _work()
-        w = borrow(work)
+        owned, work = _unpack(call), _work()
+        (model, plant, observation, state, reference, out, dynamics), w, action = borrow((owned, work, action))
+        n = state.q.shape[0]
         lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
         for start in range(0, n, LANES):
             count = min(LANES, n - start)
@@ -407,14 +417,8 @@ def _path_kernels(path: int, space: int) -> PathKernels:
     def step_chunks(call, action, counter):
         # A ``StepCall``, as ``step_serial`` takes: every thread unboxes its arguments holding the GIL, and a
         # record is one pointer where the flat arrays would be some forty.
-        outputs = call.outputs
-        out = StepArrays(*outputs[:N_STEP_ARRAYS])
-        n, m = call.q.shape
-        dynamics = from_extra(outputs[N_STEP_ARRAYS:], n, m)
-        observation = Observation(call.low, call.high, call.with_velocity)
-        state = Motion(call.q, call.x, call.t, call.det_sign, call.residual)
-        reference = Reference(call.center, call.amplitude, call.phase, call.strokes)
-        _step_chunks(path, space, call.model, call.plant, observation, state, reference, action, out, dynamics, counter)
+        model, plant, observation, state, reference, out, dynamics = _unpack(call)
+        _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, counter)
 
     def initial(c, x):
         n, m = x.shape

@@ -327,6 +327,7 @@ _ALLOCATORS = {
     "from_extra",
     "own_work",
     "_dynamics_work",
+    "_unpack",  # a StepCall's records, with the dynamics' work array
 }
 
 
@@ -349,7 +350,7 @@ def _unkept_borrows(source: str) -> list[str]:
         return any(allocates(child) for child in ast.iter_child_nodes(node))
 
     def own_nodes(function):  # the function's own statements, not those of the functions it defines
-        stack = list(function.body)
+        stack = [node for node in function.body if not isinstance(node, ast.FunctionDef)]
         while stack:
             node = stack.pop()
             yield node
