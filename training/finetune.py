@@ -30,6 +30,7 @@ def finetune(source: Path, run_dir: Path, config: FinetuneConfig, log=print) -> 
     """
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import VecNormalize
 
     from training.train import make_training_env
@@ -66,6 +67,7 @@ def finetune(source: Path, run_dir: Path, config: FinetuneConfig, log=print) -> 
             "ent_coef": 0.0,
         },
     )
+    model.set_logger(configure(str(run_dir), ["csv"]))  # progress.csv in the run folder, not a temp folder
     policy = model.policy
     with torch.no_grad():
         policy.log_std.fill_(config.log_std)

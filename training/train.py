@@ -9,7 +9,8 @@ The run folder holds: ``model.zip`` (final), ``best_model.zip`` (best periodic e
 ``vecnormalize.pkl`` and ``best_vecnormalize.pkl`` (their normalisation statistics, when used),
 ``config.yml`` (the resolved configuration), ``command.txt`` (the exact command),
 ``monitor/`` (Monitor logs with ``is_success`` and ``cost``),
-``evaluations.npz`` (EvalCallback), ``learning_curve.png`` and ``summary.json``.
+``evaluations.npz`` (EvalCallback), ``progress.csv`` (SB3's training log), ``learning_curve.png`` and
+``summary.json``.
 """
 
 from __future__ import annotations
@@ -222,6 +223,7 @@ def train(
     """
     import torch
     from stable_baselines3.common.callbacks import EvalCallback
+    from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import VecNormalize
 
     cls = algorithm_class(algo)
@@ -285,6 +287,7 @@ def train(
     if action_noise is not None:
         hyper["action_noise"] = action_noise
     model = cls(policy, venv, seed=seed, verbose=0, device="cpu", **hyper)
+    model.set_logger(configure(str(run), ["csv"]))  # progress.csv in the run folder (SB3 would make a temp folder)
     callback = EvalCallback(
         eval_env,
         n_eval_episodes=n_eval,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -40,8 +41,12 @@ _EVALUATE_EACH = (
 )
 
 
-def _run(code: str) -> None:
-    done = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=600)
+def _run(code: str, log_dir: Path) -> None:
+    """Run ``code`` in a new interpreter; SB3's logger writes to ``log_dir`` (it would make folders in /tmp)."""
+    environment = {**os.environ, "SB3_LOGDIR": str(log_dir)}
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=600, env=environment
+    )
     assert done.returncode == 0, done.stderr[-3000:]
 
 
@@ -67,8 +72,8 @@ def zoo_runs(tmp_path_factory) -> dict[str, Path]:
         )
         run = logs / algo / f"{env_id}_1"
         scores.append(["--run", str(run), "--episodes", "1", "--seed", "10000", "--out", str(logs / "eval")])
-    _run(_TRAIN_EACH.format(argvs=trains))
-    _run(_EVALUATE_EACH.format(argvs=scores))
+    _run(_TRAIN_EACH.format(argvs=trains), root)
+    _run(_EVALUATE_EACH.format(argvs=scores), root)
     return {algo: root / algo for algo in CASES}
 
 

@@ -75,7 +75,7 @@ def _assert_png(path: Path) -> None:
 def _check_run_folder(run: Path, algo: str, spec: dict, command: str) -> None:
     """Every file of the run folder layout is there and says what it should."""
     names = ("model.zip", "best_model.zip", "vecnormalize.pkl", "best_vecnormalize.pkl", "config.yml", "command.txt")
-    for name in (*names, "summary.json"):
+    for name in (*names, "summary.json", "progress.csv"):
         assert (run / name).is_file(), f"{name} missing from {sorted(p.name for p in run.iterdir())}"
     _assert_png(run / "learning_curve.png")
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 from stable_baselines3 import PPO
+from stable_baselines3.common.logger import configure
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
 
@@ -131,6 +132,7 @@ def test_ppo_learns_a_few_hundred_steps_through_the_adapter(tmp_path: Path):
     )
     assert isinstance(venv, VecMonitor) and isinstance(venv.venv, NativeVecEnvAdapter)
     model = PPO("MlpPolicy", venv, n_steps=32, batch_size=64, n_epochs=1, seed=0, device="cpu")
+    model.set_logger(configure(str(tmp_path), []))  # no SB3 temp folder
     model.learn(total_timesteps=384)
     assert model.num_timesteps == 384
     assert model.ep_info_buffer and {"is_success", "cost"} <= set(model.ep_info_buffer[0])
