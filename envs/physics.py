@@ -279,6 +279,7 @@ def evaluate(
     reason: np.ndarray,
     with_velocity: bool,
     rates: np.ndarray | None = None,
+    parallel: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Reward terms, errors, success, cost, targets and observations of a state, in one compiled pass.
 
@@ -289,6 +290,8 @@ def evaluate(
         reason: Termination reason codes, shape (N,).
         with_velocity: Whether the observation ends with the target velocity.
         rates: Under force control, the actuator rates the observation holds, shape (N, n) (None: at rest).
+        parallel: Compute with the multi-core step's kernel (``fk.evaluate_batch``): a vector env that steps
+            on every core passes True, so that it compiles one step only.
 
     Returns:
         (evaluation (rows of ``params.evaluation_rows``, N) float64, observations (N, D) float32). The evaluation
@@ -308,19 +311,24 @@ def evaluate(
         outcome += (state.twist, np.zeros_like(state.q) if rates is None else _rows(rates, state.q.shape[1], "rates"))
     observation = (low, high, bool(with_velocity))
     model = _model(params, state)
-    evaluation, observations = fk.evaluate_batch(model, observation, measured, tuple(ref), outcome)
+    evaluation, observations = fk.evaluate_batch(model, observation, measured, tuple(ref), outcome, parallel)
     if state.sensed is not None:
-        observations = _sensed_observations(params, state, observation, ref, outcome)
+        observations = _sensed_observations(params, state, observation, ref, outcome, parallel)
     return evaluation, _with_codes(state, observations)
 
 
 def _sensed_observations(
-    params: FamilyParams, state: FamilyState, observation: tuple, reference: FamilyReference, outcome: tuple
+    params: FamilyParams,
+    state: FamilyState,
+    observation: tuple,
+    reference: FamilyReference,
+    outcome: tuple,
+    parallel: bool,
 ) -> np.ndarray:
     """The observations of N robots from what their controllers measure (``state.sensed``), shape (N, D)."""
     sensed = state.sensed
     measured = (sensed.q, sensed.x, state.t, sensed.k, sensed.k1, state.residual)
-    return fk.evaluate_batch(_model(params, state), observation, measured, tuple(reference), outcome)[1]
+    return fk.evaluate_batch(_model(params, state), observation, measured, tuple(reference), outcome, parallel)[1]
 
 
 def reward_terms(
@@ -473,7 +481,8 @@ def step(
         outcome = (out.outcome.action, out.outcome.reason)
         if twist is not None:  # the controller's twist and rates: the period's differences of its measurements
             outcome += hardware.sensed_motion(params, state.sensed, new.sensed)
-        out.observations[:] = _sensed_observations(params, new, observation, ref, outcome)
+        parallel = n >= fk.PARALLEL_MIN_BATCH
+        out.observations[:] = _sensed_observations(params, new, observation, ref, outcome, parallel)
     return new, out.outcome, out.evaluation, _with_codes(new, out.observations)
 
 

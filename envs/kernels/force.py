@@ -79,7 +79,6 @@ __all__ = [
     "from_extra",
     "holding",
     "holding_batch",
-    "motion_from",
     "motion_of",
     "own_work",
     "with_dynamics",
@@ -416,18 +415,6 @@ def _from_extra_of(extra, n, m):
         return Dynamics(inertia, twist, o_twist, effort, hold, _dynamics_work())
 
     return given
-
-
-def motion_from(extra):
-    """The evaluation's force-control columns from an entry kernel's extra arguments: None, or (ẋ, actuator rates)."""
-    return paths._compiled_only()
-
-
-@overload(motion_from, jit_options=_OVERLOAD_OPTIONS)
-def _motion_from_of(extra):
-    if len(extra) == 0:
-        return lambda extra: None
-    return lambda extra: (extra[0], extra[1])
 
 
 def motion_of(dynamics, q_rate):

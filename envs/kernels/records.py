@@ -132,6 +132,7 @@ STEP_CALL_FIELDS = (
     "phase",
     "strokes",
     "outputs",  # the ``StepArrays`` written, then force control's (inertia, ẋ, ẋ', τ, τ_h) or nothing
+    "moving",  # bool: a step (transition, then evaluation), or the evaluation of the outputs' state as it is
 )
 
 

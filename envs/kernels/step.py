@@ -27,8 +27,9 @@ from numba.extending import overload
 from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
+from envs.kernels.dynamics_layout import C_INERTIA_SIZE
 from envs.kernels.evaluation import _evaluate_rows
-from envs.kernels.force import advance, beyond_stops, from_extra, motion_from, motion_of, own_work, with_dynamics
+from envs.kernels.force import advance, beyond_stops, from_extra, motion_of, own_work, with_dynamics
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
@@ -54,7 +55,15 @@ from envs.kernels.layout import (
     W_KQ,
 )
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
-from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
+from envs.kernels.packing import (
+    _OVERLOAD_OPTIONS,
+    ROW_PATHS,
+    WORK_ARRAYS,
+    _literal_path,
+    pose_space_code,
+    read_only,
+    row_path,
+)
 from envs.kernels.records import (
     Measured,
     Motion,
@@ -83,6 +92,8 @@ drop_stale_caches(__file__)
 
 
 N_LANE_ROWS = len(LANES_ROWS)
+#: The inertia of a force-control ``StepCall`` that only evaluates (``evaluate_batch``), which it does not read.
+_NO_INERTIA = read_only(np.zeros((1, C_INERTIA_SIZE)))
 #: Arrays of ``StepArrays``: the fused step's outputs; force control's arrays follow them (``step_batch``).
 N_STEP_ARRAYS = len(StepArrays._fields)
 
@@ -255,8 +266,12 @@ def transition_batch(cs, state, action, force=()):
     return path_kernels(cs).transition(cs, *state, action, *force)
 
 
-def evaluate_batch(cs, observation, measured, reference, outcome):
+def evaluate_batch(cs, observation, measured, reference, outcome, parallel=False):
     """Evaluation rows (``evaluation_rows``) and observations of N robots.
+
+    The step's own kernel computes them, told not to move (a ``StepCall`` with ``moving`` False): the evaluation
+    of a step and of a state at rest are one compiled code, and an env that has compiled its step compiles
+    nothing more to start its episodes.
 
     Args:
         cs: Packed constants of the model the observation and the reward are computed with: shape (N, C_SIZE) or
@@ -271,23 +286,67 @@ def evaluate_batch(cs, observation, measured, reference, outcome):
             robots whose target is fixed (a = 0, C_PATH = 0) instead of solving the inverse kinematics again.
         outcome: (action, reason): applied actions (N, n) and termination reason codes (N,); with force control
             also (twists ẋ (N, m), actuator rates (N, n)), which the observation then holds after k.
+        parallel: Whether to run the multi-core step's kernel (on every core from ``PARALLEL_MIN_BATCH`` robots),
+            as the steps of a vector env of that many robots do, rather than the one-thread step's.
 
     Returns:
         (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
     """
-    return path_kernels(cs).evaluate(cs, *observation, *measured, *reference, *outcome)
+    call, action, evaluation, observations = evaluation_call(cs, observation, measured, reference, outcome)
+    kernels = path_kernels(cs)
+    n = action.shape[0]
+    if not parallel:
+        kernels.step_serial(call, action)
+    elif n >= PARALLEL_MIN_BATCH:
+        on_every_core(kernels.step_chunks, call, action)
+    else:
+        kernels.step_chunks(call, action, np.zeros(1, dtype=np.int64))
+    return evaluation, observations
+
+
+def evaluation_call(cs, observation, measured, reference, outcome):
+    """``evaluate_batch``'s ``StepCall`` (not moving) of its arguments (see there), with the arrays it writes.
+
+    Every array is given the type the step's own call has (C-ordered, writable but the read-only constants), so
+    the evaluation runs the step's compiled kernel, not a second specialisation of it.
+
+    Returns:
+        (call, actions (N, n), evaluation (E_FIXED + 3m, N), observations (N, D) float32).
+    """
+    cs = read_only(np.require(cs, np.float64, "C"))
+    q, x, k, k1, residual = (np.require(measured[j], np.float64, ("C", "W")) for j in (0, 1, 3, 4, 5))
+    t = np.require(measured[2], np.int64, ("C", "W"))
+    action = np.require(outcome[0], np.float64, ("C", "W"))
+    reason = np.require(outcome[1], np.int64, ("C", "W"))
+    reference = tuple(np.require(a, np.float64, ("C", "W")) for a in reference)
+    n, m = x.shape
+    low = observation[0]
+    evaluation, observations = np.empty((E_FIXED + 3 * m, n)), np.empty((n, low.shape[0]), dtype=np.float32)
+    spare, unread = np.empty(n), np.empty(q.shape)  # what only a moving step reads or writes
+    if len(outcome) > 2:  # force control: the observation's twists and actuator rates
+        twist, rates = (np.require(a, np.float64, ("C", "W")) for a in outcome[2:4])
+        force = (_NO_INERTIA, twist, twist, unread, unread)
+    else:
+        rates, force = unread, ()
+    out = (q, x, t, k, k1, residual, action, rates, reason, spare, evaluation, observations)
+    call = step_call(cs, cs, observation, (q, x, t, spare, residual), reference, out, force, moving=False)
+    return call, action, evaluation, observations
 
 
 @jit_inline
 def _step_block(
-    path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
+    path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics, moving
 ):
-    """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``)."""
-    moved = Moved(out.q, out.x, out.k, out.k1, out.residual, out.action, out.q_rate, out.reason, out.jump)
-    _transition_block(path, plant, state, action, start, count, w, lanes, moved, dynamics)
-    t, o_t = state.t, out.t
-    for i in range(start, start + count):
-        o_t[i] = t[i] + 1
+    """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``).
+
+    Not ``moving``: the evaluation only, of the state ``out`` holds (``evaluate_batch``).
+    """
+    if moving:
+        moved = Moved(out.q, out.x, out.k, out.k1, out.residual, out.action, out.q_rate, out.reason, out.jump)
+        _transition_block(path, plant, state, action, start, count, w, lanes, moved, dynamics)
+        t, o_t = state.t, out.t
+        for i in range(start, start + count):
+            o_t[i] = t[i] + 1
     measured = Measured(out.q, out.x, out.t, out.k, out.k1, out.residual)
     outcome, written = Outcome(out.action, out.reason), (out.evaluation, out.observations)
     motion = motion_of(dynamics, out.q_rate)
@@ -325,7 +384,7 @@ def _unpack(call):
 
 
 @jit
-def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, counter):
+def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, moving, counter):
     """One thread's share of the multi-core step: chunks of ``CHUNK`` robots claimed from ``counter`` (``claim``).
 
     Spatial robots go in blocks of ``LANES`` (their k in SIMD lanes), over work arrays of the thread's own. The
@@ -343,8 +402,9 @@ def _step_chunks(path, space, model, plant, observation, state, reference, actio
         for start in range(chunk * CHUNK, end, LANES):
             count = min(LANES, end - start)
             _step_block(
-                path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
-            )
+                path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out,
+                dynamics, moving,
+            )  # fmt: skip
         chunk = claim(counter)
     keep_alive(work)
     keep_alive(lane_work)
@@ -355,7 +415,6 @@ class PathKernels(NamedTuple):
     """The entry kernels of one row path, each compiled for that path alone (see ``_path_kernels``)."""
 
     transition: Any
-    evaluate: Any
     step_serial: Any
     step_chunks: Any
     initial: Any
@@ -381,35 +440,23 @@ def _path_kernels(path: int, space: int) -> PathKernels:
             _transition_block(path, cs, state, action, start, min(LANES, n - start), w, lanes, moved, dynamics)
         return with_dynamics(owned[0], owned[1])
 
-    def evaluate(cs, low, high, with_velocity, q, x, t, k, k1, residual, center, amplitude, phase, strokes, *outcome):
-        observation, measured = Observation(low, high, with_velocity), Measured(q, x, t, k, k1, residual)
-        reference, motion = Reference(center, amplitude, phase, strokes), motion_from(outcome[2:])
-        outcome = Outcome(outcome[0], outcome[1])
-        n, m = measured.x.shape
-        owned = (np.empty((E_FIXED + 3 * m, n)), np.empty((n, observation.low.shape[0]), dtype=np.float32), _work())
-        (out0, out1, w), cs, observation, measured = borrow((owned, cs, observation, measured))
-        reference, outcome, motion = borrow((reference, outcome, motion))
-        out = (out0, out1)
-        for start in range(0, n, LANES):  # the step's blocks: one compiled _evaluate_rows for both
-            stop = min(start + LANES, n)
-            _evaluate_rows(path, space, cs, observation, measured, reference, outcome, motion, start, stop, w, out)
-        return owned[0], owned[1]
-
     def step_serial(call, action):
         # One ``StepCall`` record rather than flat arrays: the single env calls it at every step, and Numba types
         # and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one pointer.
-        if not _finite_actions(action):
+        moving = call.moving
+        if moving and not _finite_actions(action):
             return True
         # Borrowed (``borrow``): the caller holds the call's arrays, and the work arrays are kept to the end.
         owned, work = _unpack(call), _work()
         (model, plant, observation, state, reference, out, dynamics), w, action = borrow((owned, work, action))
-        n = state.q.shape[0]
+        n = out.x.shape[0]
         lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
         for start in range(0, n, LANES):
             count = min(LANES, n - start)
             _step_block(
-                path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics
-            )
+                path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out,
+                dynamics, moving,
+            )  # fmt: skip
         keep_alive(work)
         keep_alive(owned)
         return False
@@ -418,7 +465,9 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         # A ``StepCall``, as ``step_serial`` takes: every thread unboxes its arguments holding the GIL, and a
         # record is one pointer where the flat arrays would be some forty.
         model, plant, observation, state, reference, out, dynamics = _unpack(call)
-        _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, counter)
+        _step_chunks(
+            path, space, model, plant, observation, state, reference, action, out, dynamics, call.moving, counter
+        )
 
     def initial(c, x):
         n, m = x.shape
@@ -462,19 +511,22 @@ _PATH_KERNELS = {(path, space): _path_kernels(path, space) for path in ROW_PATHS
 
 @jit
 def _new_step_call(
-    model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs
-):
+    model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs,
+    moving,
+):  # fmt: skip
     return StepCall(
-        model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs
-    )
+        model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs,
+        moving,
+    )  # fmt: skip
 
 
-def step_call(model, plant, observation, state, reference, out, force=()) -> StepCall:
+def step_call(model, plant, observation, state, reference, out, force=(), moving=True) -> StepCall:
     """The ``StepCall`` of ``step_batch``'s arguments but the action (see there), for ``step_serial(call, action)``.
 
-    It holds the arrays by reference: a call steps from whatever they hold when it runs.
+    It holds the arrays by reference: a call steps from whatever they hold when it runs. Not ``moving``, the call
+    evaluates the state ``out`` holds instead (``evaluate_batch``).
     """
-    return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force))
+    return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force), moving)
 
 
 def step_on_every_core(kernels, call, action):

@@ -569,3 +569,38 @@ def test_env_state_is_a_copy(rng):
     now.x[:] = 123.0
     assert not np.any(env.unwrapped.state.x == 123.0)
     env.close()
+
+
+@pytest.mark.parametrize(
+    ("env_id", "kwargs"),
+    [
+        ("Planar3RPRReach-v0", {}),
+        ("StewartGoughForceReach-v0", {}),
+        ("DeltaForceReach-v0", {"observation_source": "encoders", "geometry_variation": 0.01}),
+    ],
+)
+def test_an_episode_start_evaluates_with_the_steps_compiled_kernel(monkeypatch, env_id, kwargs):
+    """The evaluation of a reset (``evaluate_batch``) builds a ``StepCall`` of the very type the env's step builds.
+
+    The step's kernel then evaluates the start without compiling a second specialisation of itself (seconds at the
+    first reset). A call whose constants, say, were writable would be another type.
+    """
+    import gymnasium as gym
+    import numba
+
+    built = []
+    original = step_kernels.evaluation_call
+
+    def recording(*args):
+        result = original(*args)
+        built.append(numba.typeof(result[0]))
+        return result
+
+    monkeypatch.setattr(step_kernels, "evaluation_call", recording)
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    inner = env.unwrapped
+    stepped = numba.typeof(inner._buffers[0]._call)
+    assert built and all(typ == stepped for typ in built), (built, stepped)
+    env.close()
