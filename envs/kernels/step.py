@@ -24,7 +24,7 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload
 
-from envs.kernels import paths
+from envs.kernels import packing, paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
 from envs.kernels.dynamics_layout import C_INERTIA_SIZE
@@ -55,15 +55,7 @@ from envs.kernels.layout import (
     W_KQ,
 )
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
-from envs.kernels.packing import (
-    _OVERLOAD_OPTIONS,
-    ROW_PATHS,
-    WORK_ARRAYS,
-    _literal_path,
-    pose_space_code,
-    read_only,
-    row_path,
-)
+from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
 from envs.kernels.records import (
     Measured,
     Motion,
@@ -93,7 +85,7 @@ drop_stale_caches(__file__)
 
 N_LANE_ROWS = len(LANES_ROWS)
 #: The inertia of a force-control ``StepCall`` that only evaluates (``evaluate_batch``), which it does not read.
-_NO_INERTIA = read_only(np.zeros((1, C_INERTIA_SIZE)))
+_NO_INERTIA = packing.read_only(np.zeros((1, C_INERTIA_SIZE)))
 #: Arrays of ``StepArrays``: the fused step's outputs; force control's arrays follow them (``step_batch``).
 N_STEP_ARRAYS = len(StepArrays._fields)
 
@@ -267,11 +259,10 @@ def transition_batch(cs, state, action, force=()):
 
 
 def evaluate_batch(cs, observation, measured, reference, outcome, parallel=False):
-    """Evaluation rows (``evaluation_rows``) and observations of N robots.
+    """Evaluation rows (``evaluation_rows``) and observations of N robots, by the step's own compiled kernel.
 
-    The step's own kernel computes them, told not to move (a ``StepCall`` with ``moving`` False): the evaluation
-    of a step and of a state at rest are one compiled code, and an env that has compiled its step compiles
-    nothing more to start its episodes.
+    The kernel runs told not to move (``evaluation_call``): a step's evaluation and a state's at rest are one
+    compiled code, and an env that has compiled its step compiles nothing more to start its episodes.
 
     Args:
         cs: Packed constants of the model the observation and the reward are computed with: shape (N, C_SIZE) or
@@ -279,15 +270,13 @@ def evaluate_batch(cs, observation, measured, reference, outcome, parallel=False
         observation: (low, high, with_velocity): the observation's float32 bounds, shape (D,) each, and whether it
             ends with the target velocity.
         measured: (q, x, t, k, k_I, residual): strokes [m] (N, n), poses (N, m), step indices (N,) int, inverse
-            condition numbers (N,), actuator condition numbers (Type I measure, 1 for legs) (N,), constraint
-            residuals [m²] (N,).
+            condition numbers (N,), actuator condition numbers (1 for legs) (N,), constraint residuals [m²] (N,).
         reference: (center, amplitude, phase, strokes) of the targets (``envs.state.FamilyReference``), each
-            (N, m); strokes, the actuator coordinates of the centres (``strokes_batch``, (N, n)), are read for the
-            robots whose target is fixed (a = 0, C_PATH = 0) instead of solving the inverse kinematics again.
+            (N, m); the strokes of the centres (``strokes_batch``, (N, n)) are read where the target is fixed.
         outcome: (action, reason): applied actions (N, n) and termination reason codes (N,); with force control
             also (twists ẋ (N, m), actuator rates (N, n)), which the observation then holds after k.
-        parallel: Whether to run the multi-core step's kernel (on every core from ``PARALLEL_MIN_BATCH`` robots),
-            as the steps of a vector env of that many robots do, rather than the one-thread step's.
+        parallel: Run the multi-core step's kernel (on every core from ``PARALLEL_MIN_BATCH`` robots), as a
+            vector env of that many robots steps, rather than the one-thread step's.
 
     Returns:
         (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
@@ -305,15 +294,12 @@ def evaluate_batch(cs, observation, measured, reference, outcome, parallel=False
 
 
 def evaluation_call(cs, observation, measured, reference, outcome):
-    """``evaluate_batch``'s ``StepCall`` (not moving) of its arguments (see there), with the arrays it writes.
+    """``evaluate_batch``'s ``StepCall`` (not moving), actions, evaluation and observations (args: see there).
 
-    Every array is given the type the step's own call has (C-ordered, writable but the read-only constants), so
-    the evaluation runs the step's compiled kernel, not a second specialisation of it.
-
-    Returns:
-        (call, actions (N, n), evaluation (E_FIXED + 3m, N), observations (N, D) float32).
+    Every array gets the type the step's own call has (C-ordered, writable but the read-only constants), so the
+    evaluation runs the step's compiled kernel, not a second specialisation of it.
     """
-    cs = read_only(np.require(cs, np.float64, "C"))
+    cs = packing.read_only(np.require(cs, np.float64, "C"))
     q, x, k, k1, residual = (np.require(measured[j], np.float64, ("C", "W")) for j in (0, 1, 3, 4, 5))
     t = np.require(measured[2], np.int64, ("C", "W"))
     action = np.require(outcome[0], np.float64, ("C", "W"))

@@ -43,3 +43,18 @@ def test_training_builds_on_the_baselines_and_envs():
 def test_training_config_loads_sb3():
     """training.config is where SB3 enters: it maps algorithm names to SB3 classes."""
     assert "stable_baselines3" in _modules_after("import training.config")
+
+
+#: The most lines a source file of the environment, the kinematics or the training library may have.
+MAX_SOURCE_LINES = 600
+
+
+def test_no_source_file_is_over_600_lines():
+    """Every module of envs/, kinematics/ and training/ stays a file one can read (issue 40's limit)."""
+    long = {}
+    for folder in ("envs", "kinematics", "training"):
+        for path in sorted((REPO_ROOT / folder).rglob("*.py")):
+            lines = len(path.read_text(encoding="utf-8").splitlines())
+            if lines > MAX_SOURCE_LINES:
+                long[str(path.relative_to(REPO_ROOT))] = lines
+    assert not long, f"over {MAX_SOURCE_LINES} lines: {long}"
