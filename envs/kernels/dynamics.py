@@ -29,14 +29,13 @@ Points are 3-D throughout (a planar robot's z is 0); the twist's angular part is
 Row paths (``envs.kernels.paths``): on ``PLANAR_LEGS`` and ``THREE`` (three actuators, m = 3) every vector is a
 tuple of three floats and M a tuple of three rows, in registers; on ``WORK_ARRAYS`` (any pose space) they are
 rows of the robot's dynamics work array (``_dynamics_work``, rows ``D_*``). ``equations``, ``solve_acceleration``
-and ``acceleration`` are the operations an integrator calls; ``mass_matrix_batch``, ``bias_batch`` and
-``forward_dynamics_batch`` run N robots of one geometry.
+and ``acceleration`` are the operations an integrator calls; ``envs.kernels.dynamics_batch`` runs N robots of
+one geometry.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
 
 import numpy as np
 from numba.extending import overload
@@ -45,9 +44,10 @@ from envs.kernels import paths, three
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.dynamics_layout import (
     C_INERTIA_SIZE,
-    D_ACC,
     D_BIAS,
     D_FORCE,
+    D_GRAV,
+    D_JT,
     D_LU,
     D_M,
     D_RHS,
@@ -63,26 +63,21 @@ from envs.kernels.dynamics_layout import (
     I_JDAMP,
     I_LEVER,
     I_MASS,
-    I_N,
     I_WQ,
     I_WU,
     pack_inertia,
 )
-from envs.kernels.layout import C_B, C_E, C_LAM, C_LEGS, C_N, C_P, C_SIZE, C_SPATIAL, C_TRANSLATIONAL
+from envs.kernels.layout import C_B, C_E, C_LAM, C_LEGS, C_N, C_P, C_SPATIAL, C_TRANSLATIONAL
 from envs.kernels.linalg import solve3, solve6
-from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, read_only, row_path
+from envs.kernels.packing import _OVERLOAD_OPTIONS, WORK_ARRAYS, _literal_path
 from envs.kernels.pose import _frame
 from envs.kernels.setup import jit
 
 __all__ = [
     "C_INERTIA_SIZE",
     "acceleration",
-    "bias_batch",
     "equations",
-    "forward_dynamics_batch",
-    "mass_matrix_batch",
     "pack_inertia",
-    "path_kernels",
     "solve_acceleration",
 ]
 
@@ -107,22 +102,14 @@ def _anchor(c, i, qi):
 
 
 @jit
-def _direction(c, i, qi, P0, P1, P2):
-    """g_i = d_i / (d_iᵀ A_i′ + λ_i ℓ_i), with q̇_i = g_iᵀ V_i for the velocity V_i of the point P_i (3 floats)."""
-    A0, A1, A2, D0, D1, D2, _, _, _, ell = _anchor(c, i, qi)
-    d0, d1, d2 = P0 - A0, P1 - A1, P2 - A2
-    denominator = d0 * D0 + d1 * D1 + d2 * D2 + c[C_LAM + i] * ell
-    return d0 / denominator, d1 / denominator, d2 / denominator
-
-
-@jit
-def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2):
-    """Leg i's inertia and force at its platform point: (s_I, s_g, s_x, g_i (3), h_i (3), F_i (3)).
+def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2, split):
+    """Leg i's inertia and forces at its platform point: (s_I, s_g, s_x, g_i (3), h_i (3), F_i (3), F_i,G (3)).
 
     Reads leg i's geometry from ``c`` and its bodies from ``ci``; qi is its actuator coordinate, (P0, P1, P2) the
     point P_i in {B} [m], (V0, V1, V2) its velocity K_i ẋ [m/s] and (a0, a1, a2) its acceleration at ẍ = 0
-    [m/s²]. Returns the coefficients of S_i (module docstring), g_i, h_i and F_i [N], the force at P_i whose
-    generalised force K_iᵀ F_i is the leg's share of c + G.
+    [m/s²]. Returns the coefficients of S_i (module docstring), g_i, h_i, F_i [N], the force at P_i whose
+    generalised force K_iᵀ F_i is the leg's share of c + G, and with ``split`` F_i,G, gravity's part of it (F_i at
+    rest; else zeros).
     """
     A0, A1, A2, D0, D1, D2, DD0, DD1, DD2, ell = _anchor(c, i, qi)
     lam = c[C_LAM + i]
@@ -189,7 +176,13 @@ def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2):
     F0 = fd0 + y0 * inv + along * g0
     F1 = fd1 + y1 * inv + along * g1
     F2 = fd2 + y2 * inv + along * g2
-    return s_i, s_g, s_x, g0, g1, g2, h0, h1, h2, F0, F1, F2
+    G0 = G1 = G2 = 0.0
+    if split:  # gravity alone: the terms above at rest (V = a = 0), in the same order
+        fg0, fg1, fg2 = m_d * -gx, m_d * -gy, m_d * -gz
+        y0, y1, y2 = -c_d * fg0 - lever * gx, -c_d * fg1 - lever * gy, -c_d * fg2 - lever * gz
+        along = -(m_a * ci[I_ARM + i] * (D0 * gx + D1 * gy + D2 * gz)) - (h0 * y0 + h1 * y1 + h2 * y2) * inv
+        G0, G1, G2 = fg0 + y0 * inv + along * g0, fg1 + y1 * inv + along * g1, fg2 + y2 * inv + along * g2
+    return s_i, s_g, s_x, g0, g1, g2, h0, h1, h2, F0, F1, F2, G0, G1, G2
 
 
 # -- three actuators, planar or translational: registers --------------------------------------------------
@@ -218,8 +211,12 @@ def _update3(M, s_i, r0, r1, translational, s_g, G, s_x, H):
 
 
 @jit
-def _terms3(c, ci, q, x, xdot, tau):
-    """(M as (M00, M01, M02, M11, M12, M22), c + G, J_iᵀ τ) of three actuators, planar or translational (tuples)."""
+def _terms3(c, ci, q, x, xdot, tau, split):
+    """(M as (M00, M01, M02, M11, M12, M22), c + G, J_iᵀ τ, G, J_iᵀ's columns) of three actuators (tuples).
+
+    Planar or translational. G (gravity's share of c + G; zeros unless ``split``) and the columns K_iᵀ g_i of
+    J_iᵀ are what the holding forces solve J_iᵀ τ_h = G with (``envs.kernels.force``).
+    """
     translational = c[C_TRANSLATIONAL] != 0.0
     if translational:
         cs, sn, p2, v2, w = 1.0, 0.0, x[2], xdot[2], 0.0
@@ -237,21 +234,31 @@ def _terms3(c, ci, q, x, xdot, tau):
     if not translational:
         M = (M[0], M[1], M[2], M[3], M[4], M[5] + ci[I_INERTIA + 8])
     b = _wrench3(translational, r0, r1, mass * (-w2 * r0 - gx), mass * (-w2 * r1 - gy), -mass * gz)
-    f = zero
+    grav = _wrench3(translational, r0, r1, mass * -gx, mass * -gy, -mass * gz)
+    f = columns0 = columns1 = columns2 = zero
     for i in range(3):
         P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
         r0, r1 = cs * P0 - sn * P1, sn * P0 + cs * P1
-        s_i, s_g, s_x, g0, g1, g2, h0, h1, h2, F0, F1, F2 = _leg(
-            c, ci, i, q[i], p0 + r0, p1 + r1, p2 + P2, v0 - w * r1, v1 + w * r0, v2, -w2 * r0, -w2 * r1, 0.0
+        s_i, s_g, s_x, g0, g1, g2, h0, h1, h2, F0, F1, F2, Fg0, Fg1, Fg2 = _leg(
+            c, ci, i, q[i], p0 + r0, p1 + r1, p2 + P2, v0 - w * r1, v1 + w * r0, v2, -w2 * r0, -w2 * r1, 0.0, split
         )
         G = _wrench3(translational, r0, r1, g0, g1, g2)
         H = _wrench3(translational, r0, r1, h0, h1, h2)
         M = _update3(M, s_i, r0, r1, translational, s_g, G, s_x, H)
         W = _wrench3(translational, r0, r1, F0, F1, F2)
         b = (b[0] + W[0], b[1] + W[1], b[2] + W[2])
+        if split:
+            W = _wrench3(translational, r0, r1, Fg0, Fg1, Fg2)
+            grav = (grav[0] + W[0], grav[1] + W[1], grav[2] + W[2])
         t = tau[i]
         f = (f[0] + t * G[0], f[1] + t * G[1], f[2] + t * G[2])
-    return M, b, f
+        if i == 0:
+            columns0 = G
+        elif i == 1:
+            columns1 = G
+        else:
+            columns2 = G
+    return M, b, f, grav, (columns0, columns1, columns2)
 
 
 # -- any pose space: work arrays ----------------------------------------------------------------------------
@@ -325,8 +332,12 @@ def _add_leg(M, m, s_g, s_x, G, H):
 
 
 @jit
-def _terms_work(c, ci, q, x, xdot, tau, wd):
-    """M into rows D_M, c + G into row D_BIAS and J_iᵀ τ into row D_FORCE of wd, on any pose space."""
+def _terms_work(c, ci, q, x, xdot, tau, wd, split):
+    """M into rows D_M, c + G into row D_BIAS and J_iᵀ τ into row D_FORCE of wd, on any pose space.
+
+    With ``split`` also gravity's share G into row D_GRAV and J_iᵀ into rows D_JT (column i: K_iᵀ g_i), what the
+    holding forces solve J_iᵀ τ_h = G with (``envs.kernels.force``).
+    """
     m = int(c[C_N])
     spatial = c[C_SPATIAL] != 0.0
     translational = c[C_TRANSLATIONAL] != 0.0
@@ -337,10 +348,11 @@ def _terms_work(c, ci, q, x, xdot, tau, wd):
         v0, v1, v2, w0, w1, w2 = xdot[0], xdot[1], xdot[2], 0.0, 0.0, 0.0
     else:
         v0, v1, v2, w0, w1, w2 = xdot[0], xdot[1], 0.0, 0.0, 0.0, xdot[2]
-    M, bias, force = wd[D_M : D_M + m], wd[D_BIAS], wd[D_FORCE]
+    M, bias, force, grav, jt = wd[D_M : D_M + m], wd[D_BIAS], wd[D_FORCE], wd[D_GRAV], wd[D_JT : D_JT + m]
     for j in range(m):
         bias[j] = 0.0
         force[j] = 0.0
+        grav[j] = 0.0
         for k in range(m):
             M[j, k] = 0.0
     gx, gy, gz = ci[I_GRAVITY], ci[I_GRAVITY + 1], ci[I_GRAVITY + 2]
@@ -351,8 +363,10 @@ def _terms_work(c, ci, q, x, xdot, tau, wd):
     mass = ci[I_MASS]
     moments = _moments((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), mass, r0, r1, r2)
     W = _wrench(spatial, translational, r0, r1, r2, mass * (a0 - gx), mass * (a1 - gy), mass * (a2 - gz))
+    Wg = _wrench(spatial, translational, r0, r1, r2, mass * -gx, mass * -gy, mass * -gz)
     for j in range(m):
         bias[j] += W[j]
+        grav[j] += Wg[j]
     # ... and its rotational inertia R I Rᵀ (planar: I_zz)
     if spatial:
         R = (r00, r01, r02, r10, r11, r12, r20, r21, r22)
@@ -374,18 +388,23 @@ def _terms_work(c, ci, q, x, xdot, tau, wd):
         r2 = r20 * P0 + r21 * P1 + r22 * P2
         a0, a1, a2 = _omega_omega(w0, w1, w2, r0, r1, r2)
         V0, V1, V2 = v0 + w1 * r2 - w2 * r1, v1 + w2 * r0 - w0 * r2, v2 + w0 * r1 - w1 * r0
-        s_i, s_g, s_x, g0, g1, g2, h0, h1, h2, F0, F1, F2 = _leg(
-            c, ci, i, q[i], p0 + r0, p1 + r1, p2 + r2, V0, V1, V2, a0, a1, a2
+        s_i, s_g, s_x, g0, g1, g2, h0, h1, h2, F0, F1, F2, Fg0, Fg1, Fg2 = _leg(
+            c, ci, i, q[i], p0 + r0, p1 + r1, p2 + r2, V0, V1, V2, a0, a1, a2, split
         )
         G = _wrench(spatial, translational, r0, r1, r2, g0, g1, g2)
         H = _wrench(spatial, translational, r0, r1, r2, h0, h1, h2)
         moments = _moments(moments, s_i, r0, r1, r2)
         _add_leg(M, m, s_g, s_x, G, H)
         W = _wrench(spatial, translational, r0, r1, r2, F0, F1, F2)
+        Wg = _wrench(spatial, translational, r0, r1, r2, Fg0, Fg1, Fg2)
         t = tau[i]
         for j in range(m):
             bias[j] += W[j]
             force[j] += t * G[j]
+        if split:
+            for j in range(m):
+                grav[j] += Wg[j]
+                jt[j, i] = G[j]
     _add_moments(M, spatial, translational, moments)
     for j in range(m):  # the lower triangle
         for k in range(j):
@@ -443,13 +462,13 @@ def _equations(path, c, ci, q, x, xdot, tau, wd):
 
         def work(path, c, ci, q, x, xdot, tau, wd):
             m = x.shape[0]
-            _terms_work(c, ci, q, x, xdot, tau, wd)
+            _terms_work(c, ci, q, x, xdot, tau, wd, np.bool_(False))  # a bool, not a literal: one compilation
             return wd[D_M : D_M + m, :m], wd[D_BIAS, :m], wd[D_FORCE, :m]
 
         return work
 
     def registers(path, c, ci, q, x, xdot, tau, wd):
-        M, b, f = _terms3(c, ci, q, x, xdot, tau)
+        M, b, f, _, _ = _terms3(c, ci, q, x, xdot, tau, np.bool_(False))
         return ((M[0], M[1], M[2]), (M[1], M[3], M[4]), (M[2], M[4], M[5])), b, f
 
     return registers
@@ -495,106 +514,3 @@ def _acceleration(path, c, ci, q, x, xdot, tau, wd, out):
         return solve_acceleration(path, M, bias, force, wd, out)
 
     return of
-
-
-# -- the batches ----------------------------------------------------------------------------------------------
-
-
-class DynamicsKernels(NamedTuple):
-    """The entry kernel of one row path (``_path_kernels``)."""
-
-    dynamics: Any
-
-
-def _path_kernels(path: int) -> DynamicsKernels:
-    """The entry kernel of the row path ``path`` (a compile-time constant): (M, c + G, ẍ) of N robots."""
-
-    def dynamics(c, ci, q, x, xdot, tau):
-        n, m = x.shape
-        o_M, o_bias, o_acc = np.empty((n, m, m)), np.empty((n, m)), np.empty((n, m))
-        wd = _dynamics_work()
-        for i in range(n):
-            qi, xi = paths.vector(path, q[i]), paths.vector(path, x[i])
-            vi, ti = paths.vector(path, xdot[i]), paths.vector(path, tau[i])
-            M, bias, force = equations(path, c, ci, qi, xi, vi, ti, wd)
-            acc = solve_acceleration(path, M, bias, force, wd, wd[D_ACC])
-            for j in range(m):
-                o_bias[i, j] = bias[j]
-                o_acc[i, j] = acc[j]
-                row = M[j]
-                for k in range(m):
-                    o_M[i, j, k] = row[k]
-        return o_M, o_bias, o_acc
-
-    # One qualified name per path: Numba's on-disk cache keeps one index per name (see ``step._path_kernels``).
-    dynamics.__qualname__ = dynamics.__name__ = f"dynamics_path{path}"
-    return DynamicsKernels(jit(dynamics))
-
-
-_PATH_KERNELS = {path: _path_kernels(path) for path in ROW_PATHS}
-
-
-def path_kernels(c) -> DynamicsKernels:
-    """The entry kernel of the robot of packed constants ``c`` (its ``row_path``'s)."""
-    return _PATH_KERNELS[row_path(c)]
-
-
-def _state(name: str, value: Any, n: int, width: int, what: str) -> np.ndarray:
-    """``value`` as a C-ordered, writable float64 array of shape (n, width), or a ValueError naming it."""
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (n, width):
-        raise ValueError(f"{name} must have shape ({n}, {width}) holding {what}, got shape {arr.shape}")
-    return np.require(arr, np.float64, ("C", "W"))
-
-
-def _arguments(c: Any, ci: Any, q: Any, x: Any, xdot: Any, tau: Any) -> tuple[np.ndarray, ...]:
-    """Validated arguments of the batches (see ``forward_dynamics_batch``); zero ẋ and τ where None."""
-    c, ci = np.asarray(c, dtype=np.float64), np.asarray(ci, dtype=np.float64)
-    if c.shape != (C_SIZE,):
-        raise ValueError(f"c (packed constants, pack_family) must have shape ({C_SIZE},), got shape {c.shape}")
-    if ci.shape != (C_INERTIA_SIZE,):
-        raise ValueError(f"ci (packed inertia, pack_inertia) must have shape ({C_INERTIA_SIZE},), got shape {ci.shape}")
-    m = int(c[C_N])
-    if ci[I_N] != m:
-        raise ValueError(f"ci packs the inertia of {ci[I_N]:g} legs, but c is a robot with {m} legs")
-    x = np.asarray(x, dtype=np.float64)
-    n = x.shape[0] if x.ndim == 2 else -1
-    x = _state("x", x, n, m, "platform poses")
-    q = _state("q", q, n, m, "actuator coordinates")
-    xdot = _state("xdot", np.zeros((n, m)) if xdot is None else xdot, n, m, "platform twists")
-    tau = _state("tau", np.zeros((n, m)) if tau is None else tau, n, m, "actuator efforts")
-    return read_only(c), read_only(ci), q, x, xdot, tau
-
-
-def mass_matrix_batch(c, ci, q, x) -> np.ndarray:
-    """M(x) of N robots of one geometry, (N, m, m) (``RobotDynamics.mass_matrix``; as ``forward_dynamics_batch``)."""
-    c, ci, q, x, xdot, tau = _arguments(c, ci, q, x, None, None)
-    return path_kernels(c).dynamics(c, ci, q, x, xdot, tau)[0]
-
-
-def bias_batch(c, ci, q, x, xdot) -> np.ndarray:
-    """c(x, ẋ) + G(x) of N robots, (N, m) (``RobotDynamics.bias_forces``; as ``forward_dynamics_batch``)."""
-    c, ci, q, x, xdot, tau = _arguments(c, ci, q, x, xdot, None)
-    return path_kernels(c).dynamics(c, ci, q, x, xdot, tau)[1]
-
-
-def forward_dynamics_batch(c, ci, q, x, xdot, tau) -> np.ndarray:
-    """The twist rates ẍ = M⁻¹ (J_iᵀ τ − c − G) of N robots, shape (N, m) (``forward_dynamics``).
-
-    Args:
-        c: Packed constants, shape (C_SIZE,).
-        ci: Packed inertia, shape (C_INERTIA_SIZE,).
-        q: Actuator coordinates with Φ(q, x) = 0, shape (N, n).
-        x: Platform poses, shape (N, m).
-        xdot: Platform twists, shape (N, m).
-        tau: Actuator efforts [N for legs and sliders, N·m for cranks], shape (N, n).
-
-    Returns:
-        ẍ (planar: m/s², m/s², rad/s²; spatial: v̇ [m/s²], ω̇ [rad/s²] in {B}), shape (N, m); NaN where M is
-        exactly singular.
-
-    Raises:
-        ValueError: On an array of the wrong shape, naming it.
-    """
-    c, ci, q, x, xdot, tau = _arguments(c, ci, q, x, xdot, tau)
-    return path_kernels(c).dynamics(c, ci, q, x, xdot, tau)[2]

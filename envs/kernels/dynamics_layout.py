@@ -51,6 +51,7 @@ DYNAMICS_WORK: tuple[tuple[str, int, str], ...] = (
     ("M", 6, "mass matrix M, m × m"),
     ("LU", 6, "elimination copy of M"),
     ("BIAS", 1, "c + G"),
+    ("GRAV", 1, "G, gravity's share of c + G"),
     ("FORCE", 1, "J_iᵀ τ"),
     ("RHS", 1, "J_iᵀ τ − c − G"),
     ("ACC", 1, "ẍ"),

@@ -29,13 +29,16 @@ from numba.extending import overload
 from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _row
-from envs.kernels.dynamics import _direction, _dynamics_work, _terms3, _terms_work, _wrench, _wrench3, acceleration
+from envs.kernels.dynamics import _dynamics_work, _terms3, _terms_work, acceleration, solve_acceleration
 from envs.kernels.dynamics_layout import (
     D_APPLIED,
     D_BIAS,
+    D_FORCE,
+    D_GRAV,
     D_HOLD,
     D_JT,
     D_LU,
+    D_M,
     D_MEAN,
     D_NEXT,
     D_NU,
@@ -55,15 +58,13 @@ from envs.kernels.layout import (
     C_LMAX,
     C_LMIN,
     C_N,
-    C_P,
     C_SPATIAL,
-    C_TRANSLATIONAL,
     W_KQ,
     W_KX,
 )
 from envs.kernels.linalg import solve3, solve6
 from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, row_path
-from envs.kernels.pose import _all_finite, _frame
+from envs.kernels.pose import _all_finite
 from envs.kernels.rate import advance_rate, substeps
 from envs.kernels.records import Dynamics
 from envs.kernels.setup import jit, jit_inline
@@ -81,6 +82,7 @@ __all__ = [
     "holding_batch",
     "motion_of",
     "own_work",
+    "start_period",
     "with_dynamics",
 ]
 
@@ -91,55 +93,38 @@ drop_stale_caches(__file__)
 
 
 @jit
-def _column3(c, i, q, p0, p1, p2, cs, sn, translational):
-    """K_iᵀ g_i, column i of J_iᵀ, of three actuators on the planar (cs, sn of φ) or translational pose space."""
-    P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
-    r0, r1 = cs * P0 - sn * P1, sn * P0 + cs * P1
-    g0, g1, g2 = _direction(c, i, q[i], p0 + r0, p1 + r1, p2 + P2)
-    return _wrench3(translational, r0, r1, g0, g1, g2)
+def _hold3(grav, columns):
+    """τ_h with J_iᵀ τ_h = G from ``_terms3``' G and J_iᵀ's columns (a tuple; NaN where J_i is singular)."""
+    a, b, d = columns
+    t0, t1, t2, _ = solve3(a[0], b[0], d[0], a[1], b[1], d[1], a[2], b[2], d[2], grav[0], grav[1], grav[2])
+    return t0, t1, t2
 
 
 @jit
 def _holding3(c, ci, q, x):
     """τ_h with J_iᵀ τ_h = G of three actuators, planar or translational (a tuple; NaN where J_i is singular)."""
     zero = (0.0, 0.0, 0.0)
-    _, G, _ = _terms3(c, ci, q, x, zero, zero)
-    translational = c[C_TRANSLATIONAL] != 0.0
-    if translational:
-        cs, sn, p2 = 1.0, 0.0, x[2]
+    _, _, _, grav, columns = _terms3(c, ci, q, x, zero, zero, np.bool_(True))
+    return _hold3(grav, columns)
+
+
+@jit
+def _hold_work(wd, m, out):
+    """τ_h with J_iᵀ τ_h = G into out, from the rows D_JT and D_GRAV of wd that ``_terms_work`` filled."""
+    if m == 3:
+        a, b, d, G = wd[D_JT], wd[D_JT + 1], wd[D_JT + 2], wd[D_GRAV]
+        out[0], out[1], out[2], _ = solve3(a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], G[0], G[1], G[2])
     else:
-        cs, sn, p2 = math.cos(x[2]), math.sin(x[2]), 0.0
-    # The indices as int64, not as constants: one compiled _column3 (and _direction, _anchor) instead of three.
-    a = _column3(c, np.int64(0), q, x[0], x[1], p2, cs, sn, translational)
-    b = _column3(c, np.int64(1), q, x[0], x[1], p2, cs, sn, translational)
-    d = _column3(c, np.int64(2), q, x[0], x[1], p2, cs, sn, translational)
-    t0, t1, t2, _ = solve3(a[0], b[0], d[0], a[1], b[1], d[1], a[2], b[2], d[2], G[0], G[1], G[2])
-    return t0, t1, t2
+        solve6(wd[D_JT : D_JT + 6], wd[D_GRAV], wd[D_LU : D_LU + 6], out)
 
 
 @jit
 def _holding_work(c, ci, q, x, wd, out):
-    """τ_h with J_iᵀ τ_h = G into out, on any pose space (J_iᵀ in rows D_JT, G in row D_BIAS of wd)."""
+    """τ_h with J_iᵀ τ_h = G into out, on any pose space."""
     m = int(c[C_N])
     zero = wd[D_ZERO, :m]
-    _terms_work(c, ci, q, x, zero, zero, wd)
-    spatial = c[C_SPATIAL] != 0.0
-    translational = c[C_TRANSLATIONAL] != 0.0
-    p0, p1, p2, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _frame(c, x)
-    for i in range(m):
-        P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
-        r0 = r00 * P0 + r01 * P1 + r02 * P2
-        r1 = r10 * P0 + r11 * P1 + r12 * P2
-        r2 = r20 * P0 + r21 * P1 + r22 * P2
-        g0, g1, g2 = _direction(c, i, q[i], p0 + r0, p1 + r1, p2 + r2)
-        G = _wrench(spatial, translational, r0, r1, r2, g0, g1, g2)
-        for j in range(m):
-            wd[D_JT + j, i] = G[j]
-    if m == 3:
-        a, b, d, G = wd[D_JT], wd[D_JT + 1], wd[D_JT + 2], wd[D_BIAS]
-        out[0], out[1], out[2], _ = solve3(a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], G[0], G[1], G[2])
-    else:
-        solve6(wd[D_JT : D_JT + 6], wd[D_BIAS], wd[D_LU : D_LU + 6], out)
+    _terms_work(c, ci, q, x, zero, zero, wd, np.bool_(True))
+    _hold_work(wd, m, out)
 
 
 def holding(path, c, ci, q, x, wd, out):
@@ -161,6 +146,55 @@ def _holding(path, c, ci, q, x, wd, out):
 
         return work
     return lambda path, c, ci, q, x, wd, out: _holding3(c, ci, q, x)
+
+
+def start_period(path, c, ci, q, x, xdot, action, wd):
+    """(τ_h, τ, τ / τ_max, ẍ) at a control period's start, from one evaluation of the equations of motion.
+
+    The holding forces at (q, x), the efforts of ``action`` on them (``efforts``) and the twist rate under those
+    efforts at (q, x, ẋ): vectors of the path (the work path's are rows of ``wd``; ẍ is row D_STAGE).
+    """
+    return paths._compiled_only()
+
+
+@overload(start_period, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _start_period(path, c, ci, q, x, xdot, action, wd):
+    if _literal_path(path) == WORK_ARRAYS:
+
+        def work(path, c, ci, q, x, xdot, action, wd):
+            m = x.shape[0]
+            _terms_work(c, ci, q, x, xdot, wd[D_ZERO, :m], wd, np.bool_(True))
+            hold = wd[D_HOLD, :m]
+            _hold_work(wd, m, hold)
+            tau, applied = efforts(path, ci, hold, action, wd[D_TAU], wd[D_APPLIED])
+            force = wd[D_FORCE, :m]
+            for j in range(m):  # J_iᵀ τ, summed over the legs in the order of ``_terms_work``
+                total = 0.0
+                for k in range(m):
+                    total += tau[k] * wd[D_JT + j, k]
+                force[j] = total
+            return (
+                hold,
+                tau,
+                applied,
+                solve_acceleration(path, wd[D_M : D_M + m, :m], wd[D_BIAS, :m], force, wd, wd[D_STAGE]),
+            )
+
+        return work
+
+    def registers(path, c, ci, q, x, xdot, action, wd):
+        zero = (0.0, 0.0, 0.0)
+        M, bias, _, grav, (a, b, d) = _terms3(c, ci, q, x, xdot, zero, np.bool_(True))
+        hold = _hold3(grav, (a, b, d))
+        tau, applied = efforts(path, ci, hold, action, wd[D_TAU], wd[D_APPLIED])
+        # J_iᵀ τ, summed over the legs in the order of ``_terms3``
+        f = (0.0 + tau[0] * a[0], 0.0 + tau[0] * a[1], 0.0 + tau[0] * a[2])
+        f = (f[0] + tau[1] * b[0], f[1] + tau[1] * b[1], f[2] + tau[1] * b[2])
+        f = (f[0] + tau[2] * d[0], f[1] + tau[2] * d[1], f[2] + tau[2] * d[2])
+        rows = ((M[0], M[1], M[2]), (M[1], M[3], M[4]), (M[2], M[4], M[5]))
+        return hold, tau, applied, solve_acceleration(path, rows, bias, f, wd, wd[D_STAGE])
+
+    return registers
 
 
 @jit
@@ -276,9 +310,8 @@ def beyond_stops(c, q):
 
 
 @jit_inline
-def _rkmk4(path, c, ci, q, x, v, tau, h, wd):
-    """One RKMK4 step of h from (q, x, ẋ) under τ: (pose, twist) at its end, in rows D_NEXT of wd on the work path."""
-    a0 = acceleration(path, c, ci, q, x, v, tau, wd, wd[D_STAGE])
+def _rkmk4(path, c, ci, q, x, v, tau, h, wd, a0):
+    """One RKMK4 step of h from (q, x, ẋ) with ẍ = a0 there, under τ: (pose, twist) at its end (rows D_NEXT)."""
     pose = paths.retract(path, c, x, v, 0.5 * h, wd[D_POSE])
     nu = paths.axpy(path, v, 0.5 * h, a0, wd[D_NU])
     r1 = dexp_inverse(path, c, v, 0.5 * h, nu, wd[D_XI + 1])
@@ -316,18 +349,17 @@ def advance_force(path, c, dynamics, i, q0, x0, action, w):
         where it was, at rest, and ``failed`` is set.
     """
     ci, wd = _row(dynamics.inertia, i), dynamics.work
-    hold = holding(path, c, ci, q0, x0, wd, wd[D_HOLD])
-    tau, applied = efforts(path, ci, hold, action, wd[D_TAU], wd[D_APPLIED])
     dt = c[C_DT]
     q = paths.keep(path, q0, w[W_KQ])
     x = paths.keep(path, x0, w[W_KX])
     v = paths.keep(path, paths.vector(path, dynamics.twist[i]), wd[D_XD])
+    hold, tau, applied, a0 = start_period(path, c, ci, q, x, v, action, wd)
     # at least SUBSTEPS; more at speed, each moving at most max_substep (at most max_substeps): rate's rule
     count = max(substeps(c, paths.metric(path, c, v)), int(ci[I_SUBSTEPS]))
     h = dt / count
     failed = False
-    for _ in range(count):
-        x1, v1 = _rkmk4(path, c, ci, q, x, v, tau, h, wd)
+    for s in range(count):
+        x1, v1 = _rkmk4(path, c, ci, q, x, v, tau, h, wd, a0)
         x = paths.keep(path, x1, w[W_KX])
         v = paths.keep(path, v1, wd[D_XD])
         q = paths.inverse_kinematics(path, c, x, w[W_KQ])
@@ -337,6 +369,8 @@ def advance_force(path, c, dynamics, i, q0, x0, action, w):
             break
         if beyond_stops(c, q):  # a drive hit its hard stop: the period (and the episode) ends here
             break
+        if s + 1 < count:
+            a0 = acceleration(path, c, ci, q, x, v, tau, wd, wd[D_STAGE])
     if failed:  # back at the start, at rest (rare: the episode then ends)
         q = paths.keep(path, q0, w[W_KQ])
         x = paths.keep(path, x0, w[W_KX])

@@ -8,7 +8,7 @@ import numba
 import numpy as np
 import pytest
 
-from envs.kernels import dynamics
+from envs.kernels import dynamics, dynamics_batch
 from envs.kernels.dynamics_layout import C_INERTIA_SIZE
 from envs.kernels.packing import PLANAR_LEGS, THREE, WORK_ARRAYS, pack_family, row_path
 from envs.presets import build_family_params
@@ -71,10 +71,10 @@ def test_equations_of_motion_match_the_reference(name):
     _, c, ci, reference = _robot(name)
     assert row_path(c) == PRESETS[name]
     q, x, xdot, tau = _states(name, 16)
-    _close(dynamics.mass_matrix_batch(c, ci, q, x), reference.mass_matrix(q, x), f"{name}: M")
-    _close(dynamics.bias_batch(c, ci, q, x, xdot), reference.bias_forces(q, x, xdot), f"{name}: c + G")
+    _close(dynamics_batch.mass_matrix_batch(c, ci, q, x), reference.mass_matrix(q, x), f"{name}: M")
+    _close(dynamics_batch.bias_batch(c, ci, q, x, xdot), reference.bias_forces(q, x, xdot), f"{name}: c + G")
     _close(
-        dynamics.forward_dynamics_batch(c, ci, q, x, xdot, tau),
+        dynamics_batch.forward_dynamics_batch(c, ci, q, x, xdot, tau),
         reference.forward_dynamics(q, x, xdot, tau),
         f"{name}: ẍ",
     )
@@ -85,7 +85,7 @@ def test_work_path_matches_the_reference_on_three_actuators(name):
     """The work-array path, written for any pose space, gives the reference's terms for planar and Delta robots too."""
     _, c, ci, reference = _robot(name)
     q, x, xdot, tau = _states(name, 6, seed=1)
-    M, bias, acc = dynamics._PATH_KERNELS[WORK_ARRAYS].dynamics(c, ci, q, x, xdot, tau)
+    M, bias, acc = dynamics_batch._PATH_KERNELS[WORK_ARRAYS].dynamics(c, ci, q, x, xdot, tau)
     _close(M, reference.mass_matrix(q, x), f"{name}: M")
     _close(bias, reference.bias_forces(q, x, xdot), f"{name}: c + G")
     _close(acc, reference.forward_dynamics(q, x, xdot, tau), f"{name}: ẍ")
@@ -139,14 +139,14 @@ def test_bad_arguments_raise_value_errors_naming_them():
     q, x, xdot, tau = _states("planar_3rpr", 2)
     size = C_INERTIA_SIZE
     with pytest.raises(ValueError, match=rf"ci \(packed inertia, pack_inertia\) must have shape \({size},\), got "):
-        dynamics.mass_matrix_batch(c, ci[:-1], q, x)
+        dynamics_batch.mass_matrix_batch(c, ci[:-1], q, x)
     with pytest.raises(ValueError, match=rf"must have shape \({size},\), got shape \(2, {size}\)"):
-        dynamics.forward_dynamics_batch(c, np.stack([ci, ci]), q, x, xdot, tau)
+        dynamics_batch.forward_dynamics_batch(c, np.stack([ci, ci]), q, x, xdot, tau)
     with pytest.raises(ValueError, match="ci packs the inertia of 6 legs, but c is a robot with 3 legs"):
-        dynamics.bias_batch(c, ci_hexapod, q, x, xdot)
+        dynamics_batch.bias_batch(c, ci_hexapod, q, x, xdot)
     with pytest.raises(ValueError, match=r"c \(packed constants, pack_family\) must have shape"):
-        dynamics.mass_matrix_batch(c[:-1], ci, q, x)
+        dynamics_batch.mass_matrix_batch(c[:-1], ci, q, x)
     with pytest.raises(ValueError, match=r"tau must have shape \(2, 3\) holding actuator efforts, got shape \(2, 2\)"):
-        dynamics.forward_dynamics_batch(c, ci, q, x, xdot, tau[:, :2])
+        dynamics_batch.forward_dynamics_batch(c, ci, q, x, xdot, tau[:, :2])
     with pytest.raises(ValueError, match=r"xdot must have shape \(2, 3\) holding platform twists, got shape \(3,\)"):
-        dynamics.bias_batch(c, ci, q, x, xdot[0])
+        dynamics_batch.bias_batch(c, ci, q, x, xdot[0])
