@@ -2,19 +2,22 @@
 
 ``layout`` holds the offsets of the packed constants; ``packing`` packs them; ``pose`` the rotations and
 pose-space operations; ``constraints`` Φ, the Jacobians, the kinematics and k over work arrays; ``step`` the
-transition and the fused step of any robot; ``evaluation`` its reference, reward and observation; ``generic``
-gathers the public kernels (with the certificate and the samplers of ``envs.tasks``); ``paths`` the step's
-operations on each row path (vectors in registers or in work arrays); ``three`` the algebra of three actuators
-in registers; ``dynamics`` the equations of motion (mass matrix, velocity-product and gravity terms, forward
-dynamics) on each row path, with the packed inertia of ``dynamics_layout`` (its table and ``pack_inertia``);
-``linalg`` the small dense linear algebra; ``setup`` the threads, borrowed arrays and NumPy's random streams; ``cache``
-keeps Numba's on-disk cache true.
+transition and the fused step of any robot; ``evaluation`` its reference, reward and observation; ``at_rest``
+the evaluation of states as they are, by the step's kernel; ``generic`` gathers the public kernels (with the
+certificate and the samplers of ``envs.tasks``); ``paths`` the step's operations on each row path (vectors in
+registers or in work arrays); ``three`` the algebra of three actuators in registers; ``dynamics`` the equations
+of motion (mass matrix, velocity-product and gravity terms, forward dynamics) on each row path, with the packed
+inertia of ``dynamics_layout`` (its table and ``pack_inertia``) and N robots' batches in ``dynamics_batch``;
+``linalg`` the small dense linear algebra; ``setup`` the threads, borrowed arrays and NumPy's random streams;
+``cache`` keeps Numba's on-disk cache true.
 """
 
 __all__ = [
+    "at_rest",
     "cache",
     "constraints",
     "dynamics",
+    "dynamics_batch",
     "dynamics_layout",
     "evaluation",
     "generic",

@@ -9,6 +9,7 @@ reward and observation), ``envs.tasks.certificate`` (the safe set) and ``envs.ta
 
 from __future__ import annotations
 
+from envs.kernels.at_rest import evaluate_batch
 from envs.kernels.constraints import forward_batch, singularity_batch
 from envs.kernels.evaluation import reference_batch
 from envs.kernels.layout import C_SIZE, E_COST1, E_FIXED, PATH_VERTICES
@@ -24,7 +25,6 @@ from envs.kernels.records import StepCall
 from envs.kernels.setup import PARALLEL_MIN_BATCH, random_streams
 from envs.kernels.step import (
     allocate_step,
-    evaluate_batch,
     initial_batch,
     path_kernels,
     step_batch,

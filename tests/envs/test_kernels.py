@@ -580,7 +580,7 @@ def test_env_state_is_a_copy(rng):
     ],
 )
 def test_an_episode_start_evaluates_with_the_steps_compiled_kernel(monkeypatch, env_id, kwargs):
-    """The evaluation of a reset (``evaluate_batch``) builds a ``StepCall`` of the very type the env's step builds.
+    """A reset's evaluation (``at_rest.evaluate_batch``) builds a ``StepCall`` of the very type the env's step builds.
 
     The step's kernel then evaluates the start without compiling a second specialisation of itself (seconds at the
     first reset). A call whose constants, say, were writable would be another type.
@@ -588,15 +588,17 @@ def test_an_episode_start_evaluates_with_the_steps_compiled_kernel(monkeypatch, 
     import gymnasium as gym
     import numba
 
+    from envs.kernels import at_rest
+
     built = []
-    original = step_kernels.evaluation_call
+    original = at_rest.evaluation_call
 
     def recording(*args):
         result = original(*args)
         built.append(numba.typeof(result[0]))
         return result
 
-    monkeypatch.setattr(step_kernels, "evaluation_call", recording)
+    monkeypatch.setattr(at_rest, "evaluation_call", recording)
     env = gym.make(env_id, **kwargs)
     env.reset(seed=0)
     env.step(np.zeros(env.action_space.shape, dtype=np.float32))
