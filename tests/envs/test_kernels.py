@@ -606,3 +606,19 @@ def test_an_episode_start_evaluates_with_the_steps_compiled_kernel(monkeypatch, 
     stepped = numba.typeof(inner._buffers[0]._call)
     assert built and all(typ == stepped for typ in built), (built, stepped)
     env.close()
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_the_evaluation_at_rest_leaves_the_state_as_it_was(params, rng, parallel):
+    """``physics.evaluate`` runs the step's kernel on the state's own arrays, told not to move: it writes nothing
+    into them (not q, x, t, k, k_I, the residual, the reference nor the actions), on one thread and on every core.
+    """
+    n = 2 * fk.PARALLEL_MIN_BATCH + 5
+    state = _random_states(params, rng, n)
+    state = state._replace(t=rng.integers(0, 50, size=n))
+    action, reason = rng.uniform(-1, 1, size=(n, 3)), rng.integers(0, 3, size=n)
+    before = [np.copy(a) for a in (*state[:7], *state.reference[:3], action, reason)]
+    physics.evaluate(params, state, action, reason, True, parallel=parallel)
+    after = (*state[:7], *state.reference[:3], action, reason)
+    for old, new in zip(before, after, strict=True):
+        np.testing.assert_array_equal(new, old)
