@@ -610,8 +610,9 @@ def test_an_episode_start_evaluates_with_the_steps_compiled_kernel(monkeypatch, 
 
 @pytest.mark.parametrize("parallel", [False, True])
 def test_the_evaluation_at_rest_leaves_the_state_as_it_was(params, rng, parallel):
-    """``physics.evaluate`` runs the step's kernel on the state's own arrays, told not to move: it writes nothing
-    into them (not q, x, t, k, k_I, the residual, the reference nor the actions), on one thread and on every core.
+    """``physics.evaluate`` writes nothing into the state's arrays, which the step's kernel runs on, told not to move.
+
+    Not q, x, t, k, k_I, the residual, the reference nor the actions; on one thread and on every core.
     """
     n = 2 * fk.PARALLEL_MIN_BATCH + 5
     state = _random_states(params, rng, n)
