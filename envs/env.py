@@ -121,7 +121,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             self._trail.append(self.params.robot.pose_space.position(self._state.x[0]).copy())
         n = self.params.robot.n_actuators
         evaluation, observations = evaluate(
-            self.params, self._state, np.zeros((1, n)), np.zeros(1, dtype=np.int64), self.with_velocity
+            self.params, self._state, np.zeros((1, n)), np.zeros(1, dtype=np.int64), self.with_velocity, validate=False
         )
         if self.render_mode == "human":
             self.render()

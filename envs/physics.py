@@ -280,6 +280,7 @@ def evaluate(
     with_velocity: bool,
     rates: np.ndarray | None = None,
     parallel: bool = False,
+    validate: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Reward terms, errors, success, cost, targets and observations of a state, in one compiled pass.
 
@@ -292,6 +293,8 @@ def evaluate(
         rates: Under force control, the actuator rates the observation holds, shape (N, n) (None: at rest).
         parallel: Compute with the multi-core step's kernel (``fk.evaluate_batch``): a vector env that steps
             on every core passes True, so that it compiles one step only.
+        validate: Check the state's shapes (``check_state``). The envs pass False for the states that
+            ``initial_state`` just made.
 
     Returns:
         (evaluation (rows of ``params.evaluation_rows``, N) float64, observations (N, D) float32). The evaluation
@@ -300,7 +303,7 @@ def evaluate(
     """
     action = _rows(action, params.robot.n_actuators, "action")
     reason = np.asarray(reason, dtype=np.int64)
-    n = check_state(params, state)
+    n = check_state(params, state) if validate else state.q.shape[0]
     if action.shape[0] != n or reason.shape != (n,):
         raise ValueError(f"action and reason must have {n} rows, got shapes {action.shape} and {reason.shape}")
     low, high = observation_bounds(params, with_velocity)

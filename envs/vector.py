@@ -445,7 +445,9 @@ class FamilyVectorEnv(VectorEnv):
         n = state.q.shape[0]
         action, reason = np.zeros((n, self._n_actions)), np.zeros(n, dtype=np.int64)
         parallel = self.num_envs >= PARALLEL_MIN_BATCH  # the kernel of this env's steps (``physics.step``)
-        evaluation, observations = evaluate(self.params, state, action, reason, self.with_velocity, parallel=parallel)
+        evaluation, observations = evaluate(
+            self.params, state, action, reason, self.with_velocity, parallel=parallel, validate=False
+        )
         return observations, step_info(self.params, evaluation, reason, state)
 
     def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> FamilyState:
