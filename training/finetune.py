@@ -67,25 +67,29 @@ def finetune(source: Path, run_dir: Path, config: FinetuneConfig, log=print) -> 
             "ent_coef": 0.0,
         },
     )
-    model.set_logger(configure(str(run_dir), ["csv"]))  # progress.csv in the run folder, not a temp folder
+    logger = configure(str(run_dir), ["csv"])  # progress.csv in the run folder, not a temp folder
+    model.set_logger(logger)
     policy = model.policy
     with torch.no_grad():
         policy.log_std.fill_(config.log_std)
     actor = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters(), policy.log_std]
     phases = []
     clock = time.perf_counter()
-    for name, steps, frozen in (("critic", config.warmup_steps, True), ("both", config.steps, False)):
-        if steps <= 0:
-            continue
-        for parameter in actor:
-            parameter.requires_grad_(not frozen)
-        start = time.perf_counter()
-        model.learn(steps, reset_num_timesteps=False, progress_bar=False)
-        buffer = list(model.ep_info_buffer)
-        success = float(np.mean([info.get("is_success", 0.0) for info in buffer])) if buffer else float("nan")
-        phases.append({"phase": name, "steps": steps, "seconds": time.perf_counter() - start,
-                       "recent_success": success})  # fmt: skip
-        log(f"{name}: {steps} steps, recent rollouts {success:.0%} success")
+    try:
+        for name, steps, frozen in (("critic", config.warmup_steps, True), ("both", config.steps, False)):
+            if steps <= 0:
+                continue
+            for parameter in actor:
+                parameter.requires_grad_(not frozen)
+            start = time.perf_counter()
+            model.learn(steps, reset_num_timesteps=False, progress_bar=False)
+            buffer = list(model.ep_info_buffer)
+            success = float(np.mean([info.get("is_success", 0.0) for info in buffer])) if buffer else float("nan")
+            phases.append({"phase": name, "steps": steps, "seconds": time.perf_counter() - start,
+                           "recent_success": success})  # fmt: skip
+            log(f"{name}: {steps} steps, recent rollouts {success:.0%} success")
+    finally:
+        logger.close()  # the CSV file, else left open until garbage collection (a ResourceWarning)
     model.save(run_dir / "model.zip")
     venv.save(str(run_dir / "vecnormalize.pkl"))
     run_config = {**source_config, "finetuned_from": str(source), "finetune": asdict(config)}

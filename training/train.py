@@ -287,7 +287,8 @@ def train(
     if action_noise is not None:
         hyper["action_noise"] = action_noise
     model = cls(policy, venv, seed=seed, verbose=0, device="cpu", **hyper)
-    model.set_logger(configure(str(run), ["csv"]))  # progress.csv in the run folder (SB3 would make a temp folder)
+    logger = configure(str(run), ["csv"])  # progress.csv in the run folder (SB3 would make a temp folder)
+    model.set_logger(logger)
     callback = EvalCallback(
         eval_env,
         n_eval_episodes=n_eval,
@@ -299,7 +300,10 @@ def train(
         verbose=0,
     )
     start = time.perf_counter()
-    model.learn(total_timesteps=total, callback=callback, progress_bar=progress_bar)
+    try:
+        model.learn(total_timesteps=total, callback=callback, progress_bar=progress_bar)
+    finally:
+        logger.close()  # the CSV file, else left open until garbage collection (a ResourceWarning)
     wall = time.perf_counter() - start
     model.save(run / "model.zip")
     if normalize:

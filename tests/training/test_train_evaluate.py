@@ -64,6 +64,22 @@ METRICS = (
 )
 
 
+def _open_in_this_process(folder: Path) -> list[str]:
+    """The files below ``folder`` that this process holds open (``/proc/self/fd``; empty where there is none)."""
+    fds = Path("/proc/self/fd")
+    if not fds.is_dir():
+        return []
+    paths = []
+    for fd in fds.iterdir():
+        try:
+            target = os.readlink(fd)
+        except OSError:  # closed meanwhile
+            continue
+        if target.startswith(str(folder)):
+            paths.append(target)
+    return paths
+
+
 def _assert_png(path: Path) -> None:
     """The file is a non-trivial PNG image."""
     assert path.is_file(), f"{path.name} missing"
@@ -150,6 +166,7 @@ def test_train_then_evaluate(algo, tmp_path, capsys):
         command=command,
     )
     assert run == tmp_path / "run"
+    assert not _open_in_this_process(run), "train() left files of its run folder open (SB3's CSV logger)"
     _check_run_folder(run, algo, spec, command)
     if algo == "td3":  # the shipped exploration noise (noise_type / noise_std in td3.yml) reaches the model
         from stable_baselines3 import TD3
