@@ -468,10 +468,11 @@ def step(
         plant = _plant(params, state.plant)
         action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
     call = out.call_for(params, state, ref, observation)  # the call the buffers keep
-    if n < fk.PARALLEL_MIN_BATCH:  # one thread
-        failed = out.kernels.step_serial(call, action)
-    else:
+    parallel = n >= fk.PARALLEL_MIN_BATCH
+    if parallel:
         failed = fk.step_on_every_core(out.kernels, call, action)
+    else:
+        failed = out.kernels.step_serial(call, action)
     if failed:
         _non_finite(action)
     q, x, t, k, k1, residual = out.fields
@@ -484,7 +485,6 @@ def step(
         outcome = (out.outcome.action, out.outcome.reason)
         if twist is not None:  # the controller's twist and rates: the period's differences of its measurements
             outcome += hardware.sensed_motion(params, state.sensed, new.sensed)
-        parallel = n >= fk.PARALLEL_MIN_BATCH
         out.observations[:] = _sensed_observations(params, new, observation, ref, outcome, parallel)
     return new, out.outcome, out.evaluation, _with_codes(new, out.observations)
 

@@ -235,7 +235,7 @@ def _terms3(c, ci, q, x, xdot, tau, split):
         M = (M[0], M[1], M[2], M[3], M[4], M[5] + ci[I_INERTIA + 8])
     b = _wrench3(translational, r0, r1, mass * (-w2 * r0 - gx), mass * (-w2 * r1 - gy), -mass * gz)
     grav = _wrench3(translational, r0, r1, mass * -gx, mass * -gy, -mass * gz)
-    f = columns0 = columns1 = columns2 = zero
+    columns0 = columns1 = columns2 = zero
     for i in range(3):
         P0, P1, P2 = c[C_P + 3 * i], c[C_P + 3 * i + 1], c[C_P + 3 * i + 2]
         r0, r1 = cs * P0 - sn * P1, sn * P0 + cs * P1
@@ -250,15 +250,23 @@ def _terms3(c, ci, q, x, xdot, tau, split):
         if split:
             W = _wrench3(translational, r0, r1, Fg0, Fg1, Fg2)
             grav = (grav[0] + W[0], grav[1] + W[1], grav[2] + W[2])
-        t = tau[i]
-        f = (f[0] + t * G[0], f[1] + t * G[1], f[2] + t * G[2])
         if i == 0:
             columns0 = G
         elif i == 1:
             columns1 = G
         else:
             columns2 = G
-    return M, b, f, grav, (columns0, columns1, columns2)
+    columns = (columns0, columns1, columns2)
+    return M, b, _generalised3(tau, columns), grav, columns
+
+
+@jit
+def _generalised3(tau, columns):
+    """J_iᵀ τ = Σ_i τ_i K_iᵀ g_i of three actuators from J_iᵀ's columns (``_terms3``), summed leg by leg."""
+    a, b, d = columns
+    f = (0.0 + tau[0] * a[0], 0.0 + tau[0] * a[1], 0.0 + tau[0] * a[2])
+    f = (f[0] + tau[1] * b[0], f[1] + tau[1] * b[1], f[2] + tau[1] * b[2])
+    return f[0] + tau[2] * d[0], f[1] + tau[2] * d[1], f[2] + tau[2] * d[2]
 
 
 # -- any pose space: work arrays ----------------------------------------------------------------------------
@@ -397,6 +405,8 @@ def _terms_work(c, ci, q, x, xdot, tau, wd, split):
         _add_leg(M, m, s_g, s_x, G, H)
         W = _wrench(spatial, translational, r0, r1, r2, F0, F1, F2)
         Wg = _wrench(spatial, translational, r0, r1, r2, Fg0, Fg1, Fg2)
+        # J_iᵀ τ summed here, in ``_generalised_work``'s order: a pass over D_JT after the loop costs the hexapod's
+        # force step 2.5 %
         t = tau[i]
         for j in range(m):
             bias[j] += W[j]
@@ -409,6 +419,16 @@ def _terms_work(c, ci, q, x, xdot, tau, wd, split):
     for j in range(m):  # the lower triangle
         for k in range(j):
             M[j, k] = M[k, j]
+
+
+@jit
+def _generalised_work(tau, jt, m, out):
+    """J_iᵀ τ into out from J_iᵀ (rows D_JT of ``_terms_work`` with ``split``), summed leg by leg."""
+    for j in range(m):
+        total = 0.0
+        for k in range(m):
+            total += tau[k] * jt[j, k]
+        out[j] = total
 
 
 @jit

@@ -29,7 +29,15 @@ from numba.extending import overload
 from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _row
-from envs.kernels.dynamics import _dynamics_work, _terms3, _terms_work, acceleration, solve_acceleration
+from envs.kernels.dynamics import (
+    _dynamics_work,
+    _generalised3,
+    _generalised_work,
+    _terms3,
+    _terms_work,
+    acceleration,
+    solve_acceleration,
+)
 from envs.kernels.dynamics_layout import (
     D_APPLIED,
     D_BIAS,
@@ -168,11 +176,7 @@ def _start_period(path, c, ci, q, x, xdot, action, wd):
             _hold_work(wd, m, hold)
             tau, applied = efforts(path, ci, hold, action, wd[D_TAU], wd[D_APPLIED])
             force = wd[D_FORCE, :m]
-            for j in range(m):  # J_iᵀ τ, summed over the legs in the order of ``_terms_work``
-                total = 0.0
-                for k in range(m):
-                    total += tau[k] * wd[D_JT + j, k]
-                force[j] = total
+            _generalised_work(tau, wd[D_JT : D_JT + m], m, force)
             return (
                 hold,
                 tau,
@@ -187,12 +191,8 @@ def _start_period(path, c, ci, q, x, xdot, action, wd):
         M, bias, _, grav, (a, b, d) = _terms3(c, ci, q, x, xdot, zero, np.bool_(True))
         hold = _hold3(grav, (a, b, d))
         tau, applied = efforts(path, ci, hold, action, wd[D_TAU], wd[D_APPLIED])
-        # J_iᵀ τ, summed over the legs in the order of ``_terms3``
-        f = (0.0 + tau[0] * a[0], 0.0 + tau[0] * a[1], 0.0 + tau[0] * a[2])
-        f = (f[0] + tau[1] * b[0], f[1] + tau[1] * b[1], f[2] + tau[1] * b[2])
-        f = (f[0] + tau[2] * d[0], f[1] + tau[2] * d[1], f[2] + tau[2] * d[2])
         rows = ((M[0], M[1], M[2]), (M[1], M[3], M[4]), (M[2], M[4], M[5]))
-        return hold, tau, applied, solve_acceleration(path, rows, bias, f, wd, wd[D_STAGE])
+        return hold, tau, applied, solve_acceleration(path, rows, bias, _generalised3(tau, (a, b, d)), wd, wd[D_STAGE])
 
     return registers
 
