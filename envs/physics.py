@@ -230,7 +230,9 @@ def initial_state(
     return state
 
 
-def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> tuple[FamilyState, FamilyOutcome]:
+def transition(
+    params: FamilyParams, state: FamilyState, action: np.ndarray, *, validate: bool = True
+) -> tuple[FamilyState, FamilyOutcome]:
     """Advance N robots by one control period: predict, correct, measure, terminate.
 
     Under force control, the efforts of the action move (x, ẋ) by the equations of motion instead
@@ -242,17 +244,23 @@ def transition(params: FamilyParams, state: FamilyState, action: np.ndarray) -> 
     whose correction fails stays where it was; the others are checked for an assembly-mode jump, a flip of
     sign(det J_x), k < hard_threshold and leaving the pose bounds, in that order.
 
+    It runs the step's own compiled kernel, told not to evaluate (``fk.transition_batch``): an env that has
+    compiled its step compiles nothing more to look a period ahead (the shield).
+
     Args:
         params: Environment constants.
         state: The robots' state.
         action: Normalised stroke rates, shape (N, n), finite.
+        validate: Check the state's shapes (``check_state``). The shield passes False after its first call on a
+            state.
 
     Returns:
         (the new state, the outcome); the new state has no measurement (``sensed`` None): ``step`` takes one.
     """
-    action = _rows(action, params.robot.n_actuators, "action")
-    if action.shape[0] != check_state(params, state):
-        raise ValueError(f"action must have shape {state.q.shape}, got {action.shape}")
+    if validate or action.shape != state.q.shape or action.dtype != np.float64:
+        action = _rows(action, params.robot.n_actuators, "action")
+        if action.shape[0] != (check_state(params, state) if validate else state.q.shape[0]):
+            raise ValueError(f"action must have shape {state.q.shape}, got {action.shape}")
     if not np.isfinite(action).all():
         rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
         raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}", rows)

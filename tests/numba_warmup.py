@@ -188,7 +188,7 @@ def _work_array_transition(env: gym.Env) -> None:
     cs = env.params.packed_rows
     work = step_kernels._PATH_KERNELS[packing.WORK_ARRAYS, packing.pose_space_code(cs)]
     motion = records.Motion(state.q, state.x, state.t, state.det_sign, state.residual)
-    work.transition(cs, *motion, np.zeros_like(state.q))
+    step_kernels.transition_batch(cs, motion, np.zeros_like(state.q), kernels=work)
 
 
 def _batch_kernels(env: gym.Env) -> None:

@@ -13,20 +13,13 @@ from envs.kernels import packing
 from envs.kernels.dynamics_layout import C_INERTIA_SIZE
 from envs.kernels.layout import E_FIXED
 from envs.kernels.setup import PARALLEL_MIN_BATCH, on_every_core
-from envs.kernels.step import path_kernels, step_call
+from envs.kernels.step import path_kernels, step_call, writable
 
 __all__ = ["evaluate_batch", "evaluation_call"]
 
 #: The inertia of a force-control ``StepCall`` that only evaluates, which it does not read.
 _NO_INERTIA = packing.read_only(np.zeros((1, C_INERTIA_SIZE)))
 _F8, _I8 = np.dtype(np.float64), np.dtype(np.int64)
-
-
-def _writable(a, dtype=_F8):
-    """``a`` if it is a C-ordered writable array of ``dtype`` (0.1 µs, where ``np.require`` takes 0.7), else a copy."""
-    if type(a) is np.ndarray and a.dtype == dtype and a.flags.carray:
-        return a
-    return np.require(a, dtype, ("C", "W"))
 
 
 def evaluate_batch(cs, observation, measured, reference, outcome, parallel=False):
@@ -72,15 +65,15 @@ def evaluation_call(cs, observation, measured, reference, outcome):
     """
     if not (type(cs) is np.ndarray and cs.dtype == _F8 and cs.flags.c_contiguous and not cs.flags.writeable):
         cs = packing.read_only(np.require(cs, np.float64, "C"))
-    q, x, k, k1, residual = (_writable(measured[j]) for j in (0, 1, 3, 4, 5))
-    t, action, reason = _writable(measured[2], _I8), _writable(outcome[0]), _writable(outcome[1], _I8)
-    reference = tuple(_writable(a) for a in reference)
+    q, x, k, k1, residual = (writable(measured[j]) for j in (0, 1, 3, 4, 5))
+    t, action, reason = writable(measured[2], _I8), writable(outcome[0]), writable(outcome[1], _I8)
+    reference = tuple(writable(a) for a in reference)
     n, m = x.shape
     low = observation[0]
     evaluation, observations = np.empty((E_FIXED + 3 * m, n)), np.empty((n, low.shape[0]), dtype=np.float32)
     spare, unread = np.empty(n), np.empty(q.shape)  # what only a moving step reads or writes
     if len(outcome) > 2:  # force control: the observation's twists and actuator rates
-        twist, rates = _writable(outcome[2]), _writable(outcome[3])
+        twist, rates = writable(outcome[2]), writable(outcome[3])
         force = (_NO_INERTIA, twist, twist, unread, unread)
     else:
         rates, force = unread, ()

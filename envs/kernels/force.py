@@ -91,7 +91,6 @@ __all__ = [
     "motion_of",
     "own_work",
     "start_period",
-    "with_dynamics",
 ]
 
 drop_stale_caches(__file__)
@@ -426,8 +425,7 @@ def _own_work_of(dynamics):
 def from_extra(extra, n, m):
     """The ``Dynamics`` of a batch from an entry kernel's extra arguments.
 
-    () for rate control (None); (inertia, twist), its outputs allocated here, or (inertia, twist, o_twist, effort,
-    hold) for force control.
+    () for rate control (None), or (inertia, twist, o_twist, effort, hold) for force control.
     """
     return paths._compiled_only()
 
@@ -436,13 +434,6 @@ def from_extra(extra, n, m):
 def _from_extra_of(extra, n, m):
     if len(extra) == 0:
         return lambda extra, n, m: None
-    if len(extra) == 2:
-
-        def allocated(extra, n, m):
-            inertia, twist = extra
-            return Dynamics(inertia, twist, np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), _dynamics_work())
-
-        return allocated
 
     def given(extra, n, m):
         inertia, twist, o_twist, effort, hold = extra
@@ -461,18 +452,6 @@ def _motion_of_control(dynamics, q_rate):
     if isinstance(dynamics, types.NoneType):
         return lambda dynamics, q_rate: None
     return lambda dynamics, q_rate: (dynamics.o_twist, q_rate)
-
-
-def with_dynamics(result, dynamics):
-    """``result``, and with force control the twists, efforts and holding forces: (result, (ẋ, τ, τ_h))."""
-    return paths._compiled_only()
-
-
-@overload(with_dynamics, jit_options=_OVERLOAD_OPTIONS)
-def _with_dynamics_of(result, dynamics):
-    if isinstance(dynamics, types.NoneType):
-        return lambda result, dynamics: result
-    return lambda result, dynamics: (result, (dynamics.o_twist, dynamics.effort, dynamics.hold))
 
 
 # -- the holding forces of N robots ---------------------------------------------------------------------------

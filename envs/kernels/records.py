@@ -133,6 +133,7 @@ STEP_CALL_FIELDS = (
     "strokes",
     "outputs",  # the ``StepArrays`` written, then force control's (inertia, ẋ, ẋ', τ, τ_h) or nothing
     "moving",  # bool: a step (transition, then evaluation), or the evaluation of the outputs' state as it is
+    "evaluating",  # bool: evaluate (reward, observation) after the transition, or the transition only
 )
 
 

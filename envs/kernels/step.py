@@ -28,7 +28,7 @@ from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
 from envs.kernels.evaluation import _evaluate_rows
-from envs.kernels.force import advance, beyond_stops, from_extra, motion_of, own_work, with_dynamics
+from envs.kernels.force import advance, beyond_stops, from_extra, motion_of, own_work
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
@@ -54,7 +54,15 @@ from envs.kernels.layout import (
     W_KQ,
 )
 from envs.kernels.linalg import LANES, inverse_condition6_lanes
-from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, pose_space_code, row_path
+from envs.kernels.packing import (
+    _OVERLOAD_OPTIONS,
+    ROW_PATHS,
+    WORK_ARRAYS,
+    _literal_path,
+    pose_space_code,
+    read_only,
+    row_path,
+)
 from envs.kernels.records import (
     Measured,
     Motion,
@@ -76,6 +84,7 @@ __all__ = [
     "step_on_every_core",
     "strokes_batch",
     "transition_batch",
+    "writable",
 ]
 
 drop_stale_caches(__file__)
@@ -225,16 +234,12 @@ def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, m
     return block
 
 
-@jit_inline
-def _allocate_moved(n, m):
-    """The outputs of ``transition_batch`` for n robots with m pose coordinates (see its Returns)."""
-    q, x, action, q_rate = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
-    k, k1, residual, jump = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    return Moved(q, x, k, k1, residual, action, q_rate, np.empty(n, dtype=np.int64), jump)
-
-
-def transition_batch(cs, state, action, force=()):
+def transition_batch(cs, state, action, force=(), kernels=None):
     """Advance N robots by one control period (the algorithm of ``envs.physics.transition``).
+
+    The step's own compiled kernel runs, told not to evaluate (a ``StepCall`` with ``evaluating`` False, of the
+    type an env's step call has): a transition compiles nothing an env's step has not compiled. From
+    ``PARALLEL_MIN_BATCH`` robots on, it runs on every core, as the step does.
 
     Args:
         cs: Packed constants (``pack_family``) of the robots that move: shape (N, C_SIZE), one row per robot, or
@@ -245,22 +250,70 @@ def transition_batch(cs, state, action, force=()):
             units of the drive limits).
         force: () for rate control, or (inertia, twist) for force control (``envs.kernels.force``): the packed
             inertia and drive limits (``pack_inertia``), (N or 1, C_INERTIA_SIZE), and the twists ẋ (N, m).
+        kernels: The ``PathKernels`` to run (default ``path_kernels(cs)``, the robot's own row path's).
 
     Returns:
         (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]); with
         force control, that and (ẋ' (N, m), efforts τ (N, n), holding forces τ_h (N, n)), the applied action
         being τ / τ_max and the rates the period's mean.
+
+    Raises:
+        ValueError: If an action is not finite.
     """
-    return path_kernels(cs).transition(cs, *state, action, *force)
+    if not (type(cs) is np.ndarray and cs.dtype == _F8 and cs.flags.c_contiguous and not cs.flags.writeable):
+        cs = read_only(np.require(cs, np.float64, "C"))
+    q, x, t, det_sign, residual = state
+    q, x, det_sign, residual = (writable(a) for a in (q, x, det_sign, residual))
+    action, t = writable(action), writable(t, _I8)
+    n, m = x.shape
+    q1, x1, applied, q_rate = (np.empty((n, m)) for _ in range(4))
+    k, k1, residual1, jump = (np.empty(n) for _ in range(4))
+    reason, t1 = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    outputs = StepArrays(q1, x1, t1, k, k1, residual1, applied, q_rate, reason, jump, _NOTHING, _NO_ROWS)
+    if force:
+        inertia, twist = force
+        inertia = read_only(np.require(inertia, np.float64, "C"))
+        force = (inertia, writable(twist), np.empty((n, m)), np.empty((n, m)), np.empty((n, m)))
+    no_reference = (_NOTHING,) * 4  # read by the evaluation only, as the evaluation and observation rows
+    call = step_call(
+        cs, cs, _NO_OBSERVATION, (q, x, t, det_sign, residual), no_reference, outputs, force, evaluating=False
+    )
+    kernels = path_kernels(cs) if kernels is None else kernels
+    if n >= PARALLEL_MIN_BATCH:
+        failed = step_on_every_core(kernels, call, action)
+    else:
+        failed = kernels.step_serial(call, action)
+    if failed:
+        raise ValueError(f"action must be finite, got {action[~np.isfinite(action).all(axis=1)][0].tolist()}")
+    moved = Moved(q1, x1, k, k1, residual1, applied, q_rate, reason, jump)
+    return (moved, force[2:]) if force else moved
+
+
+_F8, _I8 = np.dtype(np.float64), np.dtype(np.int64)
+#: What a call that only moves gives for the observation bounds and the reference, which it does not read.
+_NO_OBSERVATION = (read_only(np.zeros(0, dtype=np.float32)), read_only(np.zeros(0, dtype=np.float32)), False)
+_NOTHING, _NO_ROWS = np.empty((0, 0)), np.empty((0, 0), dtype=np.float32)
+
+
+def writable(a, dtype=_F8):
+    """``a`` if it is a C-ordered writable array of ``dtype`` (0.1 µs, where ``np.require`` takes 0.7), else a copy.
+
+    The step's calls take their arrays so (``step_call``): one compiled type for every caller.
+    """
+    if type(a) is np.ndarray and a.dtype == dtype and a.flags.carray:
+        return a
+    return np.require(a, dtype, ("C", "W"))
 
 
 @jit_inline
 def _step_block(
-    path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics, moving
-):
+    path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics, moving,
+    evaluating,
+):  # fmt: skip
     """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``).
 
-    Not ``moving``: the evaluation only, of the state ``out`` holds (``evaluate_batch``).
+    Not ``moving``: the evaluation only, of the state ``out`` holds (``evaluate_batch``); not ``evaluating``: the
+    transition only (``transition_batch``).
     """
     if moving:
         moved = Moved(out.q, out.x, out.k, out.k1, out.residual, out.action, out.q_rate, out.reason, out.jump)
@@ -268,6 +321,8 @@ def _step_block(
         t, o_t = state.t, out.t
         for i in range(start, start + count):
             o_t[i] = t[i] + 1
+    if not evaluating:
+        return
     measured = Measured(out.q, out.x, out.t, out.k, out.k1, out.residual)
     outcome, written = Outcome(out.action, out.reason), (out.evaluation, out.observations)
     motion = motion_of(dynamics, out.q_rate)
@@ -305,7 +360,9 @@ def _unpack(call):
 
 
 @jit
-def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, moving, counter):
+def _step_chunks(
+    path, space, model, plant, observation, state, reference, action, out, dynamics, moving, evaluating, counter
+):
     """One thread's share of the multi-core step: chunks of ``CHUNK`` robots claimed from ``counter`` (``claim``).
 
     Spatial robots go in blocks of ``LANES`` (their k in SIMD lanes), over work arrays of the thread's own. The
@@ -324,7 +381,7 @@ def _step_chunks(path, space, model, plant, observation, state, reference, actio
             count = min(LANES, end - start)
             _step_block(
                 path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out,
-                dynamics, moving,
+                dynamics, moving, evaluating,
             )  # fmt: skip
         chunk = claim(counter)
     keep_alive(work)
@@ -335,7 +392,6 @@ def _step_chunks(path, space, model, plant, observation, state, reference, actio
 class PathKernels(NamedTuple):
     """The entry kernels of one row path, each compiled for that path alone (see ``_path_kernels``)."""
 
-    transition: Any
     step_serial: Any
     step_chunks: Any
     initial: Any
@@ -352,19 +408,10 @@ def _path_kernels(path: int, space: int) -> PathKernels:
 
     # The entry kernels take their arrays flat: Numba types a named tuple argument about 0.8 µs slower per call.
     # Each borrows its arrays (``borrow``): the caller holds the arguments, and what it allocates is kept to the end.
-    def transition(cs, q, x, t, det_sign, residual, action, *force):
-        n, m = action.shape
-        owned = (_allocate_moved(n, m), from_extra(force, n, m), _work(), allocate_lanes())
-        (moved, dynamics, w, lanes), cs, action = borrow((owned, cs, action))
-        state = borrow(Motion(q, x, t, det_sign, residual))
-        for start in range(0, n, LANES):
-            _transition_block(path, cs, state, action, start, min(LANES, n - start), w, lanes, moved, dynamics)
-        return with_dynamics(owned[0], owned[1])
-
     def step_serial(call, action):
         # One ``StepCall`` record rather than flat arrays: the single env calls it at every step, and Numba types
         # and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one pointer.
-        moving = call.moving
+        moving, evaluating = call.moving, call.evaluating
         if moving and not _finite_actions(action):
             return True
         # Borrowed (``borrow``): the caller holds the call's arrays, and the work arrays are kept to the end.
@@ -376,7 +423,7 @@ def _path_kernels(path: int, space: int) -> PathKernels:
             count = min(LANES, n - start)
             _step_block(
                 path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out,
-                dynamics, moving,
+                dynamics, moving, evaluating,
             )  # fmt: skip
         keep_alive(work)
         keep_alive(owned)
@@ -387,8 +434,9 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         # record is one pointer where the flat arrays would be some forty.
         model, plant, observation, state, reference, out, dynamics = _unpack(call)
         _step_chunks(
-            path, space, model, plant, observation, state, reference, action, out, dynamics, call.moving, counter
-        )
+            path, space, model, plant, observation, state, reference, action, out, dynamics, call.moving,
+            call.evaluating, counter,
+        )  # fmt: skip
 
     def initial(c, x):
         n, m = x.shape
@@ -433,21 +481,22 @@ _PATH_KERNELS = {(path, space): _path_kernels(path, space) for path in ROW_PATHS
 @jit
 def _new_step_call(
     model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs,
-    moving,
+    moving, evaluating,
 ):  # fmt: skip
     return StepCall(
         model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs,
-        moving,
+        moving, evaluating,
     )  # fmt: skip
 
 
-def step_call(model, plant, observation, state, reference, out, force=(), moving=True) -> StepCall:
+def step_call(model, plant, observation, state, reference, out, force=(), moving=True, evaluating=True) -> StepCall:
     """The ``StepCall`` of ``step_batch``'s arguments but the action (see there), for ``step_serial(call, action)``.
 
     It holds the arrays by reference: a call steps from whatever they hold when it runs. Not ``moving``, the call
-    evaluates the state ``out`` holds instead (``evaluate_batch``).
+    evaluates the state ``out`` holds instead (``evaluate_batch``); not ``evaluating``, it moves the state without
+    evaluating it (``transition_batch``).
     """
-    return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force), moving)
+    return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force), moving, evaluating)
 
 
 def step_on_every_core(kernels, call, action):

@@ -348,14 +348,14 @@ def test_6x6_inverse_condition_lanes_equal_one_at_a_time(count):
 
 
 def test_hexapod_transition_in_blocks_equals_one_robot_at_a_time(hexapod):
-    """The batched transition conditions LANES robots at a time; each robot's outcome is bit for bit its N = 1 one."""
-    x = _random_poses(hexapod, 120, 5)[:37]  # two full blocks of 16 and a partial one
-    assert len(x) == 37
+    """A batch on every core conditions LANES robots at a time; each robot's outcome is bit for bit its N = 1 one."""
+    x = _random_poses(hexapod, 1000, 5)[: fk.PARALLEL_MIN_BATCH + 37]  # the multi-core kernel, a partial last block
+    assert len(x) == fk.PARALLEL_MIN_BATCH + 37 and (fk.PARALLEL_MIN_BATCH + 37) % 16 != 0
     ref = physics.FamilyReference(x.copy(), np.zeros_like(x), np.zeros_like(x))
     state = physics.initial_state(hexapod, x, ref)
     action = np.random.default_rng(6).uniform(-1, 1, size=(len(x), 6))
     batch, outcome = physics.transition(hexapod, state, action)
-    for i in (0, 15, 16, 31, 32, 36):
+    for i in (0, 15, 16, 31, 32, 36, len(x) - 6, len(x) - 1):
         one_ref = physics.FamilyReference(x[i : i + 1].copy(), np.zeros((1, 6)), np.zeros((1, 6)))
         one = physics.initial_state(hexapod, x[i : i + 1], one_ref)
         single, single_outcome = physics.transition(hexapod, one, action[i : i + 1])

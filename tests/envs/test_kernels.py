@@ -579,23 +579,29 @@ def test_env_state_is_a_copy(rng):
         ("DeltaForceReach-v0", {"observation_source": "encoders", "geometry_variation": 0.01}),
     ],
 )
-def test_an_episode_start_evaluates_with_the_steps_compiled_kernel(monkeypatch, env_id, kwargs):
-    """A reset's evaluation (``at_rest.evaluate_batch``) builds a ``StepCall`` of the very type the env's step builds.
+def test_episode_starts_and_transitions_run_the_steps_compiled_kernel(monkeypatch, env_id, kwargs):
+    """A reset's evaluation and ``physics.transition`` build a ``StepCall`` of the very type the env's step builds.
 
-    The step's kernel then evaluates the start without compiling a second specialisation of itself (seconds at the
-    first reset). A call whose constants, say, were writable would be another type.
+    The evaluation at rest is ``at_rest.evaluate_batch``; the transition is the shield's look-ahead. The step's
+    kernel then evaluates the start and moves the look-ahead without compiling a second specialisation
+    of itself (seconds at the first reset). A call whose constants, say, were writable would be another type.
     """
     import gymnasium as gym
     import numba
 
     from envs.kernels import at_rest
 
-    built = []
-    original = at_rest.evaluation_call
+    built, moved = [], []
+    original, original_call = at_rest.evaluation_call, step_kernels.step_call
 
     def recording(*args):
         result = original(*args)
         built.append(numba.typeof(result[0]))
+        return result
+
+    def recording_call(*args, **kwargs):
+        result = original_call(*args, **kwargs)
+        moved.append(numba.typeof(result))
         return result
 
     monkeypatch.setattr(at_rest, "evaluation_call", recording)
@@ -605,6 +611,9 @@ def test_an_episode_start_evaluates_with_the_steps_compiled_kernel(monkeypatch, 
     inner = env.unwrapped
     stepped = numba.typeof(inner._buffers[0]._call)
     assert built and all(typ == stepped for typ in built), (built, stepped)
+    monkeypatch.setattr(step_kernels, "step_call", recording_call)  # what transition_batch builds
+    physics.transition(inner.params, inner.state, np.zeros(inner.state.q.shape))
+    assert moved and all(typ == stepped for typ in moved), (moved, stepped)
     env.close()
 
 
