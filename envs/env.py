@@ -211,7 +211,11 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         return info, v[self._reward_row]
 
     def start_episodes(
-        self, generators: Sequence[np.random.Generator], options: dict[str, Any], streams: np.ndarray | None = None
+        self,
+        generators: Sequence[np.random.Generator],
+        options: dict[str, Any],
+        streams: np.ndarray | None = None,
+        parallel: bool = False,
     ) -> FamilyState:
         """The state at t = 0 of M new episodes, episode i drawn from the i-th generator (its stream ``streams[i]``).
 
@@ -219,7 +223,8 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         (``sample_tasks``), the robot as built (``geometry_tolerance``), the first encoder reading. A robot as
         built that does not assemble near its task's start pose at the nominal strokes (near a singularity a
         millimetre can move the pose by a tenth of a radian, or out of reach) draws its task and itself again,
-        from the same generator. The single env and the vector env both start episodes here.
+        from the same generator. The single env and the vector env both start episodes here; a vector env that
+        steps on every core passes ``parallel`` (``physics.initial_state``).
 
         Raises:
             RuntimeError: If a robot as built still does not assemble after ``START_ATTEMPTS`` draws.
@@ -234,7 +239,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             drawn = [generators[i] for i in rows]
             start, reference = self.sample_tasks(drawn, options, own, None if known is None else known[0])
             fresh = initial_state(
-                params, start, reference, own if params.random_hardware else None, known, strict=False
+                params, start, reference, own if params.random_hardware else None, known, False, parallel
             )
             state = fresh if state is None else put_rows(state, rows, fresh)
             unassembled = ~np.isfinite(fresh.residual)

@@ -189,9 +189,12 @@ def check_tolerance(params, draws: int = 64) -> None:
     if tolerance == 0.0:
         return
     centre = 0.5 * (np.asarray(params.sample_low) + np.asarray(params.sample_high))
-    q, k, _, sign, _ = fk.initial_batch(params.packed, centre[None])
-    if not np.isfinite(q).all() or not k[0] >= params.hard_threshold:
-        return  # the nominal robot itself is singular there; the tasks (drawn safe) decide
+    q = params.robot.inverse_kinematics(centre[None], validate=False)  # the nominal strokes
+    if not np.isfinite(q).all():
+        return  # the nominal robot does not reach there; the tasks (drawn safe) decide
+    _, residual, k, _, sign = fk.forward_batch(params.packed_rows, q, centre[None], 50)  # the nominal robot there
+    if not np.isfinite(residual[0]) or not k[0] >= params.hard_threshold:
+        return  # the nominal robot itself is singular there
     generators = [np.random.default_rng([0, i]) for i in range(draws)]
     plants = perturbed_plants(params, random_streams(generators))
     plants.setflags(write=False)

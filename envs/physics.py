@@ -72,11 +72,15 @@ def wrap_angle(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def with_strokes(params: FamilyParams, reference: FamilyReference) -> FamilyReference:
-    """``reference`` with its ``strokes`` (computed from its centres if they are missing)."""
+def with_strokes(params: FamilyParams, reference: FamilyReference, parallel: bool = False) -> FamilyReference:
+    """``reference`` with its ``strokes``, computed from its centres if they are missing.
+
+    ``parallel``: as ``initial_state``.
+    """
     if reference.strokes is not None:
         return reference
-    return reference._replace(strokes=fk.strokes_batch(params.packed, np.ascontiguousarray(reference.center)))
+    strokes = fk.strokes_batch(params.packed_rows, reference.center, params.control == "force", parallel)
+    return reference._replace(strokes=strokes)
 
 
 def observation_bounds(params: FamilyParams, with_velocity: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -185,6 +189,7 @@ def initial_state(
     streams: np.ndarray | None = None,
     known: tuple[np.ndarray, np.ndarray] | None = None,
     strict: bool = True,
+    parallel: bool = False,
 ) -> FamilyState:
     """State of N robots at rest at ``start`` (shape (N, m)), strokes from the nominal inverse kinematics.
 
@@ -195,22 +200,23 @@ def initial_state(
     ``geometry_variation``, ``known`` = (constants (N, C_SIZE), codes (N, 2 d²)) of each robot's own geometry
     (``envs.hardware.varied_plants``, drawn before its task), which its strokes and target strokes are solved with.
     A robot as built that does not assemble near ``start`` raises, or with ``strict=False`` gets residual NaN (the
-    envs then draw its task again: ``FamilyEnvBase.start_episodes``).
+    envs then draw its task again: ``FamilyEnvBase.start_episodes``). ``parallel``: solve on the multi-core
+    step's kernel (``envs.kernels.modes``), as a vector env that steps on every core passes, so that it compiles
+    one step only.
     """
     start = _rows(start, params.robot.n_pose, "start")
     n = len(start)
     x, plant, codes = start.copy(), None, None
-    if known is not None:
+    force = params.control == "force"
+    if known is not None:  # each robot's own geometry
         plant, codes = known
         constants = fk.read_only(plant)  # the state keeps ``plant`` writable (``put_rows`` refills its rows)
-        rows = [fk.initial_batch(constants[i], start[i : i + 1]) for i in range(n)]
-        q, k, k1, det_sign, residual = (np.concatenate(column) for column in zip(*rows))
+        q, k, k1, det_sign, residual = fk.initial_batch(constants, start, force, parallel)
         if reference.strokes is None:
-            strokes = [fk.strokes_batch(constants[i], reference.center[i : i + 1]) for i in range(n)]
-            reference = reference._replace(strokes=np.concatenate(strokes))
+            reference = reference._replace(strokes=fk.strokes_batch(constants, reference.center, force, parallel))
     else:
-        q, k, k1, det_sign, residual = fk.initial_batch(params.packed, start)
-        reference = with_strokes(params, reference)
+        q, k, k1, det_sign, residual = fk.initial_batch(params.packed_rows, start, force, parallel)
+        reference = with_strokes(params, reference, parallel)
     if streams is None and (params.geometry_tolerance or params.observation_source == "encoders"):
         raise ValueError("initial_state needs the robots' random streams with a geometry tolerance or encoders")
     if params.geometry_tolerance:
@@ -315,7 +321,7 @@ def evaluate(
     if action.shape[0] != n or reason.shape != (n,):
         raise ValueError(f"action and reason must have {n} rows, got shapes {action.shape} and {reason.shape}")
     low, high = observation_bounds(params, with_velocity)
-    ref = with_strokes(params, state.reference)
+    ref = with_strokes(params, state.reference, parallel)
     measured = (state.q, state.x, state.t, state.inverse_condition, state.actuator_condition, state.residual)
     outcome = (action, reason)
     if state.twist is not None:
@@ -464,7 +470,8 @@ def step(
         out = StepBuffers(params, n, with_velocity)
     elif validate and out.shape != (n, params.robot.n_pose, observation_bounds(params, with_velocity)[0].shape[0]):
         raise ValueError(f"out holds buffers of shape (N, m, D) = {out.shape}, the step needs N = {n}")
-    ref = with_strokes(params, state.reference)
+    parallel = n >= fk.PARALLEL_MIN_BATCH
+    ref = with_strokes(params, state.reference, parallel)
     low, high = observation_bounds(params, with_velocity)
     observation = (low, high, bool(with_velocity))
     drive = state.drive
@@ -476,7 +483,6 @@ def step(
         plant = _plant(params, state.plant)
         action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
     call = out.call_for(params, state, ref, observation)  # the call the buffers keep
-    parallel = n >= fk.PARALLEL_MIN_BATCH
     if parallel:
         failed = fk.step_on_every_core(out.kernels, call, action)
     else:

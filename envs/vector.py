@@ -456,7 +456,8 @@ class FamilyVectorEnv(VectorEnv):
         One compiled call for all of them (the single env's ``start_episodes``), each drawing from its own generator.
         """
         generators = [self._generators[i] for i in rows.tolist()]
-        return self._sampler.start_episodes(generators, options, self._streams[rows])
+        parallel = self.num_envs >= PARALLEL_MIN_BATCH  # the kernel of this env's steps (``physics.step``)
+        return self._sampler.start_episodes(generators, options, self._streams[rows], parallel)
 
     def _new_generator(self, i: int, seed: int | None) -> None:
         """Give sub-environment i a new generator (seeded with ``seed``, or from entropy) and its stream."""

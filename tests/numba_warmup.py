@@ -180,7 +180,7 @@ def _force_transition(env: gym.Env) -> None:
 def _work_array_transition(env: gym.Env) -> None:
     """The work-array path's transition for a robot that steps on a register path (its pose space's)."""
     from envs import physics
-    from envs.kernels import packing, records
+    from envs.kernels import modes, packing, records
     from envs.kernels import step as step_kernels
 
     start, reference = env.sample_tasks([np.random.default_rng(i) for i in range(2)], {})
@@ -188,7 +188,7 @@ def _work_array_transition(env: gym.Env) -> None:
     cs = env.params.packed_rows
     work = step_kernels._PATH_KERNELS[packing.WORK_ARRAYS, packing.pose_space_code(cs)]
     motion = records.Motion(state.q, state.x, state.t, state.det_sign, state.residual)
-    step_kernels.transition_batch(cs, motion, np.zeros_like(state.q), kernels=work)
+    modes.transition_batch(cs, motion, np.zeros_like(state.q), kernels=work)
 
 
 def _batch_kernels(env: gym.Env) -> None:

@@ -2,18 +2,17 @@
 
 ``layout`` holds the offsets of the packed constants; ``packing`` packs them; ``pose`` the rotations and
 pose-space operations; ``constraints`` Φ, the Jacobians, the kinematics and k over work arrays; ``step`` the
-transition and the fused step of any robot; ``evaluation`` its reference, reward and observation; ``at_rest``
-the evaluation of states as they are, by the step's kernel; ``generic`` gathers the public kernels (with the
-certificate and the samplers of ``envs.tasks``); ``paths`` the step's operations on each row path (vectors in
-registers or in work arrays); ``three`` the algebra of three actuators in registers; ``dynamics`` the equations
-of motion (mass matrix, velocity-product and gravity terms, forward dynamics) on each row path, with the packed
-inertia of ``dynamics_layout`` (its table and ``pack_inertia``) and N robots' batches in ``dynamics_batch``;
-``linalg`` the small dense linear algebra; ``setup`` the threads, borrowed arrays and NumPy's random streams;
-``cache`` keeps Numba's on-disk cache true.
+transition and the fused step of any robot; ``evaluation`` its reference, reward and observation; ``modes``
+the step's kernel in its other roles (evaluation at rest, transition, assembly, strokes); ``generic`` gathers
+the public kernels (with the certificate and the samplers of ``envs.tasks``); ``paths`` the step's operations
+on each row path (vectors in registers or in work arrays); ``three`` the algebra of three actuators in
+registers; ``dynamics`` the equations of motion (mass matrix, velocity-product and gravity terms, forward
+dynamics) on each row path, with the packed inertia of ``dynamics_layout`` (its table and ``pack_inertia``) and
+N robots' batches in ``dynamics_batch``; ``linalg`` the small dense linear algebra; ``setup`` the threads,
+borrowed arrays and NumPy's random streams; ``cache`` keeps Numba's on-disk cache true.
 """
 
 __all__ = [
-    "at_rest",
     "cache",
     "constraints",
     "dynamics",
@@ -23,6 +22,7 @@ __all__ = [
     "generic",
     "layout",
     "linalg",
+    "modes",
     "packing",
     "paths",
     "pose",

@@ -9,10 +9,10 @@ reward and observation), ``envs.tasks.certificate`` (the safe set) and ``envs.ta
 
 from __future__ import annotations
 
-from envs.kernels.at_rest import evaluate_batch
 from envs.kernels.constraints import forward_batch, singularity_batch
 from envs.kernels.evaluation import reference_batch
 from envs.kernels.layout import C_SIZE, E_COST1, E_FIXED, PATH_VERTICES
+from envs.kernels.modes import evaluate_batch, initial_batch, strokes_batch, transition_batch
 from envs.kernels.packing import (
     evaluation_rows,
     observation_layout,
@@ -25,13 +25,10 @@ from envs.kernels.records import StepCall
 from envs.kernels.setup import PARALLEL_MIN_BATCH, random_streams
 from envs.kernels.step import (
     allocate_step,
-    initial_batch,
     path_kernels,
     step_batch,
     step_call,
     step_on_every_core,
-    strokes_batch,
-    transition_batch,
 )
 from envs.tasks.certificate import (
     SEGMENT_MAX_POINTS,

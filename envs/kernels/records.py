@@ -15,6 +15,11 @@ from numba.core import types
 from numba.experimental import structref
 
 __all__ = [
+    "ASSEMBLE",
+    "EVALUATE",
+    "STEP",
+    "STROKES",
+    "TRANSITION",
     "Dynamics",
     "Measured",
     "Motion",
@@ -132,9 +137,17 @@ STEP_CALL_FIELDS = (
     "phase",
     "strokes",
     "outputs",  # the ``StepArrays`` written, then force control's (inertia, ẋ, ẋ', τ, τ_h) or nothing
-    "moving",  # bool: a step (transition, then evaluation), or the evaluation of the outputs' state as it is
-    "evaluating",  # bool: evaluate (reward, observation) after the transition, or the transition only
+    "mode",  # int: what the call does (``STEP``, ``EVALUATE``, ``TRANSITION``, ``ASSEMBLE``, ``STROKES``)
 )
+
+#: The modes of a ``StepCall``: the one compiled step in each role, so that an env compiles one kernel.
+#: ``STEP``: transition (``plant``), then evaluation (``model``) of the new state, into the outputs.
+#: ``EVALUATE``: the evaluation of the state the outputs hold, unmoved (episode starts, measurements).
+#: ``TRANSITION``: the transition alone (the shield's look-ahead); the evaluation rows are not written.
+#: ``ASSEMBLE``: at rest at the poses ``x``: strokes q (the closed-form inverse kinematics), k, k_I, residual, and
+#: sign(det J_x) in ``jump`` (an episode's start).
+#: ``STROKES``: the strokes q of the poses ``x`` only (a fixed target's).
+STEP, EVALUATE, TRANSITION, ASSEMBLE, STROKES = range(5)
 
 
 @structref.register

@@ -60,10 +60,13 @@ from envs.kernels.packing import (
     WORK_ARRAYS,
     _literal_path,
     pose_space_code,
-    read_only,
     row_path,
 )
 from envs.kernels.records import (
+    ASSEMBLE,
+    EVALUATE,
+    STEP,
+    TRANSITION,
     Measured,
     Motion,
     Moved,
@@ -77,14 +80,10 @@ from envs.kernels.setup import PARALLEL_MIN_BATCH, borrow, claim, jit, jit_inlin
 
 __all__ = [
     "allocate_step",
-    "initial_batch",
     "path_kernels",
     "step_batch",
     "step_call",
     "step_on_every_core",
-    "strokes_batch",
-    "transition_batch",
-    "writable",
 ]
 
 drop_stale_caches(__file__)
@@ -234,94 +233,26 @@ def _transition_block_of_path(path, cs, state, action, start, count, w, lanes, m
     return block
 
 
-def transition_batch(cs, state, action, force=(), kernels=None):
-    """Advance N robots by one control period (the algorithm of ``envs.physics.transition``).
-
-    The step's own compiled kernel runs, told not to evaluate (a ``StepCall`` with ``evaluating`` False, of the
-    type an env's step call has): a transition compiles nothing an env's step has not compiled. From
-    ``PARALLEL_MIN_BATCH`` robots on, it runs on every core, as the step does.
-
-    Args:
-        cs: Packed constants (``pack_family``) of the robots that move: shape (N, C_SIZE), one row per robot, or
-            (1, C_SIZE), one geometry for all.
-        state: (q, x, t, det_sign, residual): strokes [m] (N, n), poses (N, m), steps (N,) int (not read), the
-            working mode sign(det J_x) of each episode (N,), the constraint residual at (q, x) [m²] (N,).
-        action: Normalised stroke rates, shape (N, n), finite (force control: offsets from the holding forces in
-            units of the drive limits).
-        force: () for rate control, or (inertia, twist) for force control (``envs.kernels.force``): the packed
-            inertia and drive limits (``pack_inertia``), (N or 1, C_INERTIA_SIZE), and the twists ẋ (N, m).
-        kernels: The ``PathKernels`` to run (default ``path_kernels(cs)``, the robot's own row path's).
-
-    Returns:
-        (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps [m]); with
-        force control, that and (ẋ' (N, m), efforts τ (N, n), holding forces τ_h (N, n)), the applied action
-        being τ / τ_max and the rates the period's mean.
-
-    Raises:
-        ValueError: If an action is not finite.
-    """
-    if not (type(cs) is np.ndarray and cs.dtype == _F8 and cs.flags.c_contiguous and not cs.flags.writeable):
-        cs = read_only(np.require(cs, np.float64, "C"))
-    q, x, t, det_sign, residual = state
-    q, x, det_sign, residual = (writable(a) for a in (q, x, det_sign, residual))
-    action, t = writable(action), writable(t, _I8)
-    n, m = x.shape
-    q1, x1, applied, q_rate = (np.empty((n, m)) for _ in range(4))
-    k, k1, residual1, jump = (np.empty(n) for _ in range(4))
-    reason, t1 = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
-    outputs = StepArrays(q1, x1, t1, k, k1, residual1, applied, q_rate, reason, jump, _NOTHING, _NO_ROWS)
-    if force:
-        inertia, twist = force
-        inertia = read_only(np.require(inertia, np.float64, "C"))
-        force = (inertia, writable(twist), np.empty((n, m)), np.empty((n, m)), np.empty((n, m)))
-    no_reference = (_NOTHING,) * 4  # read by the evaluation only, as the evaluation and observation rows
-    call = step_call(
-        cs, cs, _NO_OBSERVATION, (q, x, t, det_sign, residual), no_reference, outputs, force, evaluating=False
-    )
-    kernels = path_kernels(cs) if kernels is None else kernels
-    if n >= PARALLEL_MIN_BATCH:
-        failed = step_on_every_core(kernels, call, action)
-    else:
-        failed = kernels.step_serial(call, action)
-    if failed:
-        raise ValueError(f"action must be finite, got {action[~np.isfinite(action).all(axis=1)][0].tolist()}")
-    moved = Moved(q1, x1, k, k1, residual1, applied, q_rate, reason, jump)
-    return (moved, force[2:]) if force else moved
-
-
-_F8, _I8 = np.dtype(np.float64), np.dtype(np.int64)
-#: What a call that only moves gives for the observation bounds and the reference, which it does not read.
-_NO_OBSERVATION = (read_only(np.zeros(0, dtype=np.float32)), read_only(np.zeros(0, dtype=np.float32)), False)
-_NOTHING, _NO_ROWS = np.empty((0, 0)), np.empty((0, 0), dtype=np.float32)
-
-
-def writable(a, dtype=_F8):
-    """``a`` if it is a C-ordered writable array of ``dtype`` (0.1 µs, where ``np.require`` takes 0.7), else a copy.
-
-    The step's calls take their arrays so (``step_call``): one compiled type for every caller.
-    """
-    if type(a) is np.ndarray and a.dtype == dtype and a.flags.carray:
-        return a
-    return np.require(a, dtype, ("C", "W"))
-
-
 @jit_inline
 def _step_block(
-    path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics, moving,
-    evaluating,
-):  # fmt: skip
+    path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out, dynamics, mode
+):
     """Transition (``plant``) then evaluation (``model``) of robots start .. start + count − 1 (count ≤ ``LANES``).
 
-    Not ``moving``: the evaluation only, of the state ``out`` holds (``evaluate_batch``); not ``evaluating``: the
-    transition only (``transition_batch``).
+    Or one part of it, by ``mode`` (``envs.kernels.records``): ``EVALUATE`` the state ``out`` holds
+    (``evaluate_batch``), ``TRANSITION`` only (``transition_batch``), ``ASSEMBLE`` or ``STROKES`` at the poses of
+    ``state`` (``initial_batch``, ``strokes_batch``).
     """
-    if moving:
+    if mode >= ASSEMBLE:
+        _assemble_rows(path, plant, state.x, start, count, w, out, mode == ASSEMBLE)
+        return
+    if mode != EVALUATE:
         moved = Moved(out.q, out.x, out.k, out.k1, out.residual, out.action, out.q_rate, out.reason, out.jump)
         _transition_block(path, plant, state, action, start, count, w, lanes, moved, dynamics)
         t, o_t = state.t, out.t
         for i in range(start, start + count):
             o_t[i] = t[i] + 1
-    if not evaluating:
+    if mode == TRANSITION:
         return
     measured = Measured(out.q, out.x, out.t, out.k, out.k1, out.residual)
     outcome, written = Outcome(out.action, out.reason), (out.evaluation, out.observations)
@@ -329,6 +260,27 @@ def _step_block(
     _evaluate_rows(
         path, space, model, observation, measured, reference, outcome, motion, start, start + count, w, written
     )
+
+
+@jit_inline
+def _assemble_rows(path, plant, x, start, count, w, out, measuring):
+    """Robots start .. start + count − 1 at rest at their poses x: q (and if ``measuring`` k, k_I, residual, sign).
+
+    The strokes come from the closed-form inverse kinematics of each robot's own branches; sign(det J_x) goes to
+    ``out.jump``.
+    """
+    o_q, o_k, o_k1, o_residual, o_sign = out.q, out.k, out.k1, out.residual, out.jump
+    for i in range(start, start + count):
+        c = _row(plant, i)
+        x0 = paths.vector(path, x[i])
+        q = paths.inverse_kinematics(path, c, x0, w[W_KQ])
+        if measuring:
+            anchors = paths.anchors_at(path, c, q)
+            rows = paths.rows_at(path, c, q, anchors, x0, w)
+            o_k[i], o_sign[i], o_k1[i] = paths.measure(path, c, q, anchors, rows, w)
+            o_residual[i] = paths.residual(path, c, q, anchors, rows, w)
+        for j in range(len(x0)):
+            o_q[i, j] = q[j]
 
 
 @jit_inline
@@ -360,9 +312,7 @@ def _unpack(call):
 
 
 @jit
-def _step_chunks(
-    path, space, model, plant, observation, state, reference, action, out, dynamics, moving, evaluating, counter
-):
+def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, mode, counter):
     """One thread's share of the multi-core step: chunks of ``CHUNK`` robots claimed from ``counter`` (``claim``).
 
     Spatial robots go in blocks of ``LANES`` (their k in SIMD lanes), over work arrays of the thread's own. The
@@ -381,7 +331,7 @@ def _step_chunks(
             count = min(LANES, end - start)
             _step_block(
                 path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out,
-                dynamics, moving, evaluating,
+                dynamics, mode,
             )  # fmt: skip
         chunk = claim(counter)
     keep_alive(work)
@@ -394,8 +344,6 @@ class PathKernels(NamedTuple):
 
     step_serial: Any
     step_chunks: Any
-    initial: Any
-    strokes: Any
 
 
 def _path_kernels(path: int, space: int) -> PathKernels:
@@ -411,19 +359,19 @@ def _path_kernels(path: int, space: int) -> PathKernels:
     def step_serial(call, action):
         # One ``StepCall`` record rather than flat arrays: the single env calls it at every step, and Numba types
         # and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one pointer.
-        moving, evaluating = call.moving, call.evaluating
-        if moving and not _finite_actions(action):
+        mode = call.mode
+        if (mode == STEP or mode == TRANSITION) and not _finite_actions(action):
             return True
         # Borrowed (``borrow``): the caller holds the call's arrays, and the work arrays are kept to the end.
         owned, work = _unpack(call), _work()
         (model, plant, observation, state, reference, out, dynamics), w, action = borrow((owned, work, action))
-        n = out.x.shape[0]
+        n = action.shape[0]
         lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
         for start in range(0, n, LANES):
             count = min(LANES, n - start)
             _step_block(
                 path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out,
-                dynamics, moving, evaluating,
+                dynamics, mode,
             )  # fmt: skip
         keep_alive(work)
         keep_alive(owned)
@@ -434,33 +382,8 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         # record is one pointer where the flat arrays would be some forty.
         model, plant, observation, state, reference, out, dynamics = _unpack(call)
         _step_chunks(
-            path, space, model, plant, observation, state, reference, action, out, dynamics, call.moving,
-            call.evaluating, counter,
-        )  # fmt: skip
-
-    def initial(c, x):
-        n, m = x.shape
-        owned = (np.empty((n, m)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), _work())
-        (o_q, o_k, o_k1, o_sign, o_res, w), c, x = borrow((owned, c, x))
-        for i in range(n):
-            x0 = paths.vector(path, x[i])
-            q = paths.inverse_kinematics(path, c, x0, w[W_KQ])
-            anchors = paths.anchors_at(path, c, q)
-            rows = paths.rows_at(path, c, q, anchors, x0, w)
-            o_k[i], o_sign[i], o_k1[i] = paths.measure(path, c, q, anchors, rows, w)
-            o_res[i] = paths.residual(path, c, q, anchors, rows, w)
-            for j in range(m):
-                o_q[i, j] = q[j]
-        return owned[:5]
-
-    def strokes(c, x):
-        owned = (np.empty(x.shape), _work())
-        (out, w), c, x = borrow((owned, c, x))
-        for i in range(x.shape[0]):
-            q = paths.inverse_kinematics(path, c, paths.vector(path, x[i]), w[W_KQ])
-            for j in range(x.shape[1]):
-                out[i, j] = q[j]
-        return owned[0]
+            path, space, model, plant, observation, state, reference, action, out, dynamics, call.mode, counter
+        )
 
     closures = locals()
     compiled = []
@@ -481,22 +404,21 @@ _PATH_KERNELS = {(path, space): _path_kernels(path, space) for path in ROW_PATHS
 @jit
 def _new_step_call(
     model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs,
-    moving, evaluating,
+    mode,
 ):  # fmt: skip
     return StepCall(
         model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs,
-        moving, evaluating,
+        mode,
     )  # fmt: skip
 
 
-def step_call(model, plant, observation, state, reference, out, force=(), moving=True, evaluating=True) -> StepCall:
+def step_call(model, plant, observation, state, reference, out, force=(), mode=STEP) -> StepCall:
     """The ``StepCall`` of ``step_batch``'s arguments but the action (see there), for ``step_serial(call, action)``.
 
-    It holds the arrays by reference: a call steps from whatever they hold when it runs. Not ``moving``, the call
-    evaluates the state ``out`` holds instead (``evaluate_batch``); not ``evaluating``, it moves the state without
-    evaluating it (``transition_batch``).
+    It holds the arrays by reference: a call steps from whatever they hold when it runs. ``mode`` (``STEP``, or
+    one of the others of ``envs.kernels.records``: ``envs.kernels.modes``) says what it does.
     """
-    return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force), moving, evaluating)
+    return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force), mode)
 
 
 def step_on_every_core(kernels, call, action):
@@ -514,29 +436,6 @@ def _step_parallel(model, plant, observation, state, reference, action, out, for
     """The multi-core step of ``step_batch``."""
     call = step_call(model, plant, observation, state, reference, out, force)
     return step_on_every_core(path_kernels(plant), call, action)
-
-
-def initial_batch(c, x):
-    """Strokes (inverse kinematics), k, k_I, sign(det J_x) and residual of N robots at rest at poses x.
-
-    Args:
-        c: Packed constants of one geometry, shape (C_SIZE,).
-        x: Poses, shape (N, m).
-
-    Returns:
-        (strokes (N, n), k (N,), k_I (N,), sign(det J_x) (N,), residual max_i |Φ_i| [m²] (N,)).
-    """
-    return path_kernels(c).initial(c, x)
-
-
-def strokes_batch(c, x):
-    """Actuator coordinates of N poses x (N, m) by the closed-form inverse kinematics (NaN where out of reach).
-
-    Leg lengths [m], crank angles [rad] or slider positions [m] on each actuator's chosen branch, shape (N, n): what
-    the observation's stroke errors compare q with (``FamilyReference.strokes`` keeps those of a fixed target).
-    ``c``: packed constants of one geometry, shape (C_SIZE,).
-    """
-    return path_kernels(c).strokes(c, x)
 
 
 def allocate_step(n, m, obs_dim):

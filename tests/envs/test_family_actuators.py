@@ -13,7 +13,7 @@ import pytest
 
 from envs import physics, presets
 from envs.info import step_info
-from envs.kernels.step import initial_batch
+from envs.kernels.modes import initial_batch
 from envs.physics import TERMINATION_REASONS
 from kinematics import Delta, Planar3PRR, Planar3RRR
 

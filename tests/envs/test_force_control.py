@@ -37,7 +37,7 @@ def _starts(params, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     m = params.robot.n_pose
     poses = rng.uniform(params.sample_low, params.sample_high, size=(40 * n, m))
-    q, k, _, _, _ = fk.initial_batch(params.packed, poses)
+    q, k, _, _, _ = fk.initial_batch(params.packed, poses, force=params.control == "force")
     lo, hi = params.stroke_limits
     inside = ((q > lo + params.stroke_margin) & (q < hi - params.stroke_margin)).all(axis=1)
     kept = np.isfinite(q).all(axis=1) & (k >= params.safe_threshold) & inside

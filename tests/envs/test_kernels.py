@@ -579,41 +579,75 @@ def test_env_state_is_a_copy(rng):
         ("DeltaForceReach-v0", {"observation_source": "encoders", "geometry_variation": 0.01}),
     ],
 )
-def test_episode_starts_and_transitions_run_the_steps_compiled_kernel(monkeypatch, env_id, kwargs):
-    """A reset's evaluation and ``physics.transition`` build a ``StepCall`` of the very type the env's step builds.
+def test_every_role_of_the_step_runs_the_steps_compiled_kernel(monkeypatch, env_id, kwargs):
+    """Episode starts and the look-ahead build a ``StepCall`` of the very type the env's step builds.
 
-    The evaluation at rest is ``at_rest.evaluate_batch``; the transition is the shield's look-ahead. The step's
-    kernel then evaluates the start and moves the look-ahead without compiling a second specialisation
-    of itself (seconds at the first reset). A call whose constants, say, were writable would be another type.
+    The robots at rest at their start poses and their targets' strokes (``ASSEMBLE``, ``STROKES``), the evaluation
+    at rest (``EVALUATE``) and ``physics.transition`` (``TRANSITION``, the shield's look-ahead) all run the step's
+    kernel without compiling a second specialisation of it (seconds at the first reset). A call whose constants,
+    say, were writable would be another type.
     """
     import gymnasium as gym
     import numba
 
-    from envs.kernels import at_rest
+    from envs.kernels import records
 
-    built, moved = [], []
-    original, original_call = at_rest.evaluation_call, step_kernels.step_call
+    built = []
+    original = step_kernels._new_step_call
 
     def recording(*args):
-        result = original(*args)
-        built.append(numba.typeof(result[0]))
-        return result
+        call = original(*args)
+        built.append((args[-1], numba.typeof(call)))  # (its mode, its type)
+        return call
 
-    def recording_call(*args, **kwargs):
-        result = original_call(*args, **kwargs)
-        moved.append(numba.typeof(result))
-        return result
-
-    monkeypatch.setattr(at_rest, "evaluation_call", recording)
+    monkeypatch.setattr(step_kernels, "_new_step_call", recording)
     env = gym.make(env_id, **kwargs)
     env.reset(seed=0)
     env.step(np.zeros(env.action_space.shape, dtype=np.float32))
     inner = env.unwrapped
-    stepped = numba.typeof(inner._buffers[0]._call)
-    assert built and all(typ == stepped for typ in built), (built, stepped)
-    monkeypatch.setattr(step_kernels, "step_call", recording_call)  # what transition_batch builds
     physics.transition(inner.params, inner.state, np.zeros(inner.state.q.shape))
-    assert moved and all(typ == stepped for typ in moved), (moved, stepped)
+    stepped = numba.typeof(inner._buffers[0]._call)
+    modes = {records.STEP, records.EVALUATE, records.TRANSITION, records.ASSEMBLE, records.STROKES}
+    assert {mode for mode, _ in built} == modes
+    assert all(typ == stepped for _, typ in built), [mode for mode, typ in built if typ != stepped]
+    env.close()
+
+
+@pytest.mark.parametrize("num_envs", [1, fk.PARALLEL_MIN_BATCH + 1])
+def test_an_env_runs_one_entry_kernel_of_the_step(monkeypatch, num_envs):
+    """A vector env that steps on every core starts, restarts and looks ahead on that kernel too; a small one never.
+
+    Each entry kernel (one thread, every core) compiles the whole step: an env that used both would compile it
+    twice. Every role (``envs.kernels.modes``) follows the env's choice, the shield's look-ahead included.
+    """
+    import gymnasium as gym
+
+    from envs.wrappers.shield import VectorSingularityShield
+
+    used = []
+
+    def recording(name, kernel):
+        def run(*args):
+            used.append(name)
+            return kernel(*args)
+
+        return run
+
+    patched = {
+        key: step_kernels.PathKernels(recording("one thread", k.step_serial), recording("every core", k.step_chunks))
+        for key, k in step_kernels._PATH_KERNELS.items()
+    }
+    monkeypatch.setattr(step_kernels, "_PATH_KERNELS", patched)
+    env = VectorSingularityShield(
+        gym.make_vec(
+            "Planar3RPRReach-v0", num_envs=num_envs, vectorization_mode="vector_entry_point", max_episode_steps=3
+        )
+    )
+    env.reset(seed=0)
+    for _ in range(4):  # the episodes end after 3 steps and restart
+        env.step(np.full(env.action_space.shape, 0.5, dtype=np.float32))
+    env.reset(options={"reset_mask": np.arange(num_envs) % 2 == 0})
+    assert set(used) == {"every core" if num_envs >= fk.PARALLEL_MIN_BATCH else "one thread"}
     env.close()
 
 
