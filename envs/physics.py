@@ -211,12 +211,13 @@ def initial_state(
     if known is not None:  # each robot's own geometry
         plant, codes = known
         constants = fk.read_only(plant)  # the state keeps ``plant`` writable (``put_rows`` refills its rows)
-        q, k, k1, det_sign, residual = fk.initial_batch(constants, start, force, parallel)
-        if reference.strokes is None:
-            reference = reference._replace(strokes=fk.strokes_batch(constants, reference.center, force, parallel))
     else:
-        q, k, k1, det_sign, residual = fk.initial_batch(params.packed_rows, start, force, parallel)
-        reference = with_strokes(params, reference, parallel)
+        constants = params.packed_rows
+    if reference.strokes is None:  # the targets' strokes, from the same call
+        q, k, k1, det_sign, residual, strokes = fk.initial_batch(constants, start, force, parallel, reference.center)
+        reference = reference._replace(strokes=strokes)
+    else:
+        q, k, k1, det_sign, residual = fk.initial_batch(constants, start, force, parallel)
     if streams is None and (params.geometry_tolerance or params.observation_source == "encoders"):
         raise ValueError("initial_state needs the robots' random streams with a geometry tolerance or encoders")
     if params.geometry_tolerance:

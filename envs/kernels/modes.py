@@ -171,8 +171,11 @@ def transition_batch(cs, state, action, force=(), kernels=None, parallel=None):
     return (moved, force[2:]) if force else moved
 
 
-def _at_rest(cs, x, mode, force, parallel):
-    """Run ``ASSEMBLE`` or ``STROKES`` at the poses x (N, m): (q, k, k_I, sign(det J_x), residual) arrays."""
+def _at_rest(cs, x, mode, force, parallel, centers=None):
+    """Run ``ASSEMBLE`` or ``STROKES`` at the poses x (N, m): (q, k, k_I, sign(det J_x), residual) arrays.
+
+    With ``centers`` (N, m), the strokes of those poses (N, n) follow, from the same call.
+    """
     cs = _constants(cs)
     x = writable(x)
     n, m = x.shape
@@ -183,12 +186,13 @@ def _at_rest(cs, x, mode, force, parallel):
     )
     extra = (_NO_INERTIA, no_rows, no_rows, no_rows, no_rows) if force else ()
     motion = (no_rows, x, _NO_STEPS, no_column, no_column)
-    call = step_call(cs, cs, _NO_OBSERVATION, motion, (no_rows,) * 4, outputs, extra, mode=mode)
+    reference = (no_rows,) * 4 if centers is None else (writable(centers), no_rows, no_rows, np.empty((n, m)))
+    call = step_call(cs, cs, _NO_OBSERVATION, motion, reference, outputs, extra, mode=mode)
     _run(cs, call, np.empty((n, 0)), parallel)
-    return q, k, k1, sign, residual
+    return (q, k, k1, sign, residual) if centers is None else (q, k, k1, sign, residual, reference[3])
 
 
-def initial_batch(c, x, force=False, parallel=False):
+def initial_batch(c, x, force=False, parallel=False, centers=None):
     """Strokes (inverse kinematics), k, k_I, sign(det J_x) and residual of N robots at rest at poses x.
 
     Args:
@@ -196,11 +200,14 @@ def initial_batch(c, x, force=False, parallel=False):
         x: Poses, shape (N, m).
         force: Whether the env is under force control (its step's call then has force control's arrays).
         parallel: Run the multi-core step's kernel (see the module docstring).
+        centers: Targets (N, m) whose strokes to solve in the same call (an episode's start: its reference's), or
+            None.
 
     Returns:
-        (strokes (N, n), k (N,), k_I (N,), sign(det J_x) (N,), residual max_i |Φ_i| [m²] (N,)).
+        (strokes (N, n), k (N,), k_I (N,), sign(det J_x) (N,), residual max_i |Φ_i| [m²] (N,)), and with
+        ``centers`` the strokes of the centres (N, n) (``strokes_batch``).
     """
-    return _at_rest(c, x, ASSEMBLE, force, parallel)
+    return _at_rest(c, x, ASSEMBLE, force, parallel, centers)
 
 
 def strokes_batch(c, x, force=False, parallel=False):

@@ -244,7 +244,7 @@ def _step_block(
     ``state`` (``initial_batch``, ``strokes_batch``).
     """
     if mode >= ASSEMBLE:
-        _assemble_rows(path, plant, state.x, start, count, w, out, mode == ASSEMBLE)
+        _assemble_rows(path, plant, state.x, reference, start, count, w, out, mode == ASSEMBLE)
         return
     if mode != EVALUATE:
         moved = Moved(out.q, out.x, out.k, out.k1, out.residual, out.action, out.q_rate, out.reason, out.jump)
@@ -263,13 +263,15 @@ def _step_block(
 
 
 @jit_inline
-def _assemble_rows(path, plant, x, start, count, w, out, measuring):
+def _assemble_rows(path, plant, x, reference, start, count, w, out, measuring):
     """Robots start .. start + count − 1 at rest at their poses x: q (and if ``measuring`` k, k_I, residual, sign).
 
     The strokes come from the closed-form inverse kinematics of each robot's own branches; sign(det J_x) goes to
-    ``out.jump``.
+    ``out.jump``. Where ``reference.strokes`` has rows, the strokes of the reference's centres go there too.
     """
     o_q, o_k, o_k1, o_residual, o_sign = out.q, out.k, out.k1, out.residual, out.jump
+    center, o_strokes = reference.center, reference.strokes
+    targets = o_strokes.shape[0] > 0
     for i in range(start, start + count):
         c = _row(plant, i)
         x0 = paths.vector(path, x[i])
@@ -281,6 +283,10 @@ def _assemble_rows(path, plant, x, start, count, w, out, measuring):
             o_residual[i] = paths.residual(path, c, q, anchors, rows, w)
         for j in range(len(x0)):
             o_q[i, j] = q[j]
+        if targets:
+            strokes = paths.inverse_kinematics(path, c, paths.vector(path, center[i]), w[W_KQ])
+            for j in range(len(x0)):
+                o_strokes[i, j] = strokes[j]
 
 
 @jit_inline

@@ -606,6 +606,7 @@ def test_every_role_of_the_step_runs_the_steps_compiled_kernel(monkeypatch, env_
     env.step(np.zeros(env.action_space.shape, dtype=np.float32))
     inner = env.unwrapped
     physics.transition(inner.params, inner.state, np.zeros(inner.state.q.shape))
+    physics.with_strokes(inner.params, inner.state.reference._replace(strokes=None))  # a target's strokes alone
     stepped = numba.typeof(inner._buffers[0]._call)
     modes = {records.STEP, records.EVALUATE, records.TRANSITION, records.ASSEMBLE, records.STROKES}
     assert {mode for mode, _ in built} == modes
