@@ -273,7 +273,7 @@ def sensed_motion(params, before: Measurement, after: Measurement) -> tuple[np.n
     return step / dt, (after.q - before.q) / dt
 
 
-def known_holding_actions(params, q, x, sensed, plant, action) -> np.ndarray:
+def known_holding_actions(params, q, x, sensed, plant, action, parallel: bool = False) -> np.ndarray:
     """Force control on a robot the controller does not know exactly (a geometry tolerance, encoders).
 
     The action is an offset from the holding forces the controller computes: the nominal model's at the pose it
@@ -288,6 +288,8 @@ def known_holding_actions(params, q, x, sensed, plant, action) -> np.ndarray:
         sensed: The controllers' ``Measurement``, or None (they know the true pose).
         plant: Read-only packed constants of the robots as built, (N or 1, C_SIZE).
         action: The actions given, shape (N, n).
+        parallel: Solve the holding forces on the multi-core step's kernel (``envs.kernels.modes``), as a vector
+            env that steps on every core passes.
 
     Returns:
         The actions for the compiled step, shape (N, n); rows where a holding force is not finite (a singular
@@ -298,8 +300,8 @@ def known_holding_actions(params, q, x, sensed, plant, action) -> np.ndarray:
         q_known, x_known = sensed.q, sensed.x
     else:
         q_known, x_known = params.robot.inverse_kinematics(x, validate=False), x
-    known = force.holding_batch(params.packed_rows, params.packed_inertia, q_known, x_known)
-    true = force.holding_batch(plant, params.packed_inertia, q, x)
+    known = fk.holding_batch(params.packed_rows, params.packed_inertia, q_known, x_known, parallel)
+    true = fk.holding_batch(plant, params.packed_inertia, q, x, parallel)
     clean = (np.isfinite(known).all(axis=-1) & np.isfinite(true).all(axis=-1))[:, None]
     effort = force.efforts_of_actions(np.where(clean, known, 0.0), action, limits)
     converted = force.actions_of_efforts(np.where(clean, true, 0.0), effort, limits)

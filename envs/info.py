@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.kernels import force
+from envs.kernels import modes
 from envs.kernels.force import actions_of_efforts, efforts_of_actions
 from envs.params import FamilyParams
 from envs.state import _REASON_NAMES, INFO_KEYS, TYPE_I_INFO, FamilyOutcome, FamilyState
@@ -40,17 +40,20 @@ def measurement_info(state: FamilyState) -> dict[str, np.ndarray]:
     }
 
 
-def force_info(params: FamilyParams, state: FamilyState, outcome: FamilyOutcome | None) -> dict[str, np.ndarray]:
+def force_info(
+    params: FamilyParams, state: FamilyState, outcome: FamilyOutcome | None, parallel: bool = False
+) -> dict[str, np.ndarray]:
     """The info entries of force control's efforts, per robot (empty under rate control).
 
     ``actuator_forces`` (N, n): the applied efforts τ; ``holding_forces`` (N, n): τ_h at the period's start (at the
-    start pose when ``outcome`` is None: an episode's start, at rest, τ = 0). ``saturated`` (a drive at its limit)
-    is an entry of the evaluation (``step_info``).
+    start pose when ``outcome`` is None: an episode's start, at rest, τ = 0; ``parallel``: solved on the
+    multi-core step's kernel, ``envs.kernels.modes``). ``saturated`` (a drive at its limit) is an entry of the
+    evaluation (``step_info``).
     """
     if state.twist is None:
         return {}
     if outcome is None:
-        hold = force.holding_batch(params.packed_rows, params.packed_inertia, state.q, state.x)
+        hold = modes.holding_batch(params.packed_rows, params.packed_inertia, state.q, state.x, parallel)
         return {"actuator_forces": np.zeros_like(hold), "holding_forces": hold}
     return {"actuator_forces": outcome.effort.copy(), "holding_forces": outcome.hold.copy()}
 
@@ -68,12 +71,13 @@ def step_info(
     reason: np.ndarray,
     state: FamilyState | None = None,
     outcome: FamilyOutcome | None = None,
+    parallel: bool = False,
 ) -> dict[str, np.ndarray]:
     """Per-robot info arrays (leading dimension N) from an evaluation, in the single env's key order.
 
     ``INFO_KEYS`` in order (``is_success`` as bools, the reasons as names, pose and target as (N, m)), the Type I
     entries last, then ``measurement_info(state)``, and under force control ``force_info(params, state, outcome)``
-    and ``saturated`` (the evaluation's row, as bools), if a state is given.
+    and ``saturated`` (the evaluation's row, as bools), if a state is given (``parallel``: as ``force_info``).
     """
     rows = params.evaluation_rows
     info = {name: evaluation[rows[name]].copy() for name in INFO_KEYS if name not in TYPE_I_INFO}
@@ -86,6 +90,6 @@ def step_info(
     if state is not None:
         info.update(measurement_info(state))
         if state.twist is not None:
-            info.update(force_info(params, state, outcome))
+            info.update(force_info(params, state, outcome, parallel))
             info["saturated"] = evaluation[rows["saturated"]] != 0.0
     return info

@@ -482,7 +482,7 @@ def step(
         action, drive = hardware.drive(params, drive, action)
     if state.twist is not None and (state.plant is not None or state.sensed is not None) and state.geometry is None:
         plant = _plant(params, state.plant)
-        action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action)
+        action = hardware.known_holding_actions(params, state.q, state.x, state.sensed, plant, action, parallel)
     call = out.call_for(params, state, ref, observation)  # the call the buffers keep
     if parallel:
         failed = fk.step_on_every_core(out.kernels, call, action)

@@ -448,7 +448,7 @@ class FamilyVectorEnv(VectorEnv):
         evaluation, observations = evaluate(
             self.params, state, action, reason, self.with_velocity, parallel=parallel, validate=False
         )
-        return observations, step_info(self.params, evaluation, reason, state)
+        return observations, step_info(self.params, evaluation, reason, state, parallel=parallel)
 
     def _start_episodes(self, rows: np.ndarray, options: dict[str, Any]) -> FamilyState:
         """Draw a task for each sub-environment of ``rows`` with its own generator; their state at t = 0.

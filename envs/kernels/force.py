@@ -71,7 +71,7 @@ from envs.kernels.layout import (
     W_KX,
 )
 from envs.kernels.linalg import solve3, solve6
-from envs.kernels.packing import _OVERLOAD_OPTIONS, ROW_PATHS, WORK_ARRAYS, _literal_path, row_path
+from envs.kernels.packing import _OVERLOAD_OPTIONS, WORK_ARRAYS, _literal_path
 from envs.kernels.pose import _all_finite
 from envs.kernels.rate import advance_rate, substeps
 from envs.kernels.records import Dynamics
@@ -86,8 +86,8 @@ __all__ = [
     "efforts",
     "efforts_of_actions",
     "from_extra",
+    "hold_rows",
     "holding",
-    "holding_batch",
     "motion_of",
     "own_work",
     "start_period",
@@ -457,38 +457,28 @@ def _motion_of_control(dynamics, q_rate):
 # -- the holding forces of N robots ---------------------------------------------------------------------------
 
 
-def _holding_kernel(path: int):
-    """The entry kernel of the row path ``path`` (a compile-time constant): τ_h of N robots at (q, x), (N, n)."""
+def hold_rows(path, plant, dynamics, q, x, start, count):
+    """The holding forces of robots start .. start + count − 1 at (q, x) into ``dynamics.hold`` (None: nothing).
 
-    def holding_rows(cs, ci, q, x):
-        out = np.empty(q.shape)
-        wd = _dynamics_work()
-        shared = cs.shape[0] == 1
-        for i in range(q.shape[0]):
-            c = cs[0] if shared else cs[i]
-            hold = holding(path, c, _row(ci, 0), paths.vector(path, q[i]), paths.vector(path, x[i]), wd, wd[D_HOLD])
-            for j in range(q.shape[1]):
-                out[i, j] = hold[j]
-        return out
-
-    # One qualified name per path: Numba's on-disk cache keeps one index per name (see ``step._path_kernels``).
-    holding_rows.__qualname__ = holding_rows.__name__ = f"holding_path{path}"
-    return jit(holding_rows)
-
-
-_HOLDING = {path: _holding_kernel(path) for path in ROW_PATHS}
-
-
-def holding_batch(cs, ci, q, x):
-    """The holding forces τ_h (J_iᵀ τ_h = G) of N robots, shape (N, n); NaN where J_i is singular.
-
-    Args:
-        cs: Read-only packed constants, shape (1, C_SIZE) (one geometry) or (N, C_SIZE) (each robot's).
-        ci: Packed inertia (``pack_inertia``), shape (1, C_INERTIA_SIZE).
-        q: Actuator coordinates with Φ(q, x) = 0, shape (N, n).
-        x: Platform poses, shape (N, m).
+    The step's ``HOLD`` mode (``envs.kernels.modes.holding_batch``).
     """
-    return _HOLDING[row_path(cs)](cs, ci, q, x)
+    return paths._compiled_only()
+
+
+@overload(hold_rows, jit_options=_OVERLOAD_OPTIONS)
+def _hold_rows_of(path, plant, dynamics, q, x, start, count):
+    if isinstance(dynamics, types.NoneType):
+        return lambda path, plant, dynamics, q, x, start, count: None
+
+    def rows(path, plant, dynamics, q, x, start, count):
+        wd, o_hold = dynamics.work, dynamics.hold
+        for i in range(start, start + count):
+            c, ci = _row(plant, i), _row(dynamics.inertia, i)
+            hold = holding(path, c, ci, paths.vector(path, q[i]), paths.vector(path, x[i]), wd, wd[D_HOLD])
+            for j in range(q.shape[1]):
+                o_hold[i, j] = hold[j]
+
+    return rows
 
 
 # -- the action map in NumPy (controllers, the brake, a controller that knows another model) -------------------

@@ -12,7 +12,7 @@ from __future__ import annotations
 from envs.kernels.constraints import forward_batch, singularity_batch
 from envs.kernels.evaluation import reference_batch
 from envs.kernels.layout import C_SIZE, E_COST1, E_FIXED, PATH_VERTICES
-from envs.kernels.modes import evaluate_batch, initial_batch, strokes_batch, transition_batch
+from envs.kernels.modes import evaluate_batch, holding_batch, initial_batch, strokes_batch, transition_batch
 from envs.kernels.packing import (
     evaluation_rows,
     observation_layout,
@@ -62,6 +62,7 @@ __all__ = [
     "evaluate_batch",
     "evaluation_rows",
     "forward_batch",
+    "holding_batch",
     "initial_batch",
     "observation_layout",
     "pack_certificate",

@@ -8,7 +8,9 @@ step's own kernel in one of the modes of ``envs.kernels.records``:
   measurements, ``physics.reward_terms``);
 - ``transition_batch`` (``TRANSITION``): one control period without the evaluation (the shield's look-ahead);
 - ``initial_batch`` (``ASSEMBLE``): robots at rest at given poses (an episode's start);
-- ``strokes_batch`` (``STROKES``): the strokes of given poses (a fixed target's).
+- ``strokes_batch`` (``STROKES``): the strokes of given poses (a fixed target's);
+- ``holding_batch`` (``HOLD``): the holding forces of robots under force control (an episode's start, a
+  controller that knows another model than the plant).
 
 An env that has compiled its step therefore compiles nothing more to start its episodes or to look ahead. Each
 takes ``parallel``: run the multi-core step's kernel (on every core from ``PARALLEL_MIN_BATCH`` robots, on this
@@ -22,11 +24,19 @@ import numpy as np
 from envs.kernels import packing
 from envs.kernels.dynamics_layout import C_INERTIA_SIZE
 from envs.kernels.layout import E_FIXED
-from envs.kernels.records import ASSEMBLE, EVALUATE, STROKES, TRANSITION, Moved, StepArrays
+from envs.kernels.records import ASSEMBLE, EVALUATE, HOLD, STROKES, TRANSITION, Moved, StepArrays
 from envs.kernels.setup import PARALLEL_MIN_BATCH, on_every_core
 from envs.kernels.step import path_kernels, step_call
 
-__all__ = ["evaluate_batch", "evaluation_call", "initial_batch", "strokes_batch", "transition_batch", "writable"]
+__all__ = [
+    "evaluate_batch",
+    "evaluation_call",
+    "holding_batch",
+    "initial_batch",
+    "strokes_batch",
+    "transition_batch",
+    "writable",
+]
 
 _F8, _I8 = np.dtype(np.float64), np.dtype(np.int64)
 #: Stand-ins for the arrays a mode neither reads nor writes: the observation bounds, a reference, (N, ·) rows,
@@ -218,3 +228,28 @@ def strokes_batch(c, x, force=False, parallel=False):
     ``c``, ``force`` and ``parallel`` as ``initial_batch``.
     """
     return _at_rest(c, x, STROKES, force, parallel)[0]
+
+
+def holding_batch(cs, ci, q, x, parallel=False):
+    """The holding forces τ_h (J_iᵀ τ_h = G) of N robots, shape (N, n); NaN where J_i is singular.
+
+    Args:
+        cs: Read-only packed constants, shape (1, C_SIZE) (one geometry) or (N, C_SIZE) (each robot's).
+        ci: Packed inertia (``pack_inertia``), shape (1, C_INERTIA_SIZE).
+        q: Actuator coordinates with Φ(q, x) = 0, shape (N, n).
+        x: Platform poses, shape (N, m).
+        parallel: Run the multi-core step's kernel (see the module docstring).
+    """
+    cs = _constants(cs)
+    q, x = writable(q), writable(x)
+    n, m = x.shape
+    hold, no_rows, no_column = np.empty((n, m)), _NO_ROWS, _NO_COLUMN
+    outputs = StepArrays(
+        no_rows, no_rows, _NO_STEPS, no_column, no_column, no_column, no_rows, no_rows, _NO_STEPS, no_column, no_rows,
+        _NO_OBSERVATIONS,
+    )  # fmt: skip
+    extra = (packing.read_only(np.require(ci, np.float64, "C")), no_rows, no_rows, no_rows, hold)
+    motion = (q, x, _NO_STEPS, no_column, no_column)
+    call = step_call(cs, cs, _NO_OBSERVATION, motion, (no_rows,) * 4, outputs, extra, mode=HOLD)
+    _run(cs, call, np.empty((n, 0)), parallel)
+    return hold

@@ -17,6 +17,7 @@ from numba.experimental import structref
 __all__ = [
     "ASSEMBLE",
     "EVALUATE",
+    "HOLD",
     "STEP",
     "STROKES",
     "TRANSITION",
@@ -137,7 +138,7 @@ STEP_CALL_FIELDS = (
     "phase",
     "strokes",
     "outputs",  # the ``StepArrays`` written, then force control's (inertia, ẋ, ẋ', τ, τ_h) or nothing
-    "mode",  # int: what the call does (``STEP``, ``EVALUATE``, ``TRANSITION``, ``ASSEMBLE``, ``STROKES``)
+    "mode",  # int: what the call does (``STEP``, ``EVALUATE``, ``TRANSITION``, ``ASSEMBLE``, ``STROKES``, ``HOLD``)
 )
 
 #: The modes of a ``StepCall``: the one compiled step in each role, so that an env compiles one kernel.
@@ -147,7 +148,8 @@ STEP_CALL_FIELDS = (
 #: ``ASSEMBLE``: at rest at the poses ``x``: strokes q (the closed-form inverse kinematics), k, k_I, residual, and
 #: sign(det J_x) in ``jump`` (an episode's start).
 #: ``STROKES``: the strokes q of the poses ``x`` only (a fixed target's).
-STEP, EVALUATE, TRANSITION, ASSEMBLE, STROKES = range(5)
+#: ``HOLD``: under force control, the holding forces τ_h at (q, x) into force control's ``hold`` output.
+STEP, EVALUATE, TRANSITION, ASSEMBLE, STROKES, HOLD = range(6)
 
 
 @structref.register

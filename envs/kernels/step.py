@@ -28,7 +28,7 @@ from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
 from envs.kernels.evaluation import _evaluate_rows
-from envs.kernels.force import advance, beyond_stops, from_extra, motion_of, own_work
+from envs.kernels.force import advance, beyond_stops, from_extra, hold_rows, motion_of, own_work
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
@@ -65,6 +65,7 @@ from envs.kernels.packing import (
 from envs.kernels.records import (
     ASSEMBLE,
     EVALUATE,
+    HOLD,
     STEP,
     TRANSITION,
     Measured,
@@ -241,8 +242,11 @@ def _step_block(
 
     Or one part of it, by ``mode`` (``envs.kernels.records``): ``EVALUATE`` the state ``out`` holds
     (``evaluate_batch``), ``TRANSITION`` only (``transition_batch``), ``ASSEMBLE`` or ``STROKES`` at the poses of
-    ``state`` (``initial_batch``, ``strokes_batch``).
+    ``state`` (``initial_batch``, ``strokes_batch``), ``HOLD`` the holding forces there (``holding_batch``).
     """
+    if mode == HOLD:
+        hold_rows(path, plant, dynamics, state.q, state.x, start, count)
+        return
     if mode >= ASSEMBLE:
         _assemble_rows(path, plant, state.x, reference, start, count, w, out, mode == ASSEMBLE)
         return

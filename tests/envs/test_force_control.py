@@ -280,13 +280,11 @@ def test_the_shield_falls_back_on_the_brake_under_force_control():
 
 
 def test_the_compiled_holding_forces_are_the_numpy_ones():
-    """``force.holding_batch`` (the reset's info) equals ``RobotDynamics.holding_forces`` on every path, gravity on."""
-    from envs.kernels import force
-
+    """``holding_batch`` (the reset's info) equals ``RobotDynamics.holding_forces`` on every path, gravity on."""
     for robot in ("planar_3rpr", "stewart_gough", "delta"):
         params = build_family_params(robot, control="force", gravity=(0.0, -9.8) if robot == "planar_3rpr" else ())
         x, q = _starts(params, 5, seed=10)
-        got = force.holding_batch(params.packed_rows, params.packed_inertia, q, x)
+        got = fk.holding_batch(params.packed_rows, params.packed_inertia, q, x)
         want = params.dynamics.holding_forces(q, x)
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
         assert np.abs(want).max() > 0.1

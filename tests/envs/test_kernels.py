@@ -583,7 +583,8 @@ def test_every_role_of_the_step_runs_the_steps_compiled_kernel(monkeypatch, env_
     """Episode starts and the look-ahead build a ``StepCall`` of the very type the env's step builds.
 
     The robots at rest at their start poses and their targets' strokes (``ASSEMBLE``, ``STROKES``), the evaluation
-    at rest (``EVALUATE``) and ``physics.transition`` (``TRANSITION``, the shield's look-ahead) all run the step's
+    at rest (``EVALUATE``), the holding forces (``HOLD``) and ``physics.transition`` (``TRANSITION``, the shield's
+    look-ahead) all run the step's
     kernel without compiling a second specialisation of it (seconds at the first reset). A call whose constants,
     say, were writable would be another type.
     """
@@ -609,6 +610,8 @@ def test_every_role_of_the_step_runs_the_steps_compiled_kernel(monkeypatch, env_
     physics.with_strokes(inner.params, inner.state.reference._replace(strokes=None))  # a target's strokes alone
     stepped = numba.typeof(inner._buffers[0]._call)
     modes = {records.STEP, records.EVALUATE, records.TRANSITION, records.ASSEMBLE, records.STROKES}
+    if inner.params.control == "force":
+        modes.add(records.HOLD)  # the holding forces of the reset's info
     assert {mode for mode, _ in built} == modes
     assert all(typ == stepped for _, typ in built), [mode for mode, typ in built if typ != stepped]
     env.close()
