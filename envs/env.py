@@ -47,7 +47,8 @@ START_ATTEMPTS = 100
 def render_frames(params: FamilyParams, state: FamilyState, trails: Sequence[Sequence[np.ndarray]]) -> list[np.ndarray]:
     """The frames (``envs.rendering.render_family_frame``) of the N robots of ``state``, robot i with ``trails[i]``."""
     n = state.q.shape[0]
-    evaluation, _ = evaluate(params, state, np.zeros_like(state.q), np.zeros(n, dtype=np.int64), False)
+    action, reason = np.zeros_like(state.q), np.zeros(n, dtype=np.int64)
+    evaluation, _ = evaluate(params, state, action, reason, False, parallel=n >= fk.PARALLEL_MIN_BATCH)  # the env's
     target = evaluation[params.evaluation_rows["target"]].T
     return [
         render_family_frame(
@@ -206,7 +207,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
             for name, value in measurement_info(state).items():
                 info[name] = float(value[0]) if value.ndim == 1 else value[0]
         if state.twist is not None:
-            info.update(force_info_of_one(self.params, state, outcome))
+            force_info_of_one(self.params, state, outcome, info)
             info["saturated"] = v[self._saturated_row] != 0.0
         return info, v[self._reward_row]
 

@@ -58,11 +58,16 @@ def force_info(
     return {"actuator_forces": outcome.effort.copy(), "holding_forces": outcome.hold.copy()}
 
 
-def force_info_of_one(params: FamilyParams, state: FamilyState, outcome: FamilyOutcome | None) -> dict[str, object]:
-    """``force_info`` of one robot (the single env's), as its info holds them: (n,) arrays."""
+def force_info_of_one(
+    params: FamilyParams, state: FamilyState, outcome: FamilyOutcome | None, info: dict[str, object]
+) -> None:
+    """Write ``force_info`` of one robot (the single env's) into ``info``, as it holds them: (n,) arrays."""
     if outcome is None:
-        return {name: value[0] for name, value in force_info(params, state, None).items()}
-    return {"actuator_forces": outcome.effort[0].copy(), "holding_forces": outcome.hold[0].copy()}
+        for name, value in force_info(params, state, None).items():
+            info[name] = value[0]
+    else:  # at every step: no dict of its own
+        info["actuator_forces"] = outcome.effort[0].copy()
+        info["holding_forces"] = outcome.hold[0].copy()
 
 
 def step_info(

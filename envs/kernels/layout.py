@@ -137,7 +137,7 @@ LANES_ROWS: tuple[tuple[str, str], ...] = (
 )
 globals().update({"L_" + name: row for row, (name, _) in enumerate(LANES_ROWS)})  # L_K, …
 
-#: (name, info key) of the rows of the evaluation (``at_rest.evaluate_batch``) that do not depend on m, in order;
+#: (name, info key) of the rows of the evaluation (``modes.evaluate_batch``) that do not depend on m, in order;
 #: row ``E_<name>`` holds the info key's value of every robot. The target, its velocity and the pose follow from
 #: row ``E_FIXED`` (m rows each).
 EVALUATION: tuple[tuple[str, str], ...] = (

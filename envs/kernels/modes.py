@@ -46,6 +46,11 @@ _NO_OBSERVATION = (_NO_BOUNDS, _NO_BOUNDS, False)
 _NO_ROWS, _NO_COLUMN, _NO_STEPS = np.empty((0, 0)), np.empty(0), np.empty(0, dtype=np.int64)
 _NO_OBSERVATIONS = np.empty((0, 0), dtype=np.float32)
 _NO_INERTIA = packing.read_only(np.zeros((1, C_INERTIA_SIZE)))
+#: The outputs of a call that writes none of them (``HOLD``).
+_NO_OUTPUTS = StepArrays(
+    _NO_ROWS, _NO_ROWS, _NO_STEPS, _NO_COLUMN, _NO_COLUMN, _NO_COLUMN, _NO_ROWS, _NO_ROWS, _NO_STEPS, _NO_COLUMN,
+    _NO_ROWS, _NO_OBSERVATIONS,
+)  # fmt: skip
 
 
 def writable(a, dtype=_F8):
@@ -59,7 +64,7 @@ def writable(a, dtype=_F8):
 
 
 def _constants(cs):
-    """Packed constants as the step takes them: a read-only C-ordered (N or 1, C_SIZE) float64 array."""
+    """Packed constants (or inertia) as the step takes them: a read-only C-ordered (N or 1, ·) float64 array."""
     if not (type(cs) is np.ndarray and cs.dtype == _F8 and cs.flags.c_contiguous and not cs.flags.writeable):
         cs = packing.read_only(np.require(cs, np.float64, "C"))
     return cs if cs.ndim == 2 else cs[None]
@@ -240,16 +245,12 @@ def holding_batch(cs, ci, q, x, parallel=False):
         x: Platform poses, shape (N, m).
         parallel: Run the multi-core step's kernel (see the module docstring).
     """
-    cs = _constants(cs)
+    cs, ci = _constants(cs), _constants(ci)
     q, x = writable(q), writable(x)
     n, m = x.shape
-    hold, no_rows, no_column = np.empty((n, m)), _NO_ROWS, _NO_COLUMN
-    outputs = StepArrays(
-        no_rows, no_rows, _NO_STEPS, no_column, no_column, no_column, no_rows, no_rows, _NO_STEPS, no_column, no_rows,
-        _NO_OBSERVATIONS,
-    )  # fmt: skip
-    extra = (packing.read_only(np.require(ci, np.float64, "C")), no_rows, no_rows, no_rows, hold)
-    motion = (q, x, _NO_STEPS, no_column, no_column)
-    call = step_call(cs, cs, _NO_OBSERVATION, motion, (no_rows,) * 4, outputs, extra, mode=HOLD)
+    hold = np.empty((n, m))
+    extra = (ci, _NO_ROWS, _NO_ROWS, _NO_ROWS, hold)
+    motion = (q, x, _NO_STEPS, _NO_COLUMN, _NO_COLUMN)
+    call = step_call(cs, cs, _NO_OBSERVATION, motion, (_NO_ROWS,) * 4, _NO_OUTPUTS, extra, mode=HOLD)
     _run(cs, call, np.empty((n, 0)), parallel)
     return hold

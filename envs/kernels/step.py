@@ -40,8 +40,11 @@ from envs.kernels.layout import (
     C_HARD1,
     C_HIGH,
     C_JUMP,
+    C_LEGS,
     C_LOW,
     C_N,
+    C_SPATIAL,
+    C_TRANSLATIONAL,
     E_FIXED,
     L_ACTIVE,
     L_FLAGS,
@@ -428,7 +431,7 @@ def step_call(model, plant, observation, state, reference, out, force=(), mode=S
     It holds the arrays by reference: a call steps from whatever they hold when it runs. ``mode`` (``STEP``, or
     one of the others of ``envs.kernels.records``: ``envs.kernels.modes``) says what it does.
     """
-    return _new_step_call(model, plant, *observation, *state, *reference, tuple(out) + tuple(force), mode)
+    return _new_step_call(model, plant, *observation, *state, *reference, (*out, *force), mode)
 
 
 def step_on_every_core(kernels, call, action):
@@ -462,7 +465,15 @@ def allocate_step(n, m, obs_dim):
 
 def path_kernels(cs) -> PathKernels:
     """The entry kernels of the robot of packed constants ``cs`` (its ``row_path``'s and pose space's)."""
-    return _PATH_KERNELS[row_path(cs), pose_space_code(cs)]
+    kind = (cs.item(C_SPATIAL), cs.item(C_LEGS), cs.item(C_TRANSLATIONAL), cs.item(C_N))
+    key = _KEYS.get(kind)
+    if key is None:
+        key = _KEYS[kind] = (row_path(cs), pose_space_code(cs))
+    return _PATH_KERNELS[key]
+
+
+#: (row path, pose space) by the constants that decide them (``path_kernels``: one lookup at every reset).
+_KEYS: dict[tuple[float, ...], tuple[int, int]] = {}
 
 
 def step_batch(model, plant, observation, state, reference, action, out, kernels=None, force=()):
