@@ -48,7 +48,7 @@ def render_frames(params: FamilyParams, state: FamilyState, trails: Sequence[Seq
     """The frames (``envs.rendering.render_family_frame``) of the N robots of ``state``, robot i with ``trails[i]``."""
     n = state.q.shape[0]
     action, reason = np.zeros_like(state.q), np.zeros(n, dtype=np.int64)
-    evaluation, _ = evaluate(params, state, action, reason, False, parallel=n >= fk.PARALLEL_MIN_BATCH)  # the env's
+    evaluation, _ = evaluate(params, state, action, reason, False, parallel=fk.uses_every_core(n))
     target = evaluation[params.evaluation_rows["target"]].T
     return [
         render_family_frame(

@@ -471,7 +471,7 @@ def step(
         out = StepBuffers(params, n, with_velocity)
     elif validate and out.shape != (n, params.robot.n_pose, observation_bounds(params, with_velocity)[0].shape[0]):
         raise ValueError(f"out holds buffers of shape (N, m, D) = {out.shape}, the step needs N = {n}")
-    parallel = n >= fk.PARALLEL_MIN_BATCH
+    parallel = fk.uses_every_core(n)
     ref = with_strokes(params, state.reference, parallel)
     low, high = observation_bounds(params, with_velocity)
     observation = (low, high, bool(with_velocity))

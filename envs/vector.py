@@ -16,7 +16,7 @@ from envs import physics
 from envs.arguments import Parameter, Range, table
 from envs.env import TRAIL_LENGTH, FamilyEnvBase, FamilyReachEnv, FamilyTrackEnv, render_frames
 from envs.info import step_info
-from envs.kernels.setup import PARALLEL_MIN_BATCH, random_streams
+from envs.kernels.setup import random_streams, uses_every_core
 from envs.physics import NonFiniteActionError, StepBuffers, evaluate
 from envs.state import FamilyState, copy_state, put_rows, state_arrays
 
@@ -444,7 +444,7 @@ class FamilyVectorEnv(VectorEnv):
         """Observations and per-robot info arrays (fresh, writable) of robots starting an episode (action 0)."""
         n = state.q.shape[0]
         action, reason = np.zeros((n, self._n_actions)), np.zeros(n, dtype=np.int64)
-        parallel = self.num_envs >= PARALLEL_MIN_BATCH  # the kernel of this env's steps (``physics.step``)
+        parallel = uses_every_core(self.num_envs)  # the kernel of this env's steps (``physics.step``)
         evaluation, observations = evaluate(
             self.params, state, action, reason, self.with_velocity, parallel=parallel, validate=False
         )
@@ -456,7 +456,7 @@ class FamilyVectorEnv(VectorEnv):
         One compiled call for all of them (the single env's ``start_episodes``), each drawing from its own generator.
         """
         generators = [self._generators[i] for i in rows.tolist()]
-        parallel = self.num_envs >= PARALLEL_MIN_BATCH  # the kernel of this env's steps (``physics.step``)
+        parallel = uses_every_core(self.num_envs)
         return self._sampler.start_episodes(generators, options, self._streams[rows], parallel)
 
     def _new_generator(self, i: int, seed: int | None) -> None:

@@ -22,7 +22,7 @@ from envs.kernels.packing import (
     row_path,
 )
 from envs.kernels.records import StepCall
-from envs.kernels.setup import PARALLEL_MIN_BATCH, random_streams
+from envs.kernels.setup import PARALLEL_MIN_BATCH, random_streams, uses_every_core
 from envs.kernels.step import (
     allocate_step,
     path_kernels,
@@ -84,4 +84,5 @@ __all__ = [
     "step_on_every_core",
     "strokes_batch",
     "transition_batch",
+    "uses_every_core",
 ]

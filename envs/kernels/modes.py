@@ -25,7 +25,7 @@ from envs.kernels import packing
 from envs.kernels.dynamics_layout import C_INERTIA_SIZE
 from envs.kernels.layout import E_FIXED
 from envs.kernels.records import ASSEMBLE, EVALUATE, HOLD, STROKES, TRANSITION, Moved, StepArrays
-from envs.kernels.setup import PARALLEL_MIN_BATCH, on_every_core
+from envs.kernels.setup import PARALLEL_MIN_BATCH, on_every_core, uses_every_core
 from envs.kernels.step import path_kernels, step_call
 
 __all__ = [
@@ -145,8 +145,8 @@ def transition_batch(cs, state, action, force=(), kernels=None, parallel=None):
         force: () for rate control, or (inertia, twist) for force control (``envs.kernels.force``): the packed
             inertia and drive limits (``pack_inertia``), (N or 1, C_INERTIA_SIZE), and the twists ẋ (N, m).
         kernels: The ``PathKernels`` to run (default ``path_kernels(cs)``, the robot's own row path's).
-        parallel: Run the multi-core step's kernel (see the module docstring); None: from ``PARALLEL_MIN_BATCH``
-            robots on, as ``physics.step`` does.
+        parallel: Run the multi-core step's kernel (see the module docstring); None: as ``physics.step`` does for
+            N robots (``uses_every_core``).
 
     Returns:
         A ``Moved`` (q', x', k', k_I', residual', applied action, achieved stroke rates [m/s], reason codes, jumps
@@ -174,7 +174,7 @@ def transition_batch(cs, state, action, force=(), kernels=None, parallel=None):
     call = step_call(
         cs, cs, _NO_OBSERVATION, (q, x, t, det_sign, residual), (_NO_ROWS,) * 4, outputs, force, mode=TRANSITION
     )
-    parallel = n >= PARALLEL_MIN_BATCH if parallel is None else parallel
+    parallel = uses_every_core(n) if parallel is None else parallel
     if kernels is not None:
         failed = kernels.step_serial(call, action)
     elif parallel:  # the multi-core kernel does not check the actions

@@ -25,6 +25,7 @@ __all__ = [
     "on_every_core",
     "random_streams",
     "uniform_batch",
+    "uses_every_core",
 ]
 
 drop_stale_caches(__file__)
@@ -48,6 +49,16 @@ THREADS = max(1, int(numba.config.NUMBA_NUM_THREADS))
 #: than it saves. Measured on two cores, 3-RPR Reach, random actions: N = 128 took 101 µs on both cores and 81 µs
 #: on one, N = 256 141 and 159 µs, N = 512 223 and 317 µs.
 PARALLEL_MIN_BATCH = 256
+
+
+def uses_every_core(n: int) -> bool:
+    """Whether an env of n robots steps on the multi-core kernel (from ``PARALLEL_MIN_BATCH`` robots on).
+
+    Everything such an env computes with the step's kernel (``envs.kernels.modes``) runs on that kernel too: a
+    process that used both would compile the whole step twice.
+    """
+    return n >= PARALLEL_MIN_BATCH
+
 
 _pool: tuple[int, ThreadPoolExecutor] | None = None
 
