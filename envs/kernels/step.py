@@ -269,13 +269,23 @@ def _step_block(
     )
 
 
-@jit_inline
 def _assemble_rows(path, plant, x, reference, start, count, w, out, measuring):
     """Robots start .. start + count − 1 at rest at their poses x: q (and if ``measuring`` k, k_I, residual, sign).
 
     The strokes come from the closed-form inverse kinematics of each robot's own branches; sign(det J_x) goes to
-    ``out.jump``. Where ``reference.strokes`` has rows, the strokes of the reference's centres go there too.
+    ``out.jump``. Where ``reference.strokes`` has rows, the strokes of the reference's centres go there too. A
+    function of its own (the overload below), not inlined: the one-thread and the multi-core step link one copy.
     """
+    raise NotImplementedError("compiled only (see its overload)")
+
+
+@overload(_assemble_rows, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _assemble_rows_of_path(path, plant, x, reference, start, count, w, out, measuring):
+    _literal_path(path)
+    return _assemble
+
+
+def _assemble(path, plant, x, reference, start, count, w, out, measuring):
     o_q, o_k, o_k1, o_residual, o_sign = out.q, out.k, out.k1, out.residual, out.jump
     center, o_strokes = reference.center, reference.strokes
     targets = o_strokes.shape[0] > 0
