@@ -103,6 +103,16 @@ def _rows(a: Any, width: int, name: str) -> np.ndarray:
     return np.ascontiguousarray(arr)
 
 
+def _actions(params: FamilyParams, state: FamilyState, action: Any, validate: bool) -> np.ndarray:
+    """``action`` as the kernels take it, (N, n) float64 for the N robots of ``state`` (checked with ``validate``)."""
+    n = check_state(params, state) if validate else state.q.shape[0]
+    if not (type(action) is np.ndarray and action.shape == state.q.shape and action.dtype == np.float64):
+        action = _rows(action, params.robot.n_actuators, "action")
+        if action.shape[0] != n:
+            raise ValueError(f"action must have shape {state.q.shape}, got {action.shape}")
+    return action
+
+
 def check_state(params: FamilyParams, state: FamilyState) -> int:
     """N, after checking that every array of ``state`` has the shape the kernels index (they do not check).
 
@@ -264,10 +274,7 @@ def transition(
     Returns:
         (the new state, the outcome); the new state has no measurement (``sensed`` None): ``step`` takes one.
     """
-    if validate or action.shape != state.q.shape or action.dtype != np.float64:
-        action = _rows(action, params.robot.n_actuators, "action")
-        if action.shape[0] != (check_state(params, state) if validate else state.q.shape[0]):
-            raise ValueError(f"action must have shape {state.q.shape}, got {action.shape}")
+    action = _actions(params, state, action, validate)
     if not np.isfinite(action).all():
         rows = np.flatnonzero(~np.isfinite(action).all(axis=-1))
         raise NonFiniteActionError(f"action must be finite, got {action[rows[0]].tolist()}", rows)
@@ -462,11 +469,9 @@ def step(
     Raises:
         NonFiniteActionError: If an action is not finite (``state`` is untouched).
     """
-    n = check_state(params, state) if validate else state.q.shape[0]
-    if action.shape != state.q.shape or action.dtype != np.float64:
-        action = _rows(action, params.robot.n_actuators, "action")
-        if action.shape[0] != n:
-            raise ValueError(f"action must have shape {state.q.shape}, got {action.shape}")
+    if validate or action.shape != state.q.shape or action.dtype != np.float64:  # the envs' actions skip the call
+        action = _actions(params, state, action, validate)
+    n = state.q.shape[0]
     if out is None:
         out = StepBuffers(params, n, with_velocity)
     elif validate and out.shape != (n, params.robot.n_pose, observation_bounds(params, with_velocity)[0].shape[0]):

@@ -422,7 +422,7 @@ def _own_work_of(dynamics):
     return own
 
 
-def from_extra(extra, n, m):
+def from_extra(extra):
     """The ``Dynamics`` of a batch from an entry kernel's extra arguments.
 
     () for rate control (None), or (inertia, twist, o_twist, effort, hold) for force control.
@@ -431,11 +431,11 @@ def from_extra(extra, n, m):
 
 
 @overload(from_extra, jit_options=_OVERLOAD_OPTIONS)
-def _from_extra_of(extra, n, m):
+def _from_extra_of(extra):
     if len(extra) == 0:
-        return lambda extra, n, m: None
+        return lambda extra: None
 
-    def given(extra, n, m):
+    def given(extra):
         inertia, twist, o_twist, effort, hold = extra
         return Dynamics(inertia, twist, o_twist, effort, hold, _dynamics_work())
 

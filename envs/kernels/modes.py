@@ -26,7 +26,7 @@ from envs.kernels.dynamics_layout import C_INERTIA_SIZE
 from envs.kernels.layout import E_FIXED
 from envs.kernels.records import ASSEMBLE, EVALUATE, HOLD, STROKES, TRANSITION, Moved, StepArrays
 from envs.kernels.setup import PARALLEL_MIN_BATCH, on_every_core, uses_every_core
-from envs.kernels.step import path_kernels, step_call
+from envs.kernels.step import allocate_step, path_kernels, step_call
 
 __all__ = [
     "evaluate_batch",
@@ -161,19 +161,12 @@ def transition_batch(cs, state, action, force=(), kernels=None, parallel=None):
     q, x, det_sign, residual = (writable(a) for a in (q, x, det_sign, residual))
     action, t = writable(action), writable(t, _I8)
     n, m = x.shape
-    moved = Moved(*(np.empty((n, m)) for _ in range(2)), *(np.empty(n) for _ in range(3)),
-                  *(np.empty((n, m)) for _ in range(2)), np.empty(n, dtype=np.int64), np.empty(n))  # fmt: skip
-    outputs = StepArrays(
-        moved.q, moved.x, np.empty(n, dtype=np.int64), moved.k, moved.k1, moved.residual, moved.action,
-        moved.q_rate, moved.reason, moved.jump, _NO_ROWS, _NO_OBSERVATIONS,
-    )  # fmt: skip
+    o = allocate_step(n, m, 0)._replace(evaluation=_NO_ROWS)  # the evaluation rows are not written
+    moved = Moved(o.q, o.x, o.k, o.k1, o.residual, o.action, o.q_rate, o.reason, o.jump)
     if force:
         inertia, twist = force
-        inertia = packing.read_only(np.require(inertia, np.float64, "C"))
-        force = (inertia, writable(twist), np.empty((n, m)), np.empty((n, m)), np.empty((n, m)))
-    call = step_call(
-        cs, cs, _NO_OBSERVATION, (q, x, t, det_sign, residual), (_NO_ROWS,) * 4, outputs, force, mode=TRANSITION
-    )
+        force = (_constants(inertia), writable(twist), np.empty((n, m)), np.empty((n, m)), np.empty((n, m)))
+    call = step_call(cs, cs, _NO_OBSERVATION, (q, x, t, det_sign, residual), (_NO_ROWS,) * 4, o, force, mode=TRANSITION)
     parallel = uses_every_core(n) if parallel is None else parallel
     if kernels is not None:
         failed = kernels.step_serial(call, action)

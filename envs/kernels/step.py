@@ -322,7 +322,6 @@ def _unpack(call):
     ``dynamics`` is None under rate control, else a ``Dynamics`` with a work array allocated here.
     """
     outputs = call.outputs
-    n, m = call.q.shape
     return (
         call.model,
         call.plant,
@@ -330,7 +329,7 @@ def _unpack(call):
         Motion(call.q, call.x, call.t, call.det_sign, call.residual),
         Reference(call.center, call.amplitude, call.phase, call.strokes),
         StepArrays(*outputs[:N_STEP_ARRAYS]),
-        from_extra(outputs[N_STEP_ARRAYS:], n, m),
+        from_extra(outputs[N_STEP_ARRAYS:]),
     )
 
 
