@@ -71,7 +71,7 @@ from envs.kernels.layout import C_B, C_E, C_LAM, C_LEGS, C_N, C_P, C_SPATIAL, C_
 from envs.kernels.linalg import solve3, solve6
 from envs.kernels.packing import _OVERLOAD_OPTIONS, WORK_ARRAYS, _literal_path
 from envs.kernels.pose import _frame
-from envs.kernels.setup import jit
+from envs.kernels.setup import jit, jit_inline
 
 __all__ = [
     "C_INERTIA_SIZE",
@@ -87,7 +87,7 @@ drop_stale_caches(__file__)
 # -- one leg, in scalars (every path) ---------------------------------------------------------------------
 
 
-@jit
+@jit_inline
 def _anchor(c, i, qi):
     """Leg i's anchor at qi: (A_i (3), A_i′ (3), A_i″ (3), ℓ_i) [m, m per unit of q, per unit of q²]."""
     if c[C_LEGS] != 0.0:  # A_i = B_i, ℓ_i = q_i
@@ -101,9 +101,12 @@ def _anchor(c, i, qi):
     return A0, A1, A2, D0, D1, D2, DD0, DD1, DD2, ell
 
 
-@jit
+@jit_inline
 def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2, split):
     """Leg i's inertia and forces at its platform point: (s_I, s_g, s_x, g_i (3), h_i (3), F_i (3), F_i,G (3)).
+
+    Inlined with ``_anchor`` into the two callers (``_terms3``, ``_terms_work``): as a call of its own, the
+    arguments and the 15 results of every leg went through memory (15 % of the hexapod's force step).
 
     Reads leg i's geometry from ``c`` and its bodies from ``ci``; qi is its actuator coordinate, (P0, P1, P2) the
     point P_i in {B} [m], (V0, V1, V2) its velocity K_i ẋ [m/s] and (a0, a1, a2) its acceleration at ẍ = 0
@@ -333,10 +336,29 @@ def _add_moments(M, spatial, translational, moments):
 @jit
 def _add_leg(M, m, s_g, s_x, G, H):
     """The upper triangle of M += s_g G Gᵀ + s_x (G Hᵀ + H Gᵀ) for 6-tuples G, H (m used)."""
+    if m == 6:  # constant bounds: the tuples stay in registers (a third of the spatial robots' M)
+        for j in range(6):
+            gj, hj = s_g * G[j] + s_x * H[j], s_x * G[j]
+            for k in range(j, 6):
+                M[j, k] += gj * G[k] + hj * H[k]
+        return
     for j in range(m):
         gj, hj = s_g * G[j] + s_x * H[j], s_x * G[j]
         for k in range(j, m):
             M[j, k] += gj * G[k] + hj * H[k]
+
+
+@jit
+def _add_forces(bias, force, m, W, t, G):
+    """Add W to ``bias`` and t G to ``force`` for 6-tuples W, G (m used)."""
+    if m == 6:  # constant bounds, as in ``_add_leg``
+        for j in range(6):
+            bias[j] += W[j]
+            force[j] += t * G[j]
+        return
+    for j in range(m):
+        bias[j] += W[j]
+        force[j] += t * G[j]
 
 
 @jit
@@ -404,14 +426,11 @@ def _terms_work(c, ci, q, x, xdot, tau, wd, split):
         moments = _moments(moments, s_i, r0, r1, r2)
         _add_leg(M, m, s_g, s_x, G, H)
         W = _wrench(spatial, translational, r0, r1, r2, F0, F1, F2)
-        Wg = _wrench(spatial, translational, r0, r1, r2, Fg0, Fg1, Fg2)
         # J_iᵀ τ summed here, in ``_generalised_work``'s order: a pass over D_JT after the loop costs the hexapod's
         # force step 2.5 %
-        t = tau[i]
-        for j in range(m):
-            bias[j] += W[j]
-            force[j] += t * G[j]
+        _add_forces(bias, force, m, W, tau[i], G)
         if split:
+            Wg = _wrench(spatial, translational, r0, r1, r2, Fg0, Fg1, Fg2)
             for j in range(m):
                 grav[j] += Wg[j]
                 jt[j, i] = G[j]
