@@ -548,6 +548,17 @@ def acceleration(path, c, ci, q, x, xdot, tau, wd, out):
 
 @overload(acceleration, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _acceleration(path, c, ci, q, x, xdot, tau, wd, out):
+    if _literal_path(path) == WORK_ARRAYS:
+
+        def work(path, c, ci, q, x, xdot, tau, wd, out):  # the rows of wd, without ``equations``' views of them
+            m = x.shape[0]
+            out = out[:m]
+            _terms_work(c, ci, q, x, xdot, tau, wd, np.bool_(False))
+            _solve_work(wd, m, out)
+            return out
+
+        return work
+
     def of(path, c, ci, q, x, xdot, tau, wd, out):
         M, bias, force = equations(path, c, ci, q, x, xdot, tau, wd)
         return solve_acceleration(path, M, bias, force, wd, out)
