@@ -333,7 +333,7 @@ def _add_moments(M, spatial, translational, moments):
         M[2, 2] += xx + yy
 
 
-@jit_inline
+@jit
 def _add_leg(M, m, s_g, s_x, G, H):
     """The upper triangle of M += s_g G Gᵀ + s_x (G Hᵀ + H Gᵀ) for 6-tuples G, H (m used)."""
     if m == 6:  # constant bounds: the tuples stay in registers (a third of the spatial robots' M)
@@ -348,7 +348,7 @@ def _add_leg(M, m, s_g, s_x, G, H):
             M[j, k] += gj * G[k] + hj * H[k]
 
 
-@jit_inline
+@jit
 def _add_forces(bias, force, m, W, t, G):
     """Add W to ``bias`` and t G to ``force`` for 6-tuples W, G (m used)."""
     if m == 6:  # constant bounds, as in ``_add_leg``
