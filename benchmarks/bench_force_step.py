@@ -7,10 +7,10 @@ Run with ``python -m benchmarks.bench_force_step [--steps 500] [--rounds 21] [--
    resets inside the timed loop, 500 warm-up steps, the environments taking turns with the order reversed every
    other round) of ``Planar3RPRForceReach-v0``, ``DeltaForceReach-v0`` and ``StewartGoughForceReach-v0`` against
    ``Pendulum-v1``. The ratio is taken round by round, each id against the Pendulum of the same round, and the
-   table gives the median and the quartiles of the rounds' ratios: a machine whose speed drifts between rounds
-   moves both sides of a round's ratio together. Actions are uniform in ±0.05 (offsets from the holding forces of 5 % of
-   the drive limits; full-scale random efforts fling the platform out in a few steps, and the loop would time
-   resets). Targets: planar and Delta / Pendulum ≤ 1.5, hexapod / Pendulum ≤ 2.
+   table gives the median and the quartiles of the rounds' ratios (a drift of the machine's speed slower than a
+   round cancels in that round's ratio). Actions are uniform in ±0.05 (offsets from the holding forces of 5 % of the
+   drive limits; full-scale random efforts fling the platform out in a few steps, and the loop would time resets).
+   Targets: planar and Delta / Pendulum ≤ 1.5, hexapod / Pendulum ≤ 2.
 2. The native vector env (``gym.make_vec``, ``vector_entry_point``) at each size: env-steps per second of
    ``--vector-rounds`` samples of ``--vector-steps`` steps each, fresh uniform ±0.05 actions, autoreset included,
    after 3 warm-up steps; the median and the range of the samples. Targets at N = 16384: ≥ 1 M env-steps/s

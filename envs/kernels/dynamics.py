@@ -106,7 +106,7 @@ def _leg(c, ci, i, qi, P0, P1, P2, V0, V1, V2, a0, a1, a2, split):
     """Leg i's inertia and forces at its platform point: (s_I, s_g, s_x, g_i (3), h_i (3), F_i (3), F_i,G (3)).
 
     Inlined with ``_anchor`` into the two callers (``_terms3``, ``_terms_work``): as a call of its own, the
-    arguments and the 15 results of every leg went through memory (15 % of the hexapod's force step).
+    arguments and the 15 results of every leg went through memory (a sixth of the hexapod's M and c + G).
 
     Reads leg i's geometry from ``c`` and its bodies from ``ci``; qi is its actuator coordinate, (P0, P1, P2) the
     point P_i in {B} [m], (V0, V1, V2) its velocity K_i ẋ [m/s] and (a0, a1, a2) its acceleration at ẍ = 0
@@ -336,7 +336,7 @@ def _add_moments(M, spatial, translational, moments):
 @jit
 def _add_leg(M, m, s_g, s_x, G, H):
     """The upper triangle of M += s_g G Gᵀ + s_x (G Hᵀ + H Gᵀ) for 6-tuples G, H (m used)."""
-    if m == 6:  # constant bounds: the tuples stay in registers (a third of the spatial robots' M)
+    if m == 6:  # constant bounds: the tuples stay in registers (with ``_add_forces``, a fifth of the hexapod's M)
         for j in range(6):
             gj, hj = s_g * G[j] + s_x * H[j], s_x * G[j]
             for k in range(j, 6):
