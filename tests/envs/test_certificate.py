@@ -1,10 +1,13 @@
-"""The certificate of robots with three actuators against the kinematics library, and its two row paths agree."""
+"""The certificate against the kinematics library (three actuators; the hexapod's walk); its two row paths agree."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from envs.kernels import generic as fk
 from envs.kernels.packing import THREE, WORK_ARRAYS
@@ -186,3 +189,94 @@ def test_the_scalar_certificate_equals_the_work_array_one(env_id):
         outputs.append((o_safety, o_sign, o_safe, o_segment))
     for a, b in zip(*outputs):
         np.testing.assert_array_equal(a, b)
+
+
+def _geodesic_points(params, start: np.ndarray, target: np.ndarray, u: Any) -> np.ndarray:
+    """Poses (len(u), 6) at u ∈ [0, 1] of the geodesic start → target: p linear, R(u) = exp(u δθ) R_start."""
+    u = np.atleast_1d(np.asarray(u, dtype=np.float64))
+    r_start, r_target = Rotation.from_rotvec(start[3:]), Rotation.from_rotvec(target[3:])
+    rotations = Rotation.from_rotvec(u[:, None] * (r_target * r_start.inv()).as_rotvec()) * r_start
+    return np.hstack([start[:3] + u[:, None] * (target[:3] - start[:3]), rotations.as_rotvec()])
+
+
+def _geodesic_length(params, start: np.ndarray, target: np.ndarray) -> float:
+    """‖(δp, ℓ_c δθ)‖ of the geodesic start → target of a six-coordinate pose (exp([δθ]×) R_start = R_target)."""
+    delta = (Rotation.from_rotvec(target[3:]) * Rotation.from_rotvec(start[3:]).inv()).as_rotvec()
+    return float(
+        np.hypot(np.linalg.norm(target[:3] - start[:3]), params.robot.characteristic_length * np.linalg.norm(delta))
+    )
+
+
+def _spatial_walk(params, start, target, spacing, threshold, box):
+    """The fixed walk of a six-coordinate robot by the kinematics library and SciPy: its result (see ``_walk``).
+
+    Points ``spacing`` apart in ‖(δp, ℓ_c δθ)‖ along the geodesic, ends included; −1 at the first point out of the
+    sampling box (with ``box``) or the stroke margin, 0 where sign(det J_x) differs from the start's; the walk stops
+    once the smallest safety met falls below ``threshold``.
+    """
+    length = _geodesic_length(params, start, target)
+    count = int(min(max(np.ceil(length / spacing), 1), fk.SEGMENT_MAX_POINTS))
+    points = _geodesic_points(params, start, target, np.arange(count + 1) / count)
+    inside, safety, sign = _oracle(params, points)
+    in_box = np.all((points >= params.sample_low) & (points <= params.sample_high), axis=1)
+    worst = np.inf
+    for s in range(count + 1):
+        if (box and not in_box[s]) or not inside[s]:
+            return -1.0, count
+        worst = min(worst, 0.0 if sign[s] != sign[0] else safety[s])
+        if worst < threshold:
+            return worst, count
+    return worst, count
+
+
+def test_the_walk_of_six_coordinates_matches_the_kinematics_library():
+    """The hexapod's segments against the library's walk along the geodesic (SciPy's rotations).
+
+    Between poses of the sampling box (some leave the stroke margin) and to poses out of it, walked whole
+    (``segment_min_safety_batch``, no box) and as the samplers walk them (``certified_segment_batch``: the box,
+    stopping below a threshold; the median k of the box, so that some segments dip below it), with segments of a
+    few points to some fifty.
+    """
+    params = gym.make("StewartGoughReach-v0").unwrapped.params
+    low, high = np.array(params.sample_low), np.array(params.sample_high)
+    x = low + (high - low) * np.random.default_rng(7).uniform(-0.1, 1.1, (400, 6))
+    in_box = np.all((x >= low) & (x <= high), axis=1)
+    start, target = x[in_box][:60], np.concatenate([x[in_box][60:100], x[~in_box][:20]])
+    _, k, _ = _oracle(params, start)
+    threshold = float(np.nanmedian(k))
+    spacing = params.segment_spacing / 2
+    free = fk.segment_min_safety_batch(params.packed, start, target, spacing)
+    certified = fk.certified_segment_batch(params.packed, start, target, threshold)
+    counts, kinds = [], set()
+    for i in range(len(start)):
+        expected, count = _spatial_walk(params, start[i], target[i], spacing, -np.inf, False)
+        counts.append(count)
+        np.testing.assert_allclose(free[i], expected, rtol=1e-7, atol=1e-10, err_msg=f"pair {i}")
+        expected, _ = _spatial_walk(params, start[i], target[i], params.segment_spacing, threshold, True)
+        np.testing.assert_allclose(certified[i], expected, rtol=1e-7, atol=1e-10, err_msg=f"pair {i}")
+        kinds.add("left" if expected < 0 else ("certified" if expected >= threshold else "dips"))
+    assert kinds == {"left", "certified", "dips"}, kinds
+    assert min(counts) < 16 and max(counts) > 48, (min(counts), max(counts))
+
+
+def test_a_segment_of_the_hexapod_through_a_type_ii_singularity_is_zero():
+    """A segment of the hexapod through a Type II singularity (within the stroke margin) is 0.
+
+    The spacing puts the crossing between the 16th and the 17th checked points (where a walk in blocks of 16
+    points would start its second): the 17th point's sign of det J_x is compared with the start's.
+    """
+    params = gym.make("StewartGoughReach-v0").unwrapped.params
+    start = np.array([-0.09628838, 0.16443045, 0.47035076, 0.42813228, 0.47186144, 0.07706015])
+    target = np.array([-0.14699781, 0.16349657, 0.41969325, 0.58241742, 0.57809131, 0.09865072])
+    before, after = 0.0, 1.0  # u of the crossing, by bisection on the library's sign(det J_x)
+    for _ in range(40):
+        middle = 0.5 * (before + after)
+        sign = _oracle(params, _geodesic_points(params, start, target, middle))[2]
+        before, after = (middle, after) if sign[0] == _oracle(params, start[None])[2][0] else (before, middle)
+    count = int(16 / after)  # points s = 0 … count at u = s / count: s = 16 is the first past the crossing
+    assert 15 / count < before and after < 16 / count
+    length = _geodesic_length(params, start, target)
+    spacing = length / (count - 0.5)
+    expected, points = _spatial_walk(params, start, target, spacing, -np.inf, False)
+    assert points == count and expected == 0.0
+    assert fk.segment_min_safety_batch(params.packed, start[None], target[None], spacing)[0] == 0.0
