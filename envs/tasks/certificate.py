@@ -225,6 +225,11 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box,
     ``ADAPTIVE_STEP_LIMIT`` (the default spacing, which bounds what the strokes and the box may do between points)
     and at least the fixed walk's (longer than ``spacing`` only past ``SEGMENT_MAX_POINTS`` spacings). The result
     is then only compared with T: above it, it is the smallest safety at the checked points.
+
+    Points go one at a time, the hexapod's k by the plain Jacobi SVD. Its SIMD form (``inverse_condition6_lanes``,
+    16 points at once) walks the hexapod's segments 1.5× faster with the same results, but Numba optimises a
+    callee's code again in every function that calls it: walking in lanes doubled the CPU of the hexapod's first
+    step on a cold cache (``benchmarks.bench_cold_start``).
     """
     direction, point = w[W_SEG_D], w[W_SEG]
     _difference(c, target, start, direction)
