@@ -465,7 +465,7 @@ def hold_rows(path, plant, dynamics, q, x, start, count):
     return paths._compiled_only()
 
 
-@overload(hold_rows, jit_options=_OVERLOAD_OPTIONS)
+@overload(hold_rows, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
 def _hold_rows_of(path, plant, dynamics, q, x, start, count):
     if isinstance(dynamics, types.NoneType):
         return lambda path, plant, dynamics, q, x, start, count: None
