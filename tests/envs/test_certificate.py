@@ -7,7 +7,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from envs.kernels import generic as fk
 from envs.kernels.packing import THREE, WORK_ARRAYS
@@ -62,13 +61,32 @@ def test_the_certificate_of_a_pose_matches_the_kinematics_library(env_id):
     np.testing.assert_array_equal(o_sign[~defined], 0.0)
 
 
+def _segment(params, start: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, float]:
+    """The library's twist step start → target (``pose_space.difference``) and its length ‖(δp, ℓ_c δθ)‖ [m]."""
+    step = params.robot.pose_space.difference(target, start)
+    return step, float(np.linalg.norm(step / params.robot.pose_scale))
+
+
+def _points_at(params, start: np.ndarray, step: np.ndarray, u: Any) -> np.ndarray:
+    """Poses (len(u), m) at u ∈ [0, 1] of the geodesic from start along ``step`` (``pose_space.retract``)."""
+    u = np.atleast_1d(np.asarray(u, dtype=np.float64))
+    return params.robot.pose_space.retract(start, u[:, None] * step)
+
+
 def _checked_points(params, start: np.ndarray, target: np.ndarray, spacing: float) -> np.ndarray:
     """The points the certificate checks on the segment start → target: at most ``spacing`` apart, ends included."""
-    planar = params.robot.pose_space.name == "planar"
-    scale = np.array([1.0, 1.0, params.robot.characteristic_length if planar else 1.0])
-    length = np.linalg.norm((target - start) * scale)
+    step, length = _segment(params, start, target)
     count = int(min(max(np.ceil(length / spacing), 1), fk.SEGMENT_MAX_POINTS))
-    return start + (np.arange(count + 1) / count)[:, None] * (target - start)
+    return _points_at(params, start, step, np.arange(count + 1) / count)
+
+
+def _smallest_safety(params, start: np.ndarray, target: np.ndarray, spacing: float) -> float:
+    """``segment_min_safety_batch`` by the library: −1 if a checked point leaves the margin, else the least safety.
+
+    A point where sign(det J_x) differs from the start's counts as safety 0.
+    """
+    ok, safety, sign = _oracle(params, _checked_points(params, start, target, spacing))
+    return -1.0 if not ok.all() else float(np.where(sign != sign[0], 0.0, safety).min())
 
 
 @pytest.mark.parametrize("env_id", THREE_ACTUATORS)
@@ -86,8 +104,7 @@ def test_the_smallest_safety_along_a_segment_matches_the_kinematics_library(env_
     spacing = 2.0 * params.segment_spacing
     expected = np.empty(len(start))
     for i in range(len(start)):
-        ok, safety, sign = _oracle(params, _checked_points(params, start[i], target[i], spacing))
-        expected[i] = -1.0 if not ok.all() else np.where(sign != sign[0], 0.0, safety).min()
+        expected[i] = _smallest_safety(params, start[i], target[i], spacing)
     assert np.count_nonzero(expected >= 0.0) >= 10, "too few segments keep the stroke margin"
     got = fk.segment_min_safety_batch(params.packed, start, target, spacing)
     np.testing.assert_allclose(got, expected, rtol=1e-7, atol=1e-10)
@@ -106,18 +123,18 @@ def _walk(params, start: np.ndarray, target: np.ndarray, threshold: float) -> tu
     Points ``segment_spacing`` apart where the spacing is at least ``ADAPTIVE_STEP_LIMIT``; else each step after a
     point of safety s is spacing · (1 + (s − threshold) / margin), at most ``ADAPTIVE_STEP_LIMIT``. The walk stops
     at the first point that leaves the stroke margin (−1), changes the sign of det J_x (0) or falls below the
-    threshold; the segment is certified when the result is ≥ threshold.
+    threshold; the segment is certified when the result is ≥ threshold. A point out of the sampling box is −1 too.
+    Points lie on the library's geodesic (``_points_at``).
     """
-    planar = params.robot.pose_space.name == "planar"
-    scale = np.array([1.0, 1.0, params.robot.characteristic_length if planar else 1.0])
-    length = np.linalg.norm((target - start) * scale)
+    step_to_target, length = _segment(params, start, target)
     spacing, limit = params.segment_spacing, certificate.ADAPTIVE_STEP_LIMIT
     margin, u, points, first, worst = _spacing_margin(params), 0.0, [], None, np.inf
+    low, high = np.array(params.sample_low), np.array(params.sample_high)
     while True:
-        points.append(start + u * (target - start))
+        points.append(_points_at(params, start, step_to_target, u)[0])
         inside, safety, sign = _oracle(params, points[-1][None])
         first = sign[0] if first is None else first
-        if not inside[0]:
+        if not inside[0] or not np.all((points[-1] >= low) & (points[-1] <= high)):
             return -1.0, np.array(points)
         worst = min(worst, 0.0 if sign[0] != first else safety[0])
         if worst < threshold or u >= 1.0:
@@ -191,46 +208,8 @@ def test_the_scalar_certificate_equals_the_work_array_one(env_id):
         np.testing.assert_array_equal(a, b)
 
 
-def _geodesic_points(params, start: np.ndarray, target: np.ndarray, u: Any) -> np.ndarray:
-    """Poses (len(u), 6) at u ∈ [0, 1] of the geodesic start → target: p linear, R(u) = exp(u δθ) R_start."""
-    u = np.atleast_1d(np.asarray(u, dtype=np.float64))
-    r_start, r_target = Rotation.from_rotvec(start[3:]), Rotation.from_rotvec(target[3:])
-    rotations = Rotation.from_rotvec(u[:, None] * (r_target * r_start.inv()).as_rotvec()) * r_start
-    return np.hstack([start[:3] + u[:, None] * (target[:3] - start[:3]), rotations.as_rotvec()])
-
-
-def _geodesic_length(params, start: np.ndarray, target: np.ndarray) -> float:
-    """‖(δp, ℓ_c δθ)‖ of the geodesic start → target of a six-coordinate pose (exp([δθ]×) R_start = R_target)."""
-    delta = (Rotation.from_rotvec(target[3:]) * Rotation.from_rotvec(start[3:]).inv()).as_rotvec()
-    return float(
-        np.hypot(np.linalg.norm(target[:3] - start[:3]), params.robot.characteristic_length * np.linalg.norm(delta))
-    )
-
-
-def _spatial_walk(params, start, target, spacing, threshold, box):
-    """The fixed walk of a six-coordinate robot by the kinematics library and SciPy: its result (see ``_walk``).
-
-    Points ``spacing`` apart in ‖(δp, ℓ_c δθ)‖ along the geodesic, ends included; −1 at the first point out of the
-    sampling box (with ``box``) or the stroke margin, 0 where sign(det J_x) differs from the start's; the walk stops
-    once the smallest safety met falls below ``threshold``.
-    """
-    length = _geodesic_length(params, start, target)
-    count = int(min(max(np.ceil(length / spacing), 1), fk.SEGMENT_MAX_POINTS))
-    points = _geodesic_points(params, start, target, np.arange(count + 1) / count)
-    inside, safety, sign = _oracle(params, points)
-    in_box = np.all((points >= params.sample_low) & (points <= params.sample_high), axis=1)
-    worst = np.inf
-    for s in range(count + 1):
-        if (box and not in_box[s]) or not inside[s]:
-            return -1.0, count
-        worst = min(worst, 0.0 if sign[s] != sign[0] else safety[s])
-        if worst < threshold:
-            return worst, count
-    return worst, count
-
-
 def test_the_walk_of_six_coordinates_matches_the_kinematics_library():
-    """The hexapod's segments against the library's walk along the geodesic (SciPy's rotations).
+    """The hexapod's segments against the library's walk along its geodesic (``pose_space.retract``).
 
     Between poses of the sampling box (some leave the stroke margin) and to poses out of it, walked whole
     (``segment_min_safety_batch``, no box) and as the samplers walk them (``certified_segment_batch``: the box,
@@ -249,10 +228,10 @@ def test_the_walk_of_six_coordinates_matches_the_kinematics_library():
     certified = fk.certified_segment_batch(params.packed, start, target, threshold)
     counts, kinds = [], set()
     for i in range(len(start)):
-        expected, count = _spatial_walk(params, start[i], target[i], spacing, -np.inf, False)
-        counts.append(count)
+        counts.append(len(_checked_points(params, start[i], target[i], spacing)) - 1)
+        expected = _smallest_safety(params, start[i], target[i], spacing)
         np.testing.assert_allclose(free[i], expected, rtol=1e-7, atol=1e-10, err_msg=f"pair {i}")
-        expected, _ = _spatial_walk(params, start[i], target[i], params.segment_spacing, threshold, True)
+        expected, _ = _walk(params, start[i], target[i], threshold)
         np.testing.assert_allclose(certified[i], expected, rtol=1e-7, atol=1e-10, err_msg=f"pair {i}")
         kinds.add("left" if expected < 0 else ("certified" if expected >= threshold else "dips"))
     assert kinds == {"left", "certified", "dips"}, kinds
@@ -268,15 +247,15 @@ def test_a_segment_of_the_hexapod_through_a_type_ii_singularity_is_zero():
     params = gym.make("StewartGoughReach-v0").unwrapped.params
     start = np.array([-0.09628838, 0.16443045, 0.47035076, 0.42813228, 0.47186144, 0.07706015])
     target = np.array([-0.14699781, 0.16349657, 0.41969325, 0.58241742, 0.57809131, 0.09865072])
+    step, length = _segment(params, start, target)
     before, after = 0.0, 1.0  # u of the crossing, by bisection on the library's sign(det J_x)
     for _ in range(40):
         middle = 0.5 * (before + after)
-        sign = _oracle(params, _geodesic_points(params, start, target, middle))[2]
+        sign = _oracle(params, _points_at(params, start, step, middle))[2]
         before, after = (middle, after) if sign[0] == _oracle(params, start[None])[2][0] else (before, middle)
     count = int(16 / after)  # points s = 0 … count at u = s / count: s = 16 is the first past the crossing
     assert 15 / count < before and after < 16 / count
-    length = _geodesic_length(params, start, target)
     spacing = length / (count - 0.5)
-    expected, points = _spatial_walk(params, start, target, spacing, -np.inf, False)
-    assert points == count and expected == 0.0
+    assert len(_checked_points(params, start, target, spacing)) == count + 1
+    assert _smallest_safety(params, start, target, spacing) == 0.0
     assert fk.segment_min_safety_batch(params.packed, start[None], target[None], spacing)[0] == 0.0
