@@ -10,9 +10,10 @@ those its cache was built with.
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -24,18 +25,32 @@ __all__ = ["cache_folder", "dependencies", "drop_stale_caches"]
 _PACKAGE = "envs."
 
 
-def _imported_modules(path: Path) -> set[str]:
-    """Names of the package's modules (not packages) that the source file ``path`` imports at any level."""
+def _statements(nodes: list[ast.stmt]) -> Iterator[ast.stmt]:
+    """Every statement of ``nodes`` and of the blocks nested in them (imports are statements: no expression)."""
+    for node in nodes:
+        yield node
+        for block in ("body", "handlers", "orelse", "finalbody"):
+            yield from _statements(getattr(node, block, None) or [])
+
+
+@functools.cache
+def _imports_of(path: Path) -> frozenset[str]:
+    """Every name the source file ``path`` imports at any level, and each ``from`` import's members (parsed once)."""
     names = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in _statements(ast.parse(path.read_text(encoding="utf-8")).body):
         if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             names.add(node.module)
             names.update(f"{node.module}.{alias.name}" for alias in node.names)
         elif isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)
+    return frozenset(names)
+
+
+def _imported_modules(path: Path) -> set[str]:
+    """Names of the package's modules (not packages) that the source file ``path`` imports at any level."""
     return {
         name
-        for name in names
+        for name in _imports_of(path.resolve())
         if name.startswith(_PACKAGE)
         and name in sys.modules
         and not str(getattr(sys.modules[name], "__file__", "__init__.py")).endswith("__init__.py")

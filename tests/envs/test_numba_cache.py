@@ -75,7 +75,7 @@ def compile(self, sig):
     try:
         return original(self, sig)
     finally:
-        if sum(self._cache_hits.values()) == hits and self.py_func.__module__.startswith("envs"):
+        if sum(self._cache_hits.values()) == hits and (self.py_func.__module__ or "").startswith("envs"):
             compiled.append(self.py_func.__qualname__)
 
 nd.Dispatcher.compile = compile
