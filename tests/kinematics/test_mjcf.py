@@ -9,6 +9,8 @@ check that these comparisons see them.
 
 from __future__ import annotations
 
+import functools
+
 import mujoco
 import numpy as np
 import pytest
@@ -125,6 +127,32 @@ def drift(
     return float(np.linalg.norm(end - robot.platform_points_in_base(x), axis=-1).max())
 
 
+@functools.cache
+def _our_motion(name: str, count: int, fraction: float, damping: float, joint_damping: float) -> tuple:
+    """``compare``'s side of our dynamics (the MJCF does not change it): computed once per arguments.
+
+    Returns (X0, τ, x at 0.5 s, the inertia simulated, "moved", "phi"); read-only by convention.
+    """
+    robot, inertia = robot_and_inertia(name)
+    if damping or joint_damping:
+        home = robot.home_pose()
+        hold = np.abs(RobotDynamics(robot, inertia).holding_forces(robot.inverse_kinematics(home), home)).max()
+        inertia = inertia.replace(actuator_damping=damping * hold, joint_damping=joint_damping * hold)
+    dynamics = RobotDynamics(robot, inertia)
+    X0 = start_poses(robot, name, count)
+    tau = efforts(dynamics, X0, fraction)
+    d = robot.pose_space.point_dim
+    moved = np.zeros(count)
+    x, xdot = X0.copy(), np.zeros_like(X0)
+    for k in range(SEGMENTS):
+        state = dynamics.step(x, xdot, tau[k], SEGMENT, substeps=OUR_SUBSTEPS)
+        x, xdot = state.x, state.xdot
+        travel = np.linalg.norm(robot.pose_difference(X0, x)[:, :d], axis=-1)
+        moved = np.maximum(moved, travel)
+    phi = np.abs(robot.constraints(state.q, x)).max(axis=-1)
+    return X0, tau, x, inertia, moved, phi
+
+
 def compare(
     name: str,
     count: int,
@@ -151,23 +179,11 @@ def compare(
         every 12.5 ms), "moved" (the largest distance [m] of our platform from its start, at the ends of the
         segments), and "phi", our largest |Φ_i| at the end [m²].
     """
-    robot, inertia = robot_and_inertia(name)
-    if damping or joint_damping:
-        home = robot.home_pose()
-        hold = np.abs(RobotDynamics(robot, inertia).holding_forces(robot.inverse_kinematics(home), home)).max()
-        inertia = inertia.replace(actuator_damping=damping * hold, joint_damping=joint_damping * hold)
-    dynamics = RobotDynamics(robot, inertia)
-    X0 = start_poses(robot, name, count)
-    tau = efforts(dynamics, X0, fraction)
+    robot, _ = robot_and_inertia(name)
+    X0, tau, x, inertia, moved, phi = _our_motion(name, count, fraction, damping, joint_damping)
     d = robot.pose_space.point_dim
-    out = {key: np.zeros(count) for key in ("position", "angle", "closure", "moved")}
-    x, xdot = X0.copy(), np.zeros_like(X0)
-    for k in range(SEGMENTS):
-        state = dynamics.step(x, xdot, tau[k], SEGMENT, substeps=OUR_SUBSTEPS)
-        x, xdot = state.x, state.xdot
-        travel = np.linalg.norm(robot.pose_difference(X0, x)[:, :d], axis=-1)
-        out["moved"] = np.maximum(out["moved"], travel)
-    out["phi"] = np.abs(robot.constraints(state.q, x)).max(axis=-1)
+    out = {key: np.zeros(count) for key in ("position", "angle", "closure")}
+    out["moved"], out["phi"] = moved.copy(), phi.copy()
     for j in range(count):
         model, data = load(robot, inertia if exported is None else exported, x=X0[j], **options)
         steps = round(SEGMENT / model.opt.timestep) // 4
