@@ -46,7 +46,7 @@ from envs.kernels.layout import (
     W_SQ,
     W_XM,
 )
-from envs.kernels.linalg import inverse_condition6, solve3, solve6
+from envs.kernels.linalg import condition_at_least6, inverse_condition6, solve3, solve6
 from envs.kernels.pose import _all_finite, _frame, _retract
 from envs.kernels.setup import jit, jit_inline
 
@@ -248,13 +248,37 @@ def _singularity(c, q, w, src):
         return three.link_condition3(
             c, a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], ell0, ell1, ell2
         )  # fmt: skip
-    Ht = w[W_H : W_H + 6]  # column j of J_i diag(pose_scale) as row j
+    k = inverse_condition6(_link_columns6(c, q, w, src))
+    det = _solve(w, m, src, w[W_RHS], w[W_SOL])
+    return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
+
+
+@jit_inline
+def _link_columns6(c, q, w, src):
+    """Rows W_H of w: column j of the link Jacobian diag(1/ℓ) A diag(pose_scale) as row j (m = 6); returned."""
+    Ht = w[W_H : W_H + 6]
     for i in range(6):
         inv = 1.0 / _link_length(c, q, w, i)
         row = w[src + i]
         for j in range(6):
             Ht[j, i] = row[j] * inv * c[C_SCALE + j]
-    k = inverse_condition6(Ht)
+    return Ht
+
+
+@jit
+def _singularity_at_least(c, q, w, src, at_least):
+    """``_singularity``, or (``at_least``, sign(det J_x)) where k ≥ ``at_least`` > 0 is proven instead of computed.
+
+    The certificate only compares k with its threshold: on m = 6, ``linalg.condition_at_least6`` proves k ≥ the
+    threshold at a tenth of the SVD's cost, and the SVD runs where it does not. k and the proof decide alike, so
+    the certificate certifies the same segments; its values above the threshold are then lower bounds. With
+    ``at_least`` ≤ 0 (or m = 3), exactly ``_singularity``.
+    """
+    m = int(c[C_N])
+    if m != 6 or not at_least > 0.0:
+        return _singularity(c, q, w, src)
+    Ht = _link_columns6(c, q, w, src)
+    k = at_least if condition_at_least6(Ht, w[W_LU : W_LU + 6], at_least) else inverse_condition6(Ht)
     det = _solve(w, m, src, w[W_RHS], w[W_SOL])
     return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
 

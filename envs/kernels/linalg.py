@@ -18,7 +18,15 @@ import numpy as np
 
 from envs.kernels.setup import jit, jit_inline
 
-__all__ = ["LANES", "inverse_condition6", "inverse_condition6_lanes", "singular_value_ratio3", "solve3", "solve6"]
+__all__ = [
+    "LANES",
+    "condition_at_least6",
+    "inverse_condition6",
+    "inverse_condition6_lanes",
+    "singular_value_ratio3",
+    "solve3",
+    "solve6",
+]
 
 _SIX = 6
 #: Tournament (round-robin) order of the 15 column pairs of a 6-column matrix: 5 rounds of 3 disjoint pairs.
@@ -287,6 +295,55 @@ def inverse_condition6_lanes(H, count, out, worst, active):
             low = min(low, s)
             top = max(top, s)
         out[lane] = (0.0 if top == 0.0 else math.sqrt(low / top)) if finite else np.nan
+
+
+#: Relative slack of ``condition_at_least6``: a proven k exceeds the bound by ~5e-7 of it, far beyond the rounding of
+#: the factorisation and of the Jacobi SVD (~1e-15), so that the proof and ``inverse_condition6`` decide alike.
+PROOF_SLACK = 1e-6
+
+
+@jit
+def condition_at_least6(H, G, t):
+    """Whether σ_min/σ_max ≥ t > 0 is proven for the 6 × 6 matrix whose *columns* are the rows of ``H`` (kept).
+
+    With the Gram matrix G = HᵀH and U = ‖G‖_∞ ≥ λ_max(G) = σ_max², a Cholesky factorisation of
+    G − t² (1 + ``PROOF_SLACK``) U I that succeeds shows σ_min² > t² U ≥ t² σ_max². About a tenth of the cost of
+    ``inverse_condition6``; it proves every point of the hexapod's certified segments (U ≤ 1.3 σ_max² there).
+    False proves nothing (k may still be ≥ t); so do a zero or a non-finite H.
+
+    Args:
+        H: Shape (6, 6), float64; H[j] is column j.
+        G: Work array, shape (6, 6), float64 (overwritten).
+        t: The bound, > 0.
+    """
+    for j in range(_SIX):
+        for k in range(j, _SIX):
+            s = 0.0
+            for i in range(_SIX):
+                s += H[j, i] * H[k, i]
+            G[j, k] = s
+            G[k, j] = s
+    top = 0.0
+    for j in range(_SIX):
+        row = 0.0
+        for k in range(_SIX):
+            row += abs(G[j, k])
+        top = max(top, row)
+    shift = t * t * (1.0 + PROOF_SLACK) * top
+    for j in range(_SIX):  # Cholesky of G − shift I, lower triangle in place
+        d = G[j, j] - shift
+        for k in range(j):
+            d -= G[j, k] * G[j, k]
+        if not d > 0.0:  # not positive definite, or NaN
+            return False
+        d = math.sqrt(d)
+        G[j, j] = d
+        for i in range(j + 1, _SIX):
+            s = G[i, j]
+            for k in range(j):
+                s -= G[i, k] * G[j, k]
+            G[i, j] = s / d
+    return True
 
 
 @jit

@@ -3,7 +3,10 @@
 Every safety decision (the task samplers, the certified grid, the planner's edges) goes through
 ``_pose_safety``: k, or with cranks and sliders min(k, k_I · k_safe / k_I,safe), or −1 where an actuator leaves
 its limits less the margin. Segments are checked at points a spacing apart along the geodesic
-(``_segment_min_k``); a change of sign(det J_x) between two of them counts as safety 0.
+(``_segment_min_k``); a change of sign(det J_x) between two of them counts as safety 0. A check that only compares
+the safety with a threshold (the samplers', ``safe_batch``) proves k ≥ the threshold on six coordinates where it
+can (``constraints._singularity_at_least``: a Cholesky factorisation instead of the Jacobi SVD) and reports the
+threshold there: the same decisions, in a third of the time on the hexapod.
 
 The measures at a pose (``_measures``) are chosen at compile time by the row path (``envs.kernels.packing``): a
 robot with three actuators and three pose coordinates (planar or translational; legs, cranks or sliders) computes
@@ -22,7 +25,7 @@ from numba.extending import overload
 
 from envs.kernels import three
 from envs.kernels.cache import drop_stale_caches
-from envs.kernels.constraints import _actuator_condition, _inverse_kinematics, _singularity, _work
+from envs.kernels.constraints import _actuator_condition, _inverse_kinematics, _singularity_at_least, _work
 from envs.kernels.layout import (
     C_HARD,
     C_HARD1,
@@ -110,8 +113,12 @@ def _measures_three(c, x0, x1, x2, always):
 
 
 @jit
-def _measures_work(c, x, w, strokes, always):
-    """``_measures_three`` of any robot over the work array w: the strokes of x go to ``strokes``, A's rows to w."""
+def _measures_work(c, x, w, strokes, always, at_least):
+    """``_measures_three`` of any robot over the work array w: the strokes of x go to ``strokes``, A's rows to w.
+
+    Where ``at_least`` > 0 and m = 6, k is ``at_least`` where k ≥ ``at_least`` is proven
+    (``constraints._singularity_at_least``).
+    """
     _inverse_kinematics(c, x, w, strokes)
     lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
     inside = True
@@ -120,31 +127,33 @@ def _measures_work(c, x, w, strokes, always):
             inside = False
     if not (inside or always):
         return False, np.nan, 0.0, np.nan
-    k, sign = _singularity(c, strokes, w, W_A)
+    k, sign = _singularity_at_least(c, strokes, w, W_A, at_least)
     return inside, k, sign, _actuator_condition(c, w)
 
 
-def _measures(path, c, x, w, strokes, always):
+def _measures(path, c, x, w, strokes, always, at_least):
     """(inside, k, sign(det J_x), k_I) of the pose x: whether its strokes keep the margin, and the two measures.
 
     Where a stroke leaves them, k, the sign and k_I are NaN, 0 and NaN unless ``always``; the sign is 0 where
     the inverse kinematics has no solution. ``path`` is the row path (``envs.kernels.packing.row_path``), a
     compile-time constant: three actuators on three pose coordinates compute in scalars (``_measures_three``),
-    the rest over the work array w (``_measures_work``), the only code the overload below compiles.
+    the rest over the work array w (``_measures_work``), the only code the overload below compiles. A caller
+    that only compares k with a threshold passes it as ``at_least`` (else 0): on m = 6, k is then the threshold
+    itself where it is proven to be at least that, a tenth of the SVD's cost (``_singularity_at_least``).
     """
     raise NotImplementedError("compiled only (see its overload)")
 
 
 @overload(_measures, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _measures_of_path(path, c, x, w, strokes, always):
+def _measures_of_path(path, c, x, w, strokes, always, at_least):
     if _literal_path(path) == WORK_ARRAYS:
 
-        def work(path, c, x, w, strokes, always):
-            return _measures_work(c, x, w, strokes, always)
+        def work(path, c, x, w, strokes, always, at_least):
+            return _measures_work(c, x, w, strokes, always, at_least)
 
         return work
 
-    def scalars(path, c, x, w, strokes, always):
+    def scalars(path, c, x, w, strokes, always, at_least):
         return _measures_three(c, x[0], x[1], x[2], always)
 
     return scalars
@@ -165,15 +174,16 @@ def _safety(c, inside, k, k1):
 
 
 @jit_inline
-def _pose_safety(path, c, x, w, strokes):
+def _pose_safety(path, c, x, w, strokes, at_least):
     """The certificate of one pose: (``_safety``, sign(det J_x)), the sign 0 where a stroke leaves its margin.
 
     Every safety decision (the task samplers, the certified grid, the planner's edges) goes through here. The
-    sampling box is not checked.
+    sampling box is not checked. A caller that compares the safety with a threshold alone passes it as
+    ``at_least`` (else 0): k may then be the threshold where it is proven to be at least that (``_measures``).
     """
     # ``always`` a bool, not the constant False: one compiled ``_measures`` for every caller (a literal bool would
     # be a second specialisation of it).
-    inside, k, sign, k1 = _measures(path, c, x, w, strokes, np.bool_(False))
+    inside, k, sign, k1 = _measures(path, c, x, w, strokes, np.bool_(False), at_least)
     return _safety(c, inside, k, k1), sign
 
 
@@ -191,7 +201,7 @@ def _safe(path, c, x, w, strokes):
     """Whether x is in the sampling box and its ``_pose_safety`` (strokes with margin, safety) ≥ safe_threshold."""
     if not _in_box(c, x):
         return False
-    safety, _ = _pose_safety(path, c, x, w, strokes)
+    safety, _ = _pose_safety(path, c, x, w, strokes, c[C_SAFE])
     return safety >= c[C_SAFE]
 
 
@@ -224,7 +234,9 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box,
     ≥ (s_a + s_b − L h_{s_a}) / 2 ≥ T − margin / 2, the same bound from fewer points. Steps are at most
     ``ADAPTIVE_STEP_LIMIT`` (the default spacing, which bounds what the strokes and the box may do between points)
     and at least the fixed walk's (longer than ``spacing`` only past ``SEGMENT_MAX_POINTS`` spacings). The result
-    is then only compared with T: above it, it is the smallest safety at the checked points.
+    is then only compared with T: above it, it is the smallest safety at the checked points. The fixed walk with a
+    threshold T > 0 passes T to ``_pose_safety``, which may report T for a point whose k is proven to be ≥ T: its
+    result is then a lower bound ≥ T (the same decision).
 
     Points go one at a time, the hexapod's k by the plain Jacobi SVD. Its SIMD form (``inverse_condition6_lanes``,
     16 points at once) walks the hexapod's segments 1.5× faster with the same results, but Numba optimises a
@@ -240,11 +252,13 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box,
     first_sign = 0.0
     u = 0.0
     s = 0
+    # where only the comparison with stop_below counts (not the values of the adaptive steps), k is proven at least
+    at_least = stop_below if not adaptive and stop_below > 0.0 else 0.0
     while True:
         _retract(c, start, direction, u, point)
         if box and not _in_box(c, point):
             return -1.0
-        safety, sign = _pose_safety(path, c, point, w, strokes)
+        safety, sign = _pose_safety(path, c, point, w, strokes, at_least)
         if safety < 0.0:
             return -1.0
         if s == 0:
@@ -313,7 +327,7 @@ def _certificate_kernels(path: int) -> CertificateKernels:
         work = (_work(), np.empty(6))
         (w, strokes), c, x, o_safety, o_sign = borrow((work, c, x, o_safety, o_sign))
         for i in range(x.shape[0]):
-            inside, k, o_sign[i], k1 = _measures(path, c, x[i], w, strokes, np.bool_(True))
+            inside, k, o_sign[i], k1 = _measures(path, c, x[i], w, strokes, np.bool_(True), 0.0)
             o_safety[i] = _safety(c, inside, k, k1)
         keep_alive(work)
 
@@ -383,9 +397,10 @@ def certified_segment_batch(c, start, target, threshold):
         threshold: The least safety, on k's scale (safe_threshold for standard tasks).
 
     Returns:
-        The smallest safety at the points checked, float64, shape (N,): ≥ ``threshold`` where certified; else the
-        first checked point's below it (0 where the sign of det J_x changed, −1 where a point left the box or the
-        stroke margin).
+        Float64, shape (N,): where certified, a lower bound of the smallest safety at the points checked, at least
+        ``threshold`` (on six pose coordinates, ``threshold`` where every point's k was proven to reach it; the
+        values themselves: ``segment_min_safety_batch``); else the first checked point's safety below it (0 where
+        the sign of det J_x changed, −1 where a point left the box or the stroke margin).
     """
     start = np.ascontiguousarray(start, dtype=np.float64)
     target = np.ascontiguousarray(target, dtype=np.float64)

@@ -347,6 +347,37 @@ def test_6x6_inverse_condition_lanes_equal_one_at_a_time(count):
         assert alone[1] == 0.0 and np.isnan(alone[2])
 
 
+def test_6x6_condition_proof_is_sound_and_proves_every_well_conditioned_matrix():
+    """condition_at_least6 proves k ≥ t only where NumPy's SVD agrees, and proves it wherever k ≥ 1.6 t.
+
+    ‖HᵀH‖_∞ ≤ √6 σ_max², so every k > 6^(1/4) t ≈ 1.57 t is provable. The matrices are built with k spread over
+    [t / 3, 3 t], the other singular values between.
+    """
+    from envs.kernels.linalg import condition_at_least6
+
+    rng = np.random.default_rng(41)
+    U, _ = np.linalg.qr(rng.normal(size=(3000, 6, 6)))
+    V, _ = np.linalg.qr(rng.normal(size=(3000, 6, 6)))
+    t = rng.choice([0.03, 0.1, 0.3], size=3000)
+    k = t * np.exp(rng.uniform(np.log(1 / 3), np.log(3), size=3000))
+    sigma = np.exp(rng.uniform(np.log(k)[:, None], 0.0, size=(3000, 6)))
+    sigma[:, 0], sigma[:, 1] = k, 1.0  # σ_min/σ_max = k exactly
+    M = U @ (sigma[..., None] * np.swapaxes(V, -1, -2))
+    ref = np.linalg.svd(M, compute_uv=False)
+    ref = ref[:, -1] / ref[:, 0]
+    G = np.empty((6, 6))
+    proven = np.array([condition_at_least6(np.ascontiguousarray(m.T), G, ti) for m, ti in zip(M, t)])
+    assert (ref[proven] >= t[proven]).all(), "a proof of k >= t where k < t"
+    assert proven[ref >= 1.6 * t].all(), "k >= 1.6 t not proven"
+    assert 0.2 < proven.mean() < 0.8  # both outcomes are exercised
+    assert not condition_at_least6(np.zeros((6, 6)), G, 0.1)
+    assert not condition_at_least6(np.full((6, 6), np.nan), G, 0.1)
+    H = np.ascontiguousarray(M[0].T)
+    kept = H.copy()
+    condition_at_least6(H, G, 0.1)
+    np.testing.assert_array_equal(H, kept)  # H is read, not overwritten
+
+
 def test_hexapod_transition_in_blocks_equals_one_robot_at_a_time(hexapod):
     """A batch on every core conditions LANES robots at a time; each robot's outcome is bit for bit its N = 1 one."""
     x = _random_poses(hexapod, 1000, 5)[: fk.PARALLEL_MIN_BATCH + 37]  # the multi-core kernel, a partial last block
