@@ -252,7 +252,8 @@ def _segment_min_k(path, c, start, target, w, strokes, stop_below, spacing, box,
     first_sign = 0.0
     u = 0.0
     s = 0
-    # where only the comparison with stop_below counts (not the values of the adaptive steps), k is proven at least
+    # Where only the comparison with stop_below counts (the fixed walk: no step length from the safety met), k may
+    # be proven ≥ stop_below instead of computed.
     at_least = stop_below if not adaptive and stop_below > 0.0 else 0.0
     while True:
         _retract(c, start, direction, u, point)
