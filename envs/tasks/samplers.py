@@ -73,7 +73,8 @@ def _draw_band(path, c, fn, st, w, strokes, low, high, out):
     for _ in range(SAMPLER_TRIES):
         for j in range(m):
             out[j] = c[C_SLOW + j] + (c[C_SHIGH + j] - c[C_SLOW + j]) * _next_double(fn, st)
-        inside, k, _, _ = _measures(path, c, out, w, strokes, np.bool_(False), 0.0)  # a bool (see ``_pose_safety``)
+        # k ≥ high may be proven instead of computed (k is then high: rejected); a bool (see ``_pose_safety``)
+        inside, k, _, _ = _measures(path, c, out, w, strokes, np.bool_(False), high)
         if inside and low <= k < high:
             return True
     return False
