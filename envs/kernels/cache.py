@@ -29,7 +29,7 @@ def _statements(nodes: list[ast.stmt]) -> Iterator[ast.stmt]:
     """Every statement of ``nodes`` and of the blocks nested in them (imports are statements: no expression)."""
     for node in nodes:
         yield node
-        for block in ("body", "handlers", "orelse", "finalbody"):
+        for block in ("body", "handlers", "orelse", "finalbody", "cases"):
             yield from _statements(getattr(node, block, None) or [])
 
 

@@ -36,6 +36,30 @@ def test_a_changed_dependency_drops_the_cache_and_an_unchanged_one_keeps_it(tmp_
     assert not any(p.exists() for p in mine) and other.exists()
 
 
+def test_imports_are_found_in_every_nested_block(tmp_path):
+    """``dependencies``' statement walk finds the imports of every nested block, as ``ast.walk`` does.
+
+    Functions, classes, try/except/else/finally, if/else, loops, with and match; not text that looks like one.
+    """
+    from envs.kernels.cache import _imports_of
+
+    source = tmp_path / "nested.py"
+    source.write_text(
+        "import a0\n"
+        "def f():\n    import a1\n"
+        "class C:\n    def g(self):\n        from a2 import b2\n"
+        "try:\n    import a3\nexcept ImportError:\n    import a4\nelse:\n    import a5\nfinally:\n    import a6\n"
+        "if x:\n    import a7\nelse:\n    import a8\n"
+        "for i in y:\n    import a9\nelse:\n    import a10\n"
+        "while z:\n    import a11\n"
+        "with w:\n    import a12\n"
+        "match v:\n    case 1:\n        import a13\n"
+        "text = 'import a14'\n"
+    )
+    expected = {f"a{i}" for i in range(14) if i != 2} | {"a2", "a2.b2"}
+    assert _imports_of(source) == expected
+
+
 def _direct_imports(path: Path) -> set[str]:
     """File names of the project modules a source file imports, read with a regular expression (not ``ast``)."""
     names = set()
