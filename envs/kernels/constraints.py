@@ -248,21 +248,9 @@ def _singularity(c, q, w, src):
         return three.link_condition3(
             c, a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], ell0, ell1, ell2
         )  # fmt: skip
-    k = inverse_condition6(_link_columns6(c, q, w, src))
-    det = _solve(w, m, src, w[W_RHS], w[W_SOL])
-    return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
-
-
-@jit_inline
-def _link_columns6(c, q, w, src):
-    """Rows W_H of w: column j of the link Jacobian diag(1/ℓ) A diag(pose_scale) as row j (m = 6); returned."""
-    Ht = w[W_H : W_H + 6]
-    for i in range(6):
-        inv = 1.0 / _link_length(c, q, w, i)
-        row = w[src + i]
-        for j in range(6):
-            Ht[j, i] = row[j] * inv * c[C_SCALE + j]
-    return Ht
+    Ht = w[W_H : W_H + 6]  # column j of the link Jacobian as row j: one lane of ``_homogeneous_lane``
+    sign = _homogeneous_lane(c, q, w, src, Ht.reshape((6, 6, 1)), 0)
+    return inverse_condition6(Ht), sign
 
 
 @jit
@@ -274,13 +262,13 @@ def _singularity_at_least(c, q, w, src, at_least):
     the certificate certifies the same segments; its values above the threshold are then lower bounds. With
     ``at_least`` ≤ 0 (or m = 3), exactly ``_singularity``.
     """
-    m = int(c[C_N])
-    if m != 6 or not at_least > 0.0:
+    if int(c[C_N]) != 6 or not at_least > 0.0:
         return _singularity(c, q, w, src)
-    Ht = _link_columns6(c, q, w, src)
-    k = at_least if condition_at_least6(Ht, w[W_LU : W_LU + 6], at_least) else inverse_condition6(Ht)
-    det = _solve(w, m, src, w[W_RHS], w[W_SOL])
-    return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
+    Ht = w[W_H : W_H + 6]  # as in ``_singularity``; the proof's work rows W_LU are free once the sign is known
+    sign = _homogeneous_lane(c, q, w, src, Ht.reshape((6, 6, 1)), 0)
+    if condition_at_least6(Ht, w[W_LU : W_LU + 6], at_least):
+        return at_least, sign
+    return inverse_condition6(Ht), sign
 
 
 @jit
