@@ -232,6 +232,16 @@ def _homogeneous_lane(c, q, w, src, H, lane):
     return 1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0)
 
 
+@jit_inline
+def _link_condition3(c, q, w, src, at_least):
+    """``three.link_condition3`` of the rows ``src`` of A (m = 3)."""
+    a, b, d = w[src], w[src + 1], w[src + 2]
+    ell0, ell1, ell2 = _link_length(c, q, w, 0), _link_length(c, q, w, 1), _link_length(c, q, w, 2)
+    return three.link_condition3(
+        c, a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], ell0, ell1, ell2, at_least
+    )  # fmt: skip
+
+
 @jit
 def _singularity(c, q, w, src):
     """(inverse condition number of J_i diag(pose_scale), sign(det J_x)) from the rows ``src`` of A.
@@ -241,13 +251,8 @@ def _singularity(c, q, w, src):
     one-sided Jacobi SVD (m = 6; ``inverse_condition6``, bit for bit what the batched step's
     ``inverse_condition6_lanes`` gives). sign(det J_x) = sign(det A).
     """
-    m = int(c[C_N])
-    if m == 3:
-        a, b, d = w[src], w[src + 1], w[src + 2]
-        ell0, ell1, ell2 = _link_length(c, q, w, 0), _link_length(c, q, w, 1), _link_length(c, q, w, 2)
-        return three.link_condition3(
-            c, a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2], ell0, ell1, ell2
-        )  # fmt: skip
+    if int(c[C_N]) == 3:
+        return _link_condition3(c, q, w, src, 0.0)
     Ht = w[W_H : W_H + 6]  # column j of the link Jacobian as row j: one lane of ``_homogeneous_lane``
     sign = _homogeneous_lane(c, q, w, src, Ht.reshape((6, 6, 1)), 0)
     return inverse_condition6(Ht), sign
@@ -257,13 +262,16 @@ def _singularity(c, q, w, src):
 def _singularity_at_least(c, q, w, src, at_least):
     """``_singularity``, or (``at_least``, sign(det J_x)) where k ≥ ``at_least`` > 0 is proven instead of computed.
 
-    The certificate only compares k with its threshold: on m = 6, ``linalg.condition_at_least6`` proves k ≥ the
-    threshold at a tenth of the SVD's cost, and the SVD runs where it does not. k and the proof decide alike, so
-    the certificate certifies the same segments; its values above the threshold are then lower bounds. With
-    ``at_least`` ≤ 0 (or m = 3), exactly ``_singularity``.
+    The certificate only compares k with its threshold: ``linalg.condition_at_least6`` (m = 6) proves k ≥ the
+    threshold at a tenth of the SVD's cost, ``condition_at_least3`` (m = 3) without the closed form's acos and
+    cosines, and k is computed where they do not. k and the proof decide alike, so the certificate certifies the
+    same segments; its values above the threshold are then lower bounds. With ``at_least`` ≤ 0, exactly
+    ``_singularity``.
     """
-    if int(c[C_N]) != 6 or not at_least > 0.0:
+    if not at_least > 0.0:
         return _singularity(c, q, w, src)
+    if int(c[C_N]) == 3:
+        return _link_condition3(c, q, w, src, at_least)
     Ht = w[W_H : W_H + 6]  # as in ``_singularity``; the proof's work rows W_LU are free once the sign is known
     sign = _homogeneous_lane(c, q, w, src, Ht.reshape((6, 6, 1)), 0)
     if condition_at_least6(Ht, w[W_LU : W_LU + 6], at_least):

@@ -20,6 +20,7 @@ from envs.kernels.setup import jit, jit_inline
 
 __all__ = [
     "LANES",
+    "condition_at_least3",
     "condition_at_least6",
     "inverse_condition6",
     "inverse_condition6_lanes",
@@ -300,6 +301,34 @@ def inverse_condition6_lanes(H, count, out, worst, active):
 #: Relative slack of ``condition_at_least6``: a proven k exceeds the bound by ~5e-7 of it, far beyond the rounding of
 #: the factorisation and of the Jacobi SVD (~1e-15), so that the proof and ``inverse_condition6`` decide alike.
 PROOF_SLACK = 1e-6
+
+
+@jit_inline
+def condition_at_least3(m00, m01, m02, m10, m11, m12, m20, m21, m22, t):
+    """Whether σ_min/σ_max ≥ t > 0 is proven for the 3 × 3 matrix M (``condition_at_least6``'s proof).
+
+    With the Gram matrix G = MᵀM and U = min(‖G‖_∞, tr G) ≥ λ_max(G) = σ_max², positive pivots of the LDLᵀ
+    factorisation of G − t² (1 + ``PROOF_SLACK``) U I show σ_min² > t² U ≥ t² σ_max². No acos, cos or square root,
+    against ``singular_value_ratio3``'s trigonometric cubic; every k > 3^(1/4) t is provable (U ≤ √3 σ_max²).
+    False proves nothing (k may still be ≥ t); so do a zero or a non-finite M.
+    """
+    g00 = m00 * m00 + m10 * m10 + m20 * m20
+    g11 = m01 * m01 + m11 * m11 + m21 * m21
+    g22 = m02 * m02 + m12 * m12 + m22 * m22
+    g01 = m00 * m01 + m10 * m11 + m20 * m21
+    g02 = m00 * m02 + m10 * m12 + m20 * m22
+    g12 = m01 * m02 + m11 * m12 + m21 * m22
+    top = max(g00 + abs(g01) + abs(g02), max(abs(g01) + g11 + abs(g12), abs(g02) + abs(g12) + g22))
+    shift = t * t * (1.0 + PROOF_SLACK) * min(top, g00 + g11 + g22)
+    d0 = g00 - shift
+    if not d0 > 0.0:  # not positive definite, or NaN
+        return False
+    l10, l20 = g01 / d0, g02 / d0
+    d1 = g11 - shift - g01 * l10
+    if not d1 > 0.0:
+        return False
+    e = g12 - g02 * l10
+    return g22 - shift - g02 * l20 - e * e / d1 > 0.0
 
 
 @jit

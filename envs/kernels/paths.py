@@ -350,7 +350,7 @@ def _measure(path, c, q, anchors, rows, w):
             return k, sign, _actuator_condition(c, w)
 
         return work
-    return lambda path, c, q, anchors, rows, w: three.singularity(c, anchors, rows)
+    return lambda path, c, q, anchors, rows, w: three.singularity(c, anchors, rows, 0.0)
 
 
 def inverse_kinematics(path, c, x, out):

@@ -38,7 +38,7 @@ from envs.kernels.layout import (
     C_U,
     C_V,
 )
-from envs.kernels.linalg import singular_value_ratio3, solve3
+from envs.kernels.linalg import condition_at_least3, singular_value_ratio3, solve3
 from envs.kernels.pose import _wrap
 from envs.kernels.setup import jit, jit_inline
 
@@ -200,27 +200,35 @@ def _newton(c, anc, x0, x1, x2, tolerance, max_iterations):
 
 
 @jit_inline
-def link_condition3(c, a00, a01, a02, a10, a11, a12, a20, a21, a22, l0, l1, l2):
+def link_condition3(c, a00, a01, a02, a10, a11, a12, a20, a21, a22, l0, l1, l2, at_least):
     """(k, sign(det J_x)) of three legs from the rows a of A = J_x / 2 and the link lengths ℓ_i.
 
     k = σ_min/σ_max of the link Jacobian diag(1/ℓ) A diag(pose_scale) (closed form), sign(det J_x) = sign(det A).
-    The three-leg case of every pose space (``envs.kernels.constraints._singularity`` calls it too).
+    Where ``at_least`` > 0 and k ≥ ``at_least`` is proven (``linalg.condition_at_least3``), k is ``at_least``. The
+    three-leg case of every pose space (``envs.kernels.constraints._singularity`` calls it too).
     """
     i0, i1, i2 = 1.0 / l0, 1.0 / l1, 1.0 / l2
     s0, s1, s2 = c[C_SCALE], c[C_SCALE + 1], c[C_SCALE + 2]
-    k = singular_value_ratio3(
-        a00 * i0 * s0, a01 * i0 * s1, a02 * i0 * s2,
-        a10 * i1 * s0, a11 * i1 * s1, a12 * i1 * s2,
-        a20 * i2 * s0, a21 * i2 * s1, a22 * i2 * s2,
-    )  # fmt: skip
+    m00, m01, m02 = a00 * i0 * s0, a01 * i0 * s1, a02 * i0 * s2
+    m10, m11, m12 = a10 * i1 * s0, a11 * i1 * s1, a12 * i1 * s2
+    m20, m21, m22 = a20 * i2 * s0, a21 * i2 * s1, a22 * i2 * s2
+    if at_least > 0.0 and condition_at_least3(m00, m01, m02, m10, m11, m12, m20, m21, m22, at_least):
+        k = at_least
+    else:
+        k = singular_value_ratio3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
     det = a00 * (a11 * a22 - a12 * a21) + a01 * (a12 * a20 - a10 * a22) + a02 * (a10 * a21 - a11 * a20)
     return k, (1.0 if det > 0.0 else (-1.0 if det < 0.0 else 0.0))
 
 
 @jit_inline
-def singularity(c, anc, a):
-    """(k of J_i diag(pose_scale), sign(det J_x), k_I) from ``rows`` a and ``anchors`` anc."""
-    k, sign = link_condition3(c, a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], anc[0][6], anc[1][6], anc[2][6])
+def singularity(c, anc, a, at_least):
+    """(k of J_i diag(pose_scale), sign(det J_x), k_I) from ``rows`` a and ``anchors`` anc.
+
+    k is ``at_least`` where ``at_least`` > 0 and k ≥ ``at_least`` is proven (``link_condition3``).
+    """
+    k, sign = link_condition3(
+        c, a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], anc[0][6], anc[1][6], anc[2][6], at_least
+    )
     if c[C_LEGS] != 0.0:
         return k, sign, 1.0
     k1 = np.inf

@@ -4,9 +4,9 @@ Every safety decision (the task samplers, the certified grid, the planner's edge
 ``_pose_safety``: k, or with cranks and sliders min(k, k_I · k_safe / k_I,safe), or −1 where an actuator leaves
 its limits less the margin. Segments are checked at points a spacing apart along the geodesic
 (``_segment_min_k``); a change of sign(det J_x) between two of them counts as safety 0. A check that only compares
-the safety with a threshold (the samplers', ``safe_batch``) proves k ≥ the threshold on six coordinates where it
-can (``constraints._singularity_at_least``: a Cholesky factorisation instead of the Jacobi SVD) and reports the
-threshold there: the same decisions, in a third of the time on the hexapod.
+the safety with a threshold (the samplers', ``safe_batch``) proves k ≥ the threshold where it can
+(``constraints._singularity_at_least``: a factorisation of JᵀJ − t² U I instead of the Jacobi SVD or the closed
+form) and reports the threshold there: the same decisions, in a third of the time on the hexapod.
 
 The measures at a pose (``_measures``) are chosen at compile time by the row path (``envs.kernels.packing``): a
 robot with three actuators and three pose coordinates (planar or translational; legs, cranks or sliders) computes
@@ -72,13 +72,14 @@ ADAPTIVE_STEP_LIMIT = 0.01
 
 
 @jit
-def _measures_three(c, x0, x1, x2, always):
+def _measures_three(c, x0, x1, x2, always, at_least):
     """(inside, k, sign(det J_x), k_I) of the pose (x0, x1, x2) of a robot with three actuators, in scalars.
 
     ``inside`` says whether every actuator coordinate (the closed-form inverse kinematics) lies within its
-    limits less the margin; where one does not, k, the sign and k_I are NaN, 0 and NaN unless ``always``. The
-    operations are those of ``_measures_work`` (``constraints._inverse_kinematics``, ``_singularity``,
-    ``_actuator_condition``) in the same order, so both give the same results.
+    limits less the margin; where one does not, k, the sign and k_I are NaN, 0 and NaN unless ``always``. k is
+    ``at_least`` where ``at_least`` > 0 and k ≥ ``at_least`` is proven. The operations are those of
+    ``_measures_work`` (``constraints._inverse_kinematics``, ``_singularity_at_least``, ``_actuator_condition``)
+    in the same order, so both give the same results.
     """
     if c[C_TRANSLATIONAL] != 0.0:  # ``pose._frame``: p = x, R = I
         cs, sn, z = 1.0, 0.0, x2
@@ -108,7 +109,7 @@ def _measures_three(c, x0, x1, x2, always):
             return False, np.nan, 0.0, np.nan
         anc = three.anchors(c, q0, q1, q2)
         a = three.rows(c, anc, x0, x1, x2)
-    k, sign, k1 = three.singularity(c, anc, a)
+    k, sign, k1 = three.singularity(c, anc, a, at_least)
     return inside, k, sign, k1
 
 
@@ -116,8 +117,7 @@ def _measures_three(c, x0, x1, x2, always):
 def _measures_work(c, x, w, strokes, always, at_least):
     """``_measures_three`` of any robot over the work array w: the strokes of x go to ``strokes``, A's rows to w.
 
-    Where ``at_least`` > 0 and m = 6, k is ``at_least`` where k ≥ ``at_least`` is proven
-    (``constraints._singularity_at_least``).
+    Where ``at_least`` > 0, k is ``at_least`` where k ≥ ``at_least`` is proven (``constraints._singularity_at_least``).
     """
     _inverse_kinematics(c, x, w, strokes)
     lo, hi = c[C_LMIN] + c[C_MARGIN], c[C_LMAX] - c[C_MARGIN]
@@ -138,8 +138,8 @@ def _measures(path, c, x, w, strokes, always, at_least):
     the inverse kinematics has no solution. ``path`` is the row path (``envs.kernels.packing.row_path``), a
     compile-time constant: three actuators on three pose coordinates compute in scalars (``_measures_three``),
     the rest over the work array w (``_measures_work``), the only code the overload below compiles. A caller
-    that only compares k with a threshold passes it as ``at_least`` (else 0): on m = 6, k is then the threshold
-    itself where it is proven to be at least that, a tenth of the SVD's cost (``_singularity_at_least``).
+    that only compares k with a threshold passes it as ``at_least`` (else 0): k is then the threshold itself where it
+    is proven to be at least that, a tenth of the 6 × 6 SVD's cost (``constraints._singularity_at_least``).
     """
     raise NotImplementedError("compiled only (see its overload)")
 
@@ -154,7 +154,7 @@ def _measures_of_path(path, c, x, w, strokes, always, at_least):
         return work
 
     def scalars(path, c, x, w, strokes, always, at_least):
-        return _measures_three(c, x[0], x[1], x[2], always)
+        return _measures_three(c, x[0], x[1], x[2], always, at_least)
 
     return scalars
 
@@ -399,8 +399,8 @@ def certified_segment_batch(c, start, target, threshold):
 
     Returns:
         Float64, shape (N,): where certified, a lower bound of the smallest safety at the points checked, at least
-        ``threshold`` (on six pose coordinates, ``threshold`` where every point's k was proven to reach it; the
-        values themselves: ``segment_min_safety_batch``); else the first checked point's safety below it (0 where
+        ``threshold`` (``threshold`` where every point's k was proven to reach it; the values themselves:
+        ``segment_min_safety_batch``); else the first checked point's safety below it (0 where
         the sign of det J_x changed, −1 where a point left the box or the stroke margin).
     """
     start = np.ascontiguousarray(start, dtype=np.float64)

@@ -142,7 +142,7 @@ def _straight_min_k(c, start, target, n):
             anchors = three.leg_anchors(c, q0, q1, q2)
         else:
             anchors = three.anchors(c, q0, q1, q2)
-        k, _, _ = three.singularity(c, anchors, three.rows(c, anchors, x0, x1, x2))
+        k, _, _ = three.singularity(c, anchors, three.rows(c, anchors, x0, x1, x2), 0.0)
         if k < k_min or k != k:
             k_min = k
     return k_min

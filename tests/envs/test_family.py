@@ -347,6 +347,33 @@ def test_6x6_inverse_condition_lanes_equal_one_at_a_time(count):
         assert alone[1] == 0.0 and np.isnan(alone[2])
 
 
+def test_3x3_condition_proof_is_sound_and_proves_every_well_conditioned_matrix():
+    """condition_at_least3 proves k ≥ t only where NumPy's SVD agrees, and proves it wherever k ≥ 1.35 t.
+
+    min(‖MᵀM‖_∞, tr MᵀM) ≤ √3 σ_max², so every k > 3^(1/4) t ≈ 1.32 t is provable. The matrices are built with
+    k spread over [t / 3, 3 t], the middle singular value between, some of them with a scale of 1e±6.
+    """
+    from envs.kernels.linalg import condition_at_least3
+
+    rng = np.random.default_rng(43)
+    U, _ = np.linalg.qr(rng.normal(size=(4000, 3, 3)))
+    V, _ = np.linalg.qr(rng.normal(size=(4000, 3, 3)))
+    t = rng.choice([0.03, 0.1, 0.15, 0.3], size=4000)
+    k = t * np.exp(rng.uniform(np.log(1 / 3), np.log(3), size=4000))
+    sigma = np.stack([k, np.exp(rng.uniform(np.log(k), 0.0)), np.ones(4000)], axis=1)
+    scale = rng.choice([1e-6, 1.0, 1e6], size=4000)
+    M = scale[:, None, None] * (U @ (sigma[..., None] * np.swapaxes(V, -1, -2)))
+    ref = np.linalg.svd(M, compute_uv=False)
+    ref = ref[:, -1] / ref[:, 0]
+    proven = np.array([condition_at_least3(*m.ravel(), ti) for m, ti in zip(M, t)])
+    assert (ref[proven] >= t[proven]).all(), "a proof of k >= t where k < t"
+    assert proven[ref >= 1.35 * t].all(), "k >= 1.35 t not proven"
+    assert 0.2 < proven.mean() < 0.8  # both outcomes are exercised
+    assert not condition_at_least3(*np.zeros(9), 0.1)
+    assert not condition_at_least3(*np.full(9, np.nan), 0.1)
+    assert condition_at_least3(*np.eye(3).ravel(), 0.999)
+
+
 def test_6x6_condition_proof_is_sound_and_proves_every_well_conditioned_matrix():
     """condition_at_least6 proves k ≥ t only where NumPy's SVD agrees, and proves it wherever k ≥ 1.6 t.
 
