@@ -124,12 +124,14 @@ def _component_index(ws, x):
 
 
 @jit
-def _straight_min_k(c, start, target, n):
-    """Smallest k (Type II) at n points of the straight line start → target in pose space (ends included).
+def _straight_dips_below(c, start, target, n, threshold):
+    """Whether k (Type II) < ``threshold`` at one of n points of the straight line start → target in pose space.
 
-    In scalars (``envs.kernels.three``): the grid holds robots with three pose coordinates only.
+    Ends included; False where k is NaN at a point (a pose out of reach). k is proven ≥ ``threshold`` where it can
+    be (``three.singularity``'s ``at_least``) and computed where not: the same answer as comparing the smallest k
+    with the threshold. In scalars (``envs.kernels.three``): the grid holds robots with three pose coordinates only.
     """
-    k_min = np.inf
+    dips = False
     legs = c[C_LEGS] != 0.0
     for s in range(n):
         f = s / (n - 1)
@@ -142,10 +144,11 @@ def _straight_min_k(c, start, target, n):
             anchors = three.leg_anchors(c, q0, q1, q2)
         else:
             anchors = three.anchors(c, q0, q1, q2)
-        k, _, _ = three.singularity(c, anchors, three.rows(c, anchors, x0, x1, x2), 0.0)
-        if k < k_min or k != k:
-            k_min = k
-    return k_min
+        k, _, _ = three.singularity(c, anchors, three.rows(c, anchors, x0, x1, x2), threshold)
+        if k != k:
+            return False
+        dips = dips or k < threshold
+    return dips
 
 
 @jit
@@ -196,7 +199,7 @@ def _sample_reach(c, ws, streams, hard, min_distance, fixed_kind, fixed, o_start
                     target[k] = other[k] if fixed_kind == 1 else fixed[k]
             if not _distance(c, start, target) >= min_distance:
                 continue
-            if hard and not _straight_min_k(c, start, target, SEGMENT_POINTS) < c[C_HARD]:
+            if hard and not _straight_dips_below(c, start, target, SEGMENT_POINTS, c[C_HARD]):
                 continue
             for k in range(3):
                 o_start[i, k], o_target[i, k] = start[k], target[k]

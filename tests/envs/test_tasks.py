@@ -85,6 +85,42 @@ def test_targets_are_far_and_hard_ones_cross_the_ill_conditioned_zone(env_id, op
         assert np.any(line_min >= params.hard_threshold), "standard targets are all hard ones"
 
 
+@pytest.mark.parametrize("env_id", ["Planar3RPRReach-v0", "Planar3RRRReach-v0"])
+def test_the_straight_line_check_of_hard_pairs_matches_the_library(env_id, make_env):
+    """``_straight_dips_below`` says whether the library's k dips below the threshold at the sampler's points.
+
+    Random lines of the pose bounds (the 3-RRR's cranks cannot reach some of their points: k is NaN there, which
+    rejects the line), at the hard threshold and at thresholds where the proof of k ≥ t succeeds at most points.
+    """
+    params = make_env(env_id).unwrapped.params
+    lo, hi = np.array(params.pose_low), np.array(params.pose_high)
+    rng = np.random.default_rng(17)
+    start, target = lo + (hi - lo) * rng.random((2, 400, 3))
+    s = np.linspace(0.0, 1.0, workspace_kernels.SEGMENT_POINTS)[None, :, None]
+    points = start[:, None, :] + s * (target - start)[:, None, :]
+    q = params.robot.inverse_kinematics(points, validate=False)
+    if "leg" in params.robot.actuator_kinds:
+        q = np.maximum(q, 1e-9)
+    k = np.full(q.shape[:2], np.nan)
+    reached = np.all(np.isfinite(q), axis=-1)
+    k[reached] = params.robot.inverse_condition_number(q[reached], points[reached], validate=False)
+    line_min = np.where(np.isnan(k).any(axis=1), np.nan, np.nanmin(np.where(np.isnan(k), np.inf, k), axis=1))
+    outcomes = set()
+    for threshold in (params.hard_threshold, 0.1, 0.3):
+        got = np.array(
+            [
+                workspace_kernels._straight_dips_below(params.packed, a, b, s.size, threshold)
+                for a, b in zip(start, target)
+            ]
+        )
+        clear = ~np.isclose(line_min, threshold, rtol=1e-9)
+        np.testing.assert_array_equal(got[clear], (line_min < threshold)[clear])
+        outcomes |= set(got.tolist())
+    assert outcomes == {True, False}
+    if "leg" not in params.robot.actuator_kinds:
+        assert np.isnan(line_min).any(), "no line leaves the cranks' reach"
+
+
 def test_every_component_has_one_det_sign(make_env):
     """Within each connected safe region sign(det J_x) is constant (one working mode per region)."""
     workspace = make_env("Planar3RPRReach-v0").unwrapped.workspace
