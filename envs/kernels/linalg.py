@@ -112,6 +112,19 @@ def _singular_value_ratio(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     return min(s0, min(s1, s2)) / top
 
 
+@jit_inline
+def _gram3(m00, m01, m02, m10, m11, m12, m20, m21, m22):
+    """The Gram matrix G = MᵀM of a 3 × 3 matrix M: (g00, g11, g22, g01, g02, g12)."""
+    return (
+        m00 * m00 + m10 * m10 + m20 * m20,
+        m01 * m01 + m11 * m11 + m21 * m21,
+        m02 * m02 + m12 * m12 + m22 * m22,
+        m00 * m01 + m10 * m11 + m20 * m21,
+        m00 * m02 + m10 * m12 + m20 * m22,
+        m01 * m02 + m11 * m12 + m21 * m22,
+    )
+
+
 @jit
 def singular_value_ratio3(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     """σ_min/σ_max of a 3 × 3 matrix M in closed form; 0 for a singular or zero M, NaN if not finite.
@@ -120,12 +133,7 @@ def singular_value_ratio3(m00, m01, m02, m10, m11, m12, m20, m21, m22):
     characteristic cubic (both have full relative accuracy); σ_min = |det M| / (σ_max σ_mid), so the
     ratio |det M| / (σ_max² σ_mid) keeps the relative accuracy of det M instead of losing it in λ_min(G).
     """
-    g00 = m00 * m00 + m10 * m10 + m20 * m20
-    g11 = m01 * m01 + m11 * m11 + m21 * m21
-    g22 = m02 * m02 + m12 * m12 + m22 * m22
-    g01 = m00 * m01 + m10 * m11 + m20 * m21
-    g02 = m00 * m02 + m10 * m12 + m20 * m22
-    g12 = m01 * m02 + m11 * m12 + m21 * m22
+    g00, g11, g22, g01, g02, g12 = _gram3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
     det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)
     if not math.isfinite(det + g00 + g11 + g22):
         return np.nan
@@ -312,12 +320,7 @@ def condition_at_least3(m00, m01, m02, m10, m11, m12, m20, m21, m22, t):
     against ``singular_value_ratio3``'s trigonometric cubic; every k > 3^(1/4) t is provable (U ≤ √3 σ_max²).
     False proves nothing (k may still be ≥ t); so do a zero or a non-finite M.
     """
-    g00 = m00 * m00 + m10 * m10 + m20 * m20
-    g11 = m01 * m01 + m11 * m11 + m21 * m21
-    g22 = m02 * m02 + m12 * m12 + m22 * m22
-    g01 = m00 * m01 + m10 * m11 + m20 * m21
-    g02 = m00 * m02 + m10 * m12 + m20 * m22
-    g12 = m01 * m02 + m11 * m12 + m21 * m22
+    g00, g11, g22, g01, g02, g12 = _gram3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
     top = max(g00 + abs(g01) + abs(g02), max(abs(g01) + g11 + abs(g12), abs(g02) + abs(g12) + g22))
     shift = t * t * (1.0 + PROOF_SLACK) * min(top, g00 + g11 + g22)
     d0 = g00 - shift
