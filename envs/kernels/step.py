@@ -10,9 +10,10 @@ are compile-time constants of the entry kernels (``path_kernels``), so a robot c
 space only.
 
 Work arrays are allocated once per chunk of robots, not per robot; large batches run on every core. Inside a
-chunk of the parallel step, spatial robots go in blocks of ``LANES``: each is moved alone, then the Jacobi SVD
-behind their k runs on the whole block at once (vectorised across robots,
-``envs.kernels.linalg.inverse_condition6_lanes``); the one-thread step moves them robot by robot.
+chunk of the parallel step under rate control, spatial robots go in blocks of ``LANES``: each is moved alone, then
+the Jacobi SVD behind their k runs on the whole block at once (vectorised across robots,
+``envs.kernels.linalg.inverse_condition6_lanes``); the one-thread step, and the parallel step under force control
+(``lane_work``), move them robot by robot.
 """
 
 from __future__ import annotations
@@ -105,6 +106,24 @@ CHUNK = 64
 def allocate_lanes():
     """Work arrays of one block of up to ``LANES`` spatial robots: (H (6, 6, LANES), lane rows (``LANES_ROWS``))."""
     return np.empty((6, 6, LANES)), np.empty((N_LANE_ROWS, LANES))
+
+
+def lane_work(dynamics):
+    """The parallel step's SIMD lane work arrays (``allocate_lanes``) under rate control; None under force control.
+
+    ``dynamics`` is None (rate control) or a ``Dynamics`` record, a compile-time choice. Under force control the
+    parallel step moves spatial robots one at a time, as the one-thread step does: the period's dynamics outweigh
+    the SVD, so its blocks in lanes ran no faster (the hexapod's vector env at N = 16384) and cost a second
+    compile of the block, about 12 s of CPU.
+    """
+    return paths._compiled_only()
+
+
+@overload(lane_work, jit_options=_OVERLOAD_OPTIONS)
+def _lane_work_of(dynamics):
+    if isinstance(dynamics, types.NoneType):
+        return lambda dynamics: allocate_lanes()
+    return lambda dynamics: None
 
 
 @jit_inline
@@ -337,11 +356,12 @@ def _unpack(call):
 def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, mode, counter):
     """One thread's share of the multi-core step: chunks of ``CHUNK`` robots claimed from ``counter`` (``claim``).
 
-    Spatial robots go in blocks of ``LANES`` (their k in SIMD lanes), over work arrays of the thread's own. The
-    arrays are borrowed (``borrow``): the caller holds the arguments, and the work arrays are kept to the end.
+    Under rate control spatial robots go in blocks of ``LANES`` (their k in SIMD lanes, ``lane_work``), over work
+    arrays of the thread's own. The arrays are borrowed (``borrow``): the caller holds the arguments, and the work
+    arrays are kept to the end.
     """
-    work, lane_work, owned = _work(), allocate_lanes(), own_work(dynamics)
-    w, lanes, dynamics = borrow(work), borrow(lane_work), borrow(owned)
+    work, lanes_owned, owned = _work(), lane_work(dynamics), own_work(dynamics)
+    w, lanes, dynamics = borrow(work), borrow(lanes_owned), borrow(owned)
     model, plant, observation, state = borrow(model), borrow(plant), borrow(observation), borrow(state)
     reference, action, out = borrow(reference), borrow(action), borrow(out)
     n = action.shape[0]
@@ -357,7 +377,7 @@ def _step_chunks(path, space, model, plant, observation, state, reference, actio
             )  # fmt: skip
         chunk = claim(counter)
     keep_alive(work)
-    keep_alive(lane_work)
+    keep_alive(lanes_owned)
     keep_alive(owned)
 
 
