@@ -13,7 +13,7 @@ Work arrays are allocated once per chunk of robots, not per robot; large batches
 chunk of the parallel step under rate control, spatial robots go in blocks of ``LANES``: each is moved alone, then
 the Jacobi SVD behind their k runs on the whole block at once (vectorised across robots,
 ``envs.kernels.linalg.inverse_condition6_lanes``); the one-thread step, and the parallel step under force control
-(``lane_work``), move them robot by robot.
+(``lane_work``), move them robot by robot, with one compiled block.
 """
 
 from __future__ import annotations
@@ -108,22 +108,23 @@ def allocate_lanes():
     return np.empty((6, 6, LANES)), np.empty((N_LANE_ROWS, LANES))
 
 
-def lane_work(dynamics):
-    """The parallel step's SIMD lane work arrays (``allocate_lanes``) under rate control; None under force control.
+def lane_work(path, dynamics):
+    """The parallel step's SIMD lane work arrays (``allocate_lanes``): on the work-array path under rate control.
 
-    ``dynamics`` is None (rate control) or a ``Dynamics`` record, a compile-time choice. Under force control the
-    parallel step moves spatial robots one at a time, as the one-thread step does: the period's dynamics outweigh
-    the SVD, so its blocks in lanes ran no faster (the hexapod's vector env at N = 16384) and cost a second
-    compile of the block, about 12 s of CPU.
+    ``path`` (the row path) and ``dynamics`` (None: rate control, or a ``Dynamics`` record) are compile-time
+    choices; elsewhere None, and the parallel step moves its robots one at a time with the one-thread step's
+    compiled block. The register paths have no 6 × 6 SVD to put in lanes. Under force control the period's
+    dynamics outweigh the SVD: its blocks in lanes ran about 4 % faster (the hexapod's vector env at N = 16384)
+    for a second compile of the block, about 12 s of CPU.
     """
     return paths._compiled_only()
 
 
-@overload(lane_work, jit_options=_OVERLOAD_OPTIONS)
-def _lane_work_of(dynamics):
-    if isinstance(dynamics, types.NoneType):
-        return lambda dynamics: allocate_lanes()
-    return lambda dynamics: None
+@overload(lane_work, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
+def _lane_work_of(path, dynamics):
+    if _literal_path(path) == WORK_ARRAYS and isinstance(dynamics, types.NoneType):
+        return lambda path, dynamics: allocate_lanes()
+    return lambda path, dynamics: None
 
 
 @jit_inline
@@ -356,11 +357,11 @@ def _unpack(call):
 def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, mode, counter):
     """One thread's share of the multi-core step: chunks of ``CHUNK`` robots claimed from ``counter`` (``claim``).
 
-    Under rate control spatial robots go in blocks of ``LANES`` (their k in SIMD lanes, ``lane_work``), over work
-    arrays of the thread's own. The arrays are borrowed (``borrow``): the caller holds the arguments, and the work
-    arrays are kept to the end.
+    On the work-array path under rate control spatial robots go in blocks of ``LANES`` (their k in SIMD lanes,
+    ``lane_work``), over work arrays of the thread's own. The arrays are borrowed (``borrow``): the caller holds the
+    arguments, and the work arrays are kept to the end.
     """
-    work, lanes_owned, owned = _work(), lane_work(dynamics), own_work(dynamics)
+    work, lanes_owned, owned = _work(), lane_work(path, dynamics), own_work(dynamics)
     w, lanes, dynamics = borrow(work), borrow(lanes_owned), borrow(owned)
     model, plant, observation, state = borrow(model), borrow(plant), borrow(observation), borrow(state)
     reference, action, out = borrow(reference), borrow(action), borrow(out)
