@@ -306,8 +306,9 @@ def inverse_condition6_lanes(H, count, out, worst, active):
         out[lane] = (0.0 if top == 0.0 else math.sqrt(low / top)) if finite else np.nan
 
 
-#: Relative slack of ``condition_at_least6``: a proven k exceeds the bound by ~5e-7 of it, far beyond the rounding of
-#: the factorisation and of the Jacobi SVD (~1e-15), so that the proof and ``inverse_condition6`` decide alike.
+#: Relative slack of ``condition_at_least3`` and ``condition_at_least6``: a proven k exceeds the bound by ~5e-7 of it,
+#: far beyond the rounding of the factorisation and of the closed form or the Jacobi SVD (~1e-15), so that the proof
+#: and ``singular_value_ratio3`` / ``inverse_condition6`` decide alike.
 PROOF_SLACK = 1e-6
 
 

@@ -347,6 +347,22 @@ def test_6x6_inverse_condition_lanes_equal_one_at_a_time(count):
         assert alone[1] == 0.0 and np.isnan(alone[2])
 
 
+def _matrices_of_condition(rng, size: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Random size × size matrices with k = σ_min/σ_max spread over [t / 3, 3 t], and NumPy's SVD's k of them.
+
+    One per entry of t; the other singular values lie between k and σ_max = 1.
+    """
+    n = len(t)
+    U, _ = np.linalg.qr(rng.normal(size=(n, size, size)))
+    V, _ = np.linalg.qr(rng.normal(size=(n, size, size)))
+    k = t * np.exp(rng.uniform(np.log(1 / 3), np.log(3), size=n))
+    sigma = np.exp(rng.uniform(np.log(k)[:, None], 0.0, size=(n, size)))
+    sigma[:, 0], sigma[:, 1] = k, 1.0  # σ_min/σ_max = k exactly
+    M = U @ (sigma[..., None] * np.swapaxes(V, -1, -2))
+    ref = np.linalg.svd(M, compute_uv=False)
+    return M, ref[:, -1] / ref[:, 0]
+
+
 def test_3x3_condition_proof_is_sound_and_proves_every_well_conditioned_matrix():
     """condition_at_least3 proves k ≥ t only where NumPy's SVD agrees, and proves it wherever k ≥ 1.35 t.
 
@@ -356,15 +372,9 @@ def test_3x3_condition_proof_is_sound_and_proves_every_well_conditioned_matrix()
     from envs.kernels.linalg import condition_at_least3
 
     rng = np.random.default_rng(43)
-    U, _ = np.linalg.qr(rng.normal(size=(4000, 3, 3)))
-    V, _ = np.linalg.qr(rng.normal(size=(4000, 3, 3)))
     t = rng.choice([0.03, 0.1, 0.15, 0.3], size=4000)
-    k = t * np.exp(rng.uniform(np.log(1 / 3), np.log(3), size=4000))
-    sigma = np.stack([k, np.exp(rng.uniform(np.log(k), 0.0)), np.ones(4000)], axis=1)
-    scale = rng.choice([1e-6, 1.0, 1e6], size=4000)
-    M = scale[:, None, None] * (U @ (sigma[..., None] * np.swapaxes(V, -1, -2)))
-    ref = np.linalg.svd(M, compute_uv=False)
-    ref = ref[:, -1] / ref[:, 0]
+    M, ref = _matrices_of_condition(rng, 3, t)
+    M *= rng.choice([1e-6, 1.0, 1e6], size=4000)[:, None, None]
     proven = np.array([condition_at_least3(*m.ravel(), ti) for m, ti in zip(M, t)])
     assert (ref[proven] >= t[proven]).all(), "a proof of k >= t where k < t"
     assert proven[ref >= 1.35 * t].all(), "k >= 1.35 t not proven"
@@ -383,15 +393,8 @@ def test_6x6_condition_proof_is_sound_and_proves_every_well_conditioned_matrix()
     from envs.kernels.linalg import condition_at_least6
 
     rng = np.random.default_rng(41)
-    U, _ = np.linalg.qr(rng.normal(size=(3000, 6, 6)))
-    V, _ = np.linalg.qr(rng.normal(size=(3000, 6, 6)))
     t = rng.choice([0.03, 0.1, 0.3], size=3000)
-    k = t * np.exp(rng.uniform(np.log(1 / 3), np.log(3), size=3000))
-    sigma = np.exp(rng.uniform(np.log(k)[:, None], 0.0, size=(3000, 6)))
-    sigma[:, 0], sigma[:, 1] = k, 1.0  # σ_min/σ_max = k exactly
-    M = U @ (sigma[..., None] * np.swapaxes(V, -1, -2))
-    ref = np.linalg.svd(M, compute_uv=False)
-    ref = ref[:, -1] / ref[:, 0]
+    M, ref = _matrices_of_condition(rng, 6, t)
     G = np.empty((6, 6))
     proven = np.array([condition_at_least6(np.ascontiguousarray(m.T), G, ti) for m, ti in zip(M, t)])
     assert (ref[proven] >= t[proven]).all(), "a proof of k >= t where k < t"

@@ -29,11 +29,19 @@ def is_safe(params, workspace: WorkspaceMap, x: np.ndarray) -> np.ndarray:
 
 
 def segment_min_condition(params, start: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Smallest k (library, LAPACK) at the sampler's points of each straight line start → target, shape (M,)."""
+    """Smallest k (library, LAPACK) at the sampler's points of each straight line start → target, shape (M,).
+
+    NaN where a point is out of the actuators' reach; a leg of zero length is kept at 1e-9 (as the grid's is).
+    """
     s = np.linspace(0.0, 1.0, workspace_kernels.SEGMENT_POINTS)[None, :, None]
     points = start[:, None, :] + s * (target - start)[:, None, :]
-    q = np.maximum(params.robot.inverse_kinematics(points, validate=False), 1e-9)
-    return params.robot.inverse_condition_number(q, points, validate=False).min(axis=1)
+    q = params.robot.inverse_kinematics(points, validate=False)
+    if "leg" in params.robot.actuator_kinds:
+        q = np.maximum(q, 1e-9)
+    k = np.full(q.shape[:2], np.nan)
+    reached = np.all(np.isfinite(q), axis=-1)
+    k[reached] = params.robot.inverse_condition_number(q[reached], points[reached], validate=False)
+    return k.min(axis=1)
 
 
 def component_node(workspace: WorkspaceMap, params, component: int, rank: int = 0) -> np.ndarray:
@@ -96,20 +104,12 @@ def test_the_straight_line_check_of_hard_pairs_matches_the_library(env_id, make_
     lo, hi = np.array(params.pose_low), np.array(params.pose_high)
     rng = np.random.default_rng(17)
     start, target = lo + (hi - lo) * rng.random((2, 400, 3))
-    s = np.linspace(0.0, 1.0, workspace_kernels.SEGMENT_POINTS)[None, :, None]
-    points = start[:, None, :] + s * (target - start)[:, None, :]
-    q = params.robot.inverse_kinematics(points, validate=False)
-    if "leg" in params.robot.actuator_kinds:
-        q = np.maximum(q, 1e-9)
-    k = np.full(q.shape[:2], np.nan)
-    reached = np.all(np.isfinite(q), axis=-1)
-    k[reached] = params.robot.inverse_condition_number(q[reached], points[reached], validate=False)
-    line_min = np.where(np.isnan(k).any(axis=1), np.nan, np.nanmin(np.where(np.isnan(k), np.inf, k), axis=1))
+    line_min = segment_min_condition(params, start, target)
     outcomes = set()
     for threshold in (params.hard_threshold, 0.1, 0.3):
         got = np.array(
             [
-                workspace_kernels._straight_dips_below(params.packed, a, b, s.size, threshold)
+                workspace_kernels._straight_dips_below(params.packed, a, b, workspace_kernels.SEGMENT_POINTS, threshold)
                 for a, b in zip(start, target)
             ]
         )
