@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba.core import types
 from numba.extending import overload
 
 from envs.kernels import paths
@@ -236,49 +235,36 @@ def _stroke_errors(target_q, q, m, span, o_obs, i, col, low, high):
         _clip32(o_obs, i, col + j, (target_q[j] - q[j]) / span, low, high)
 
 
+@jit_inline
 def _saturation(motion, action, i):
     """Row i's ``saturated`` entry: 1.0 while a drive of force control is at its limit, else 0.0.
 
-    Under force control (``motion`` not None) the applied actions are τ_j / τ_max,j, exactly ±1 at a limit (the
-    step clips the efforts to ±τ_max); under rate control the entry is 0.0.
+    Under force control (twists in ``motion``) the applied actions are τ_j / τ_max,j, exactly ±1 at a limit (the
+    step clips the efforts to ±τ_max); under rate control (no twists) the entry is 0.0.
     """
-    raise NotImplementedError("compiled only (see its overload)")
-
-
-@overload(_saturation, jit_options=_OVERLOAD_OPTIONS)
-def _saturation_of(motion, action, i):
-    if isinstance(motion, types.NoneType):
-        return lambda motion, action, i: 0.0
-
-    def saturation(motion, action, i):
-        for j in range(action.shape[1]):
-            if abs(action[i, j]) >= 1.0:
-                return 1.0
+    if motion[0].shape[0] == 0:
         return 0.0
+    for j in range(action.shape[1]):
+        if abs(action[i, j]) >= 1.0:
+            return 1.0
+    return 0.0
 
-    return saturation
 
-
+@jit_inline
 def _encode_motion(motion, o_obs, i, col, low, high):
-    """Observation columns of force control from col: row i's twist ẋ (m) and actuator rates (n); the next column."""
-    raise NotImplementedError("compiled only (see its overload)")
+    """Observation columns of force control from col: row i's twist ẋ (m) and actuator rates (n); the next column.
 
-
-@overload(_encode_motion, jit_options=_OVERLOAD_OPTIONS)
-def _encode_motion_of(motion, o_obs, i, col, low, high):
-    if isinstance(motion, types.NoneType):
-        return lambda motion, o_obs, i, col, low, high: col
-
-    def encode(motion, o_obs, i, col, low, high):
-        twist, rate = motion
-        m = twist.shape[1]
-        for j in range(m):
-            _clip32(o_obs, i, col + j, twist[i, j], low, high)
-        for j in range(m):
-            _clip32(o_obs, i, col + m + j, rate[i, j], low, high)
-        return col + 2 * m
-
-    return encode
+    Nothing under rate control, whose ``motion`` has no twists (``envs.kernels.force.motion_of``).
+    """
+    twist, rate = motion
+    if twist.shape[0] == 0:
+        return col
+    m = twist.shape[1]
+    for j in range(m):
+        _clip32(o_obs, i, col + j, twist[i, j], low, high)
+    for j in range(m):
+        _clip32(o_obs, i, col + m + j, rate[i, j], low, high)
+    return col + 2 * m
 
 
 @jit_inline
@@ -364,11 +350,12 @@ def _evaluate_rows(path, space, cs, observation, measured, reference, outcome, m
     """Target, reward terms, errors, success, cost and observation of robots start .. stop − 1.
 
     See ``envs.physics.evaluate``. Robot i has the row of constants ``_row(cs, i)``; the other args as
-    ``evaluate_batch``; ``motion`` is None (rate control) or force control's (twists ẋ (N, m), actuator rates
-    (N, n)), which the observation holds after k; ``out`` is (evaluation, observations). ``path`` is the row path
-    and ``space`` the pose space, compile-time constants: the overloads of the target's inverse kinematics, the
-    pose comparison and the pose code compile that path's and that space's code only. One compiled call per block
-    of robots, the row's code inlined in it.
+    ``evaluate_batch``; ``motion`` is force control's (twists ẋ (N, m), actuator rates (N, n)), which the
+    observation holds after k, or under rate control no twists and no columns (``envs.kernels.force.motion_of``:
+    one compiled evaluation for both controls); ``out`` is (evaluation, observations). ``path`` is the row path and
+    ``space`` the pose space, compile-time constants: the overloads of the target's inverse kinematics, the pose
+    comparison and the pose code compile that path's and that space's code only. One compiled call per block of
+    robots, the row's code inlined in it.
     """
     raise NotImplementedError("compiled only (see its overload)")
 

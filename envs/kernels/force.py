@@ -443,14 +443,18 @@ def _from_extra_of(extra):
 
 
 def motion_of(dynamics, q_rate):
-    """What force control adds to the observation: None, or (twists (N, m), actuator rates (N, n))."""
+    """What force control adds to the observation: (twists (N, m), actuator rates (N, n)).
+
+    Under rate control the twists have no rows (``q_rate[:0]``): the evaluation writes no force columns then, and both
+    controls share one compiled evaluation (``envs.kernels.evaluation._evaluate_rows``).
+    """
     return paths._compiled_only()
 
 
 @overload(motion_of, jit_options=_OVERLOAD_OPTIONS)
 def _motion_of_control(dynamics, q_rate):
     if isinstance(dynamics, types.NoneType):
-        return lambda dynamics, q_rate: None
+        return lambda dynamics, q_rate: (q_rate[:0], q_rate)
     return lambda dynamics, q_rate: (dynamics.o_twist, q_rate)
 
 

@@ -182,6 +182,21 @@ def test_the_effort_penalty_and_the_saturation_info():
     assert not info["saturated"]
 
 
+def test_rate_control_reports_no_saturation_and_no_force_columns():
+    """Rate control: the ``saturated`` row stays 0 at full-scale actions; no force columns, no ``saturated`` info.
+
+    Both controls share one compiled evaluation, which tells rate control by its motion without twists.
+    """
+    env = gym.make("Planar3RPRReach-v0")
+    env.reset(seed=3)
+    params = env.unwrapped.params
+    _, _, evaluation, observations = physics.step(params, env.unwrapped.state, np.array([[1.0, -1.0, 1.0]]), False)
+    np.testing.assert_array_equal(evaluation[params.evaluation_rows["saturated"]], 0.0)
+    assert observations.shape == (1, *env.observation_space.shape)
+    _, _, _, _, info = env.step(np.ones(3, dtype=np.float32))
+    assert "saturated" not in info
+
+
 def test_the_vector_env_is_the_single_env():
     """N single envs and the native vector env under force control: equal observations, rewards and infos."""
     env_id, n = "StewartGoughForceReach-v0", 3
