@@ -254,7 +254,8 @@ def _singularity(c, q, w, src):
     if int(c[C_N]) == 3:
         return _link_condition3(c, q, w, src, 0.0)
     Ht = w[W_H : W_H + 6]  # column j of the link Jacobian as row j: one lane of ``_homogeneous_lane``
-    sign = _homogeneous_lane(c, q, w, src, Ht.reshape((6, 6, 1)), 0)
+    # lane 0 as int64, not a constant: the batched step's lanes (``step._transition_lanes``) share its compile
+    sign = _homogeneous_lane(c, q, w, src, Ht.reshape((6, 6, 1)), np.int64(0))
     return inverse_condition6(Ht), sign
 
 
@@ -273,7 +274,7 @@ def _singularity_at_least(c, q, w, src, at_least):
     if int(c[C_N]) == 3:
         return _link_condition3(c, q, w, src, at_least)
     Ht = w[W_H : W_H + 6]  # as in ``_singularity``; the proof's work rows W_LU are free once the sign is known
-    sign = _homogeneous_lane(c, q, w, src, Ht.reshape((6, 6, 1)), 0)
+    sign = _homogeneous_lane(c, q, w, src, Ht.reshape((6, 6, 1)), np.int64(0))
     if condition_at_least6(Ht, w[W_LU : W_LU + 6], at_least):
         return at_least, sign
     return inverse_condition6(Ht), sign
