@@ -68,6 +68,15 @@ def render_frames(params: FamilyParams, state: FamilyState, trails: Sequence[Seq
     ]
 
 
+def _in_place(held: FamilyState | None, fresh: FamilyState) -> FamilyState:
+    """``fresh`` written into the arrays of ``held``, the state the env's last step left (as the vector env restarts).
+
+    The step's calls into its two buffers (``StepBuffers.call_for``) read those arrays, so they stay valid across
+    the reset instead of being built again at its first steps. ``fresh`` itself where there is no such state.
+    """
+    return fresh if held is None else put_rows(held, slice(None), fresh)
+
+
 class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
     """Shared machinery of the single-robot family environments; see ``FamilyReachEnv`` for the documentation."""
 
@@ -115,7 +124,7 @@ class FamilyEnvBase(gym.Env[np.ndarray, np.ndarray]):
         if unknown:
             raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options are {list(self.reset_options)}")
         self._streams = fk.random_streams((self.np_random,)) if self.params.random_hardware else None
-        self._state = self.start_episodes((self.np_random,), options, self._streams)
+        self._state = _in_place(self._state, self.start_episodes((self.np_random,), options, self._streams))
         self._terminated = False
         self._trail.clear()
         if self.render_mode is not None:  # the trail is drawn only

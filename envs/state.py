@@ -167,7 +167,7 @@ class FamilyOutcome(NamedTuple):
     hold: np.ndarray | None = None
 
 
-def put_rows(state: FamilyState, rows: np.ndarray, values: FamilyState) -> FamilyState:
+def put_rows(state: FamilyState, rows: np.ndarray | slice, values: FamilyState) -> FamilyState:
     """Write ``values`` (len(rows) robots) into the rows ``rows`` of ``state``, in place; returns ``state``.
 
     Both states must hold the same optional parts (``plant``, ``sensed``, ``drive``, ``geometry``).
