@@ -430,7 +430,10 @@ class StepBuffers:
         reads = (observation[0], *_motion(state), state.twist, reference, state.plant, state.geometry)
         if not all(map(operator.is_, reads, self._reads)):
             model, plant, motion, force = self.arguments(params, state)
-            self._call = fk.step_call(model, plant, observation, motion, tuple(reference), self.arrays, force)
+            threads = fk.uses_every_core(self.shape[0])
+            self._call = fk.step_call(
+                model, plant, observation, motion, tuple(reference), self.arrays, force, threads=threads
+            )
             self._reads = reads
         return self._call
 

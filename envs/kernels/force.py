@@ -89,7 +89,6 @@ __all__ = [
     "hold_rows",
     "holding",
     "motion_of",
-    "own_work",
     "start_period",
 ]
 
@@ -403,23 +402,6 @@ def _advance_of_control(path, c, dynamics, i, q0, x0, action, residual, w):
     return lambda path, c, dynamics, i, q0, x0, action, residual, w: advance_force(
         path, c, dynamics, i, q0, x0, action, w
     )
-
-
-def own_work(dynamics):
-    """``dynamics`` with a dynamics work array of its own (one per thread; None stays None)."""
-    return paths._compiled_only()
-
-
-@overload(own_work, jit_options=_OVERLOAD_OPTIONS)
-def _own_work_of(dynamics):
-    if isinstance(dynamics, types.NoneType):
-        return lambda dynamics: None
-
-    def own(dynamics):
-        d = dynamics
-        return Dynamics(d.inertia, d.twist, d.o_twist, d.effort, d.hold, _dynamics_work())
-
-    return own
 
 
 def from_extra(extra):

@@ -22,7 +22,7 @@ from envs.kernels.packing import (
     row_path,
 )
 from envs.kernels.records import StepCall
-from envs.kernels.setup import PARALLEL_MIN_BATCH, random_streams, uses_every_core
+from envs.kernels.setup import ONE_THREAD, PARALLEL_MIN_BATCH, random_streams, uses_every_core
 from envs.kernels.step import (
     allocate_step,
     path_kernels,
@@ -50,6 +50,7 @@ __all__ = [
     "C_SIZE",
     "E_COST1",
     "E_FIXED",
+    "ONE_THREAD",
     "PARALLEL_MIN_BATCH",
     "PARALLEL_MIN_SAMPLES",
     "PATH_VERTICES",

@@ -25,8 +25,8 @@ from envs.kernels import packing
 from envs.kernels.dynamics_layout import C_INERTIA_SIZE
 from envs.kernels.layout import E_FIXED
 from envs.kernels.records import ASSEMBLE, EVALUATE, HOLD, STROKES, TRANSITION, Moved, StepArrays
-from envs.kernels.setup import PARALLEL_MIN_BATCH, on_every_core, uses_every_core
-from envs.kernels.step import allocate_step, path_kernels, step_call
+from envs.kernels.setup import PARALLEL_MIN_BATCH, uses_every_core
+from envs.kernels.step import allocate_step, path_kernels, step_call, step_on_every_core
 
 __all__ = [
     "evaluate_batch",
@@ -70,16 +70,22 @@ def _constants(cs):
     return cs if cs.ndim == 2 else cs[None]
 
 
+def _threads(parallel, n):
+    """Whether the call of n robots runs on every core (``step_call``'s ``threads``)."""
+    return bool(parallel) and n >= PARALLEL_MIN_BATCH
+
+
 def _run(cs, call, action, parallel):
-    """Run ``call`` on the step's kernel of the robots of ``cs``; True if an action is not finite."""
+    """Run ``call`` on the step's kernel of the robots of ``cs``; True if an action is not finite.
+
+    ``parallel``: on the multi-core step's kernel, on every core if the call was built for them (``_threads``).
+    """
     kernels = path_kernels(cs)
     if not parallel:
         return kernels.step_serial(call, action)
-    if action.shape[0] >= PARALLEL_MIN_BATCH:
-        on_every_core(kernels.step_chunks, call, action)
-    else:
-        kernels.step_chunks(call, action, np.zeros(1, dtype=np.int64))
-    return False
+    if _threads(parallel, action.shape[0]):
+        return step_on_every_core(kernels, call, action)
+    return kernels.step_chunks(call, action)
 
 
 def evaluate_batch(cs, observation, measured, reference, outcome, parallel=False):
@@ -105,12 +111,12 @@ def evaluate_batch(cs, observation, measured, reference, outcome, parallel=False
         (evaluation (E_FIXED + 3m, N) float64, observations (N, D) float32).
     """
     cs = _constants(cs)
-    call, action, evaluation, observations = evaluation_call(cs, observation, measured, reference, outcome)
+    call, action, evaluation, observations = evaluation_call(cs, observation, measured, reference, outcome, parallel)
     _run(cs, call, action, parallel)
     return evaluation, observations
 
 
-def evaluation_call(cs, observation, measured, reference, outcome):
+def evaluation_call(cs, observation, measured, reference, outcome, parallel=False):
     """``evaluate_batch``'s ``StepCall`` (``EVALUATE``), actions, evaluation and observations (args: see there)."""
     cs = _constants(cs)
     q, x, k, k1, residual = (writable(measured[j]) for j in (0, 1, 3, 4, 5))
@@ -126,7 +132,8 @@ def evaluation_call(cs, observation, measured, reference, outcome):
     else:
         rates, force = unread, ()
     out = (q, x, t, k, k1, residual, action, rates, reason, spare, evaluation, observations)
-    call = step_call(cs, cs, observation, (q, x, t, spare, residual), reference, out, force, mode=EVALUATE)
+    state = (q, x, t, spare, residual)
+    call = step_call(cs, cs, observation, state, reference, out, force, EVALUATE, _threads(parallel, n))
     return call, action, evaluation, observations
 
 
@@ -166,14 +173,10 @@ def transition_batch(cs, state, action, force=(), kernels=None, parallel=None):
     if force:
         inertia, twist = force
         force = (_constants(inertia), writable(twist), np.empty((n, m)), np.empty((n, m)), np.empty((n, m)))
-    call = step_call(cs, cs, _NO_OBSERVATION, (q, x, t, det_sign, residual), (_NO_ROWS,) * 4, o, force, mode=TRANSITION)
     parallel = uses_every_core(n) if parallel is None else parallel
-    if kernels is not None:
-        failed = kernels.step_serial(call, action)
-    elif parallel:  # the multi-core kernel does not check the actions
-        failed = not np.isfinite(action).all() or _run(cs, call, action, True)
-    else:
-        failed = _run(cs, call, action, False)
+    state, threads = (q, x, t, det_sign, residual), kernels is None and _threads(parallel, n)
+    call = step_call(cs, cs, _NO_OBSERVATION, state, (_NO_ROWS,) * 4, o, force, TRANSITION, threads)
+    failed = kernels.step_serial(call, action) if kernels is not None else _run(cs, call, action, parallel)
     if failed:
         raise ValueError(f"action must be finite, got {action[~np.isfinite(action).all(axis=1)][0].tolist()}")
     return (moved, force[2:]) if force else moved
@@ -195,7 +198,7 @@ def _at_rest(cs, x, mode, force, parallel, centers=None):
     extra = (_NO_INERTIA, no_rows, no_rows, no_rows, no_rows) if force else ()
     motion = (no_rows, x, _NO_STEPS, no_column, no_column)
     reference = (no_rows,) * 4 if centers is None else (writable(centers), no_rows, no_rows, np.empty((n, m)))
-    call = step_call(cs, cs, _NO_OBSERVATION, motion, reference, outputs, extra, mode=mode)
+    call = step_call(cs, cs, _NO_OBSERVATION, motion, reference, outputs, extra, mode, _threads(parallel, n))
     _run(cs, call, np.empty((n, 0)), parallel)
     return (q, k, k1, sign, residual) if centers is None else (q, k, k1, sign, residual, reference[3])
 
@@ -244,6 +247,6 @@ def holding_batch(cs, ci, q, x, parallel=False):
     hold = np.empty((n, m))
     extra = (ci, _NO_ROWS, _NO_ROWS, _NO_ROWS, hold)
     motion = (q, x, _NO_STEPS, _NO_COLUMN, _NO_COLUMN)
-    call = step_call(cs, cs, _NO_OBSERVATION, motion, (_NO_ROWS,) * 4, _NO_OUTPUTS, extra, mode=HOLD)
+    call = step_call(cs, cs, _NO_OBSERVATION, motion, (_NO_ROWS,) * 4, _NO_OUTPUTS, extra, HOLD, _threads(parallel, n))
     _run(cs, call, np.empty((n, 0)), parallel)
     return hold

@@ -139,6 +139,7 @@ STEP_CALL_FIELDS = (
     "strokes",
     "outputs",  # the ``StepArrays`` written, then force control's (inertia, ẋ, ẋ', τ, τ_h) or nothing
     "mode",  # int: what the call does (``STEP``, ``EVALUATE``, ``TRANSITION``, ``ASSEMBLE``, ``STROKES``, ``HOLD``)
+    "counter",  # int64 (1,): the next chunk of robots for the threads of a multi-core call; (0,): one thread does all
 )
 
 #: The modes of a ``StepCall``: the one compiled step in each role, so that an env compiles one kernel.

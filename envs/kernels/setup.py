@@ -15,6 +15,7 @@ from numba.extending import intrinsic
 from envs.kernels.cache import drop_stale_caches
 
 __all__ = [
+    "ONE_THREAD",
     "PARALLEL_MIN_BATCH",
     "THREADS",
     "borrow",
@@ -23,6 +24,7 @@ __all__ = [
     "jit_inline",
     "keep_alive",
     "on_every_core",
+    "on_every_thread",
     "random_streams",
     "uniform_batch",
     "uses_every_core",
@@ -72,20 +74,32 @@ def _executor() -> ThreadPoolExecutor:
     return _pool[1]
 
 
-def on_every_core(kernel, *args) -> list:
-    """Run ``kernel(*args, counter)`` on ``THREADS`` threads at once (this one and the pool's); their results.
+#: The counter of a one-thread call of a kernel that shares its work out by ``claim``: none to claim, the calling
+#: thread does it all (an empty int64 array; ``on_every_core`` gives the threads a one-element one).
+ONE_THREAD = np.zeros(0, dtype=np.int64)
 
-    The kernel (compiled with ``jit``, so it runs without the GIL) shares the work out itself: each thread takes
-    the next chunk with ``claim(counter)`` until none is left, so a thread that runs ahead does more of them, as
-    with work stealing. ``counter`` is a fresh int64 array holding one zero.
+
+def on_every_thread(kernel, *args) -> list:
+    """Run ``kernel(*args)`` on ``THREADS`` threads at once (this one and the pool's); their results.
+
+    The kernel (compiled with ``jit``, so it runs without the GIL) shares the work out itself, from a counter its
+    arguments hold (``claim``).
     """
-    counter = np.zeros(1, dtype=np.int64)
     if THREADS == 1:
-        return [kernel(*args, counter)]
-    futures = [_executor().submit(kernel, *args, counter) for _ in range(THREADS - 1)]
-    results = [kernel(*args, counter)]
+        return [kernel(*args)]
+    futures = [_executor().submit(kernel, *args) for _ in range(THREADS - 1)]
+    results = [kernel(*args)]
     results.extend(future.result() for future in futures)
     return results
+
+
+def on_every_core(kernel, *args) -> list:
+    """Run ``kernel(*args, counter)`` on ``THREADS`` threads at once (``on_every_thread``); their results.
+
+    Each thread takes the next chunk of the work with ``claim(counter)`` until none is left, so a thread that runs
+    ahead does more of them, as with work stealing. ``counter`` is a fresh int64 array holding one zero.
+    """
+    return on_every_thread(kernel, *args, np.zeros(1, dtype=np.int64))
 
 
 @intrinsic

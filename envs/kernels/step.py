@@ -29,7 +29,7 @@ from envs.kernels import paths
 from envs.kernels.cache import drop_stale_caches
 from envs.kernels.constraints import _actuator_condition, _homogeneous_lane, _row, _work
 from envs.kernels.evaluation import _evaluate_rows
-from envs.kernels.force import advance, beyond_stops, from_extra, hold_rows, motion_of, own_work
+from envs.kernels.force import advance, beyond_stops, from_extra, hold_rows, motion_of
 from envs.kernels.layout import (
     _ACTUATOR_SINGULAR,
     _ASSEMBLY_MODE_CHANGE,
@@ -81,7 +81,16 @@ from envs.kernels.records import (
     StepArrays,
     StepCall,
 )
-from envs.kernels.setup import PARALLEL_MIN_BATCH, borrow, claim, jit, jit_inline, keep_alive, on_every_core
+from envs.kernels.setup import (
+    ONE_THREAD,
+    PARALLEL_MIN_BATCH,
+    borrow,
+    claim,
+    jit,
+    jit_inline,
+    keep_alive,
+    on_every_thread,
+)
 
 __all__ = [
     "allocate_step",
@@ -353,21 +362,20 @@ def _unpack(call):
     )
 
 
-@jit
-def _step_chunks(path, space, model, plant, observation, state, reference, action, out, dynamics, mode, counter):
-    """One thread's share of the multi-core step: chunks of ``CHUNK`` robots claimed from ``counter`` (``claim``).
+@jit_inline
+def _step_chunks(
+    path, space, model, plant, observation, state, reference, action, w, lanes, out, dynamics, mode, counter
+):
+    """The step of robots in chunks of ``CHUNK``: every chunk in turn (``counter`` empty), or one thread's share.
 
-    On the work-array path under rate control spatial robots go in blocks of ``LANES`` (their k in SIMD lanes,
-    ``lane_work``), over work arrays of the thread's own. The arrays are borrowed (``borrow``): the caller holds the
-    arguments, and the work arrays are kept to the end.
+    With a one-element ``counter`` the threads of ``on_every_core`` claim the chunks from it (``claim``). On the
+    work-array path under rate control spatial robots go in blocks of ``LANES`` (their k in SIMD lanes,
+    ``lane_work``); ``lanes`` None moves them robot by robot.
     """
-    work, lanes_owned, owned = _work(), lane_work(path, dynamics), own_work(dynamics)
-    w, lanes, dynamics = borrow(work), borrow(lanes_owned), borrow(owned)
-    model, plant, observation, state = borrow(model), borrow(plant), borrow(observation), borrow(state)
-    reference, action, out = borrow(reference), borrow(action), borrow(out)
     n = action.shape[0]
     chunks = (n + CHUNK - 1) // CHUNK
-    chunk = claim(counter)
+    one_thread = counter.shape[0] == 0
+    chunk = 0 if one_thread else claim(counter)
     while chunk < chunks:
         end = min(n, (chunk + 1) * CHUNK)
         for start in range(chunk * CHUNK, end, LANES):
@@ -376,14 +384,17 @@ def _step_chunks(path, space, model, plant, observation, state, reference, actio
                 path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out,
                 dynamics, mode,
             )  # fmt: skip
-        chunk = claim(counter)
-    keep_alive(work)
-    keep_alive(lanes_owned)
-    keep_alive(owned)
+        chunk = chunk + 1 if one_thread else claim(counter)
 
 
 class PathKernels(NamedTuple):
-    """The entry kernels of one row path, each compiled for that path alone (see ``_path_kernels``)."""
+    """The entry kernels of one row path and pose space (see ``_path_kernels``), each ``kernel(call, action)``.
+
+    ``step_serial`` steps every robot on the calling thread; ``step_chunks`` steps the chunks of robots the call's
+    counter gives it (``step_call``): all of them with a one-thread call, one thread's share of them in a call on
+    every core (``step_on_every_core``). On one thread both return True, without stepping, if an action is not
+    finite; the multi-core step leaves that check to its caller.
+    """
 
     step_serial: Any
     step_chunks: Any
@@ -394,50 +405,58 @@ def _path_kernels(path: int, space: int) -> PathKernels:
 
     A closure over ints is cached by Numba under their values, so each path's kernels compile (and load from the
     on-disk cache) on their own, when a robot of that path first uses them: a robot compiles its own path only.
-    The parallel step compiles at the first batch of at least ``PARALLEL_MIN_BATCH`` robots.
+    Each entry kernel compiles the whole step, so the register paths have one, ``step_chunks``, which is also their
+    ``step_serial``. The work-array path has two: its multi-core step moves spatial robots in SIMD lanes under rate
+    control (``lane_work``), which its one-thread step, robot by robot, does not compile.
     """
 
-    # The entry kernels take their arrays flat: Numba types a named tuple argument about 0.8 µs slower per call.
-    # Each borrows its arrays (``borrow``): the caller holds the arguments, and what it allocates is kept to the end.
+    # The entry kernels take one ``StepCall`` record rather than flat arrays: the single env calls them at every
+    # step, and Numba types and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one
+    # pointer; a multi-core step's threads each unbox their arguments holding the GIL. Each borrows its arrays
+    # (``borrow``): the caller holds the arguments, and what it allocates is kept to the end.
     def step_serial(call, action):
-        # One ``StepCall`` record rather than flat arrays: the single env calls it at every step, and Numba types
-        # and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one pointer.
         mode = call.mode
         if (mode == STEP or mode == TRANSITION) and not _finite_actions(action):
             return True
-        # Borrowed (``borrow``): the caller holds the call's arrays, and the work arrays are kept to the end.
         owned, work = _unpack(call), _work()
         (model, plant, observation, state, reference, out, dynamics), w, action = borrow((owned, work, action))
-        n = action.shape[0]
         lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
-        for start in range(0, n, LANES):
-            count = min(LANES, n - start)
-            _step_block(
-                path, space, model, plant, observation, state, reference, action, start, count, w, lanes, out,
-                dynamics, mode,
-            )  # fmt: skip
+        _step_chunks(
+            path, space, model, plant, observation, state, reference, action, w, lanes, out, dynamics, mode, ONE_THREAD
+        )  # fmt: skip
         keep_alive(work)
         keep_alive(owned)
         return False
 
-    def step_chunks(call, action, counter):
-        # A ``StepCall``, as ``step_serial`` takes: every thread unboxes its arguments holding the GIL, and a
-        # record is one pointer where the flat arrays would be some forty.
-        model, plant, observation, state, reference, out, dynamics = _unpack(call)
-        _step_chunks(
-            path, space, model, plant, observation, state, reference, action, out, dynamics, call.mode, counter
+    def step_chunks(call, action):
+        # Each thread's call has work arrays of its own (``_unpack`` allocates force control's).
+        mode, counter = call.mode, call.counter
+        if counter.shape[0] == 0 and (mode == STEP or mode == TRANSITION) and not _finite_actions(action):
+            return True
+        owned, work = _unpack(call), _work()
+        lanes_owned = lane_work(path, owned[6])
+        (model, plant, observation, state, reference, out, dynamics), w, lanes, action, counter = borrow(
+            (owned, work, lanes_owned, action, counter)
         )
+        _step_chunks(
+            path, space, model, plant, observation, state, reference, action, w, lanes, out, dynamics, mode, counter
+        )  # fmt: skip
+        keep_alive(work)
+        keep_alive(lanes_owned)
+        keep_alive(owned)
+        return False
 
     closures = locals()
-    compiled = []
-    for name in PathKernels._fields:
+    compiled = {}
+    for name in PathKernels._fields if path == WORK_ARRAYS else ("step_chunks",):
         kernel = closures[name]
         # Numba's on-disk cache keeps one index file per qualified name, shared by every closure of that name; two
         # processes compiling two paths at once would then overwrite each other's entries, and a later process could
         # load one path's machine code for another's. A name per (path, space) gives each its own index.
         kernel.__qualname__ = kernel.__name__ = f"{name}_path{path}_space{space}"
-        compiled.append(jit(kernel))
-    return PathKernels(*compiled)
+        compiled[name] = jit(kernel)
+    compiled.setdefault("step_serial", compiled["step_chunks"])
+    return PathKernels(**compiled)
 
 
 #: The entry kernels of each row path and pose space, by (path, space).
@@ -447,37 +466,51 @@ _PATH_KERNELS = {(path, space): _path_kernels(path, space) for path in ROW_PATHS
 @jit
 def _new_step_call(
     model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs,
-    mode,
+    mode, counter,
 ):  # fmt: skip
     return StepCall(
         model, plant, low, high, with_velocity, q, x, t, det_sign, residual, center, amplitude, phase, strokes, outputs,
-        mode,
+        mode, counter,
     )  # fmt: skip
 
 
-def step_call(model, plant, observation, state, reference, out, force=(), mode=STEP) -> StepCall:
-    """The ``StepCall`` of ``step_batch``'s arguments but the action (see there), for ``step_serial(call, action)``.
+def step_call(model, plant, observation, state, reference, out, force=(), mode=STEP, threads=False) -> StepCall:
+    """The ``StepCall`` of ``step_batch``'s arguments but the action (see there), for ``kernel(call, action)``.
 
     It holds the arrays by reference: a call steps from whatever they hold when it runs. ``mode`` (``STEP``, or
-    one of the others of ``envs.kernels.records``: ``envs.kernels.modes``) says what it does.
+    one of the others of ``envs.kernels.records``: ``envs.kernels.modes``) says what it does. ``threads``: a call
+    for ``step_on_every_core``, whose threads claim its chunks of robots from a counter of its own; else a call for
+    one thread (``ONE_THREAD``), of either entry kernel.
     """
-    return _new_step_call(model, plant, *observation, *state, *reference, (*out, *force), mode)
+    counter = np.zeros(1, dtype=np.int64) if threads else ONE_THREAD
+    call = _new_step_call(model, plant, *observation, *state, *reference, (*out, *force), mode, counter)
+    call.counter = counter  # for ``step_on_every_core`` (a proxy does not show its record's fields to Python)
+    return call
 
 
 def step_on_every_core(kernels, call, action):
-    """``step_serial(call, action)`` on every core (``on_every_core``); True if an action is not finite.
+    """``kernels.step_chunks(call, action)`` on every core (``on_every_thread``); True if an action is not finite.
 
-    ``kernels``: the ``path_kernels`` of the call's plant.
+    ``kernels``: the ``path_kernels`` of the call's plant; ``call``: built with ``threads=True``.
+
+    Raises:
+        ValueError: If ``call`` was built for one thread.
     """
     if not np.isfinite(action).all():
         return True
-    on_every_core(kernels.step_chunks, call, action)
+    counter = call.counter
+    if counter.shape != (1,):
+        raise ValueError(
+            f"a call on every core needs a counter of shape (1,) (step_call(threads=True)), got {counter.shape}"
+        )
+    counter[0] = 0  # no chunk claimed yet
+    on_every_thread(kernels.step_chunks, call, action)
     return False
 
 
 def _step_parallel(model, plant, observation, state, reference, action, out, force=()):
     """The multi-core step of ``step_batch``."""
-    call = step_call(model, plant, observation, state, reference, out, force)
+    call = step_call(model, plant, observation, state, reference, out, force, threads=True)
     return step_on_every_core(path_kernels(plant), call, action)
 
 

@@ -27,7 +27,7 @@ from envs.kernels.layout import (
 )
 from envs.kernels.packing import THREE, WORK_ARRAYS, read_only
 from envs.kernels.pose import _TWO_PI, _difference, _metric
-from envs.kernels.setup import _next_double, borrow, claim, jit, jit_inline, keep_alive, on_every_core
+from envs.kernels.setup import ONE_THREAD, _next_double, borrow, claim, jit, jit_inline, keep_alive, on_every_core
 from envs.tasks.certificate import _measures, _safe, _segment_min_k, _spacing_margin, certificate_path
 
 __all__ = [
@@ -129,17 +129,17 @@ def _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint
 class SamplerKernels(NamedTuple):
     """The samplers' entry kernels of one certificate path (see ``_sampler_kernels``).
 
-    ``reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint)`` fills o_start, o_target, o_waypoint
-    (M, m) with certified pairs and returns −1 on success, else the failing pair. Standard pair: the geodesic
-    start → target has safety ≥ safe_threshold at every checked point. Hard pair (``hard_kind`` "detour"): that
+    ``reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint, ok, counter)`` fills o_start, o_target,
+    o_waypoint (M, m) with certified pairs and returns −1 on success, else the failing pair. Standard pair: the
+    geodesic start → target has safety ≥ safe_threshold at every checked point. Hard pair (``hard_kind`` "detour"): that
     geodesic dips below safe_threshold (it stays inside the box and stroke limits), and the two geodesics
     start → waypoint → target are safe. Hard pair ("ill_conditioned"): a safe start and a target in the
     ill-conditioned band 2 hard_threshold ≤ k < safe_threshold, joined by a geodesic that keeps
     safety ≥ 2 hard_threshold. ``streams`` holds one stream for all pairs or one per pair.
 
-    ``reach_chunks(..., ok, counter)`` is one thread's share of ``reach`` on every core (``on_every_core``), for
-    one stream per robot (each robot's pair depends on its stream only): it draws the pairs of the robots it claims
-    and sets ``ok[i]`` (the serial kernel stops at the first failure).
+    ``ok`` (M,) bool marks the pairs found. ``counter``: an empty int64 array (``ONE_THREAD``), the pairs in turn,
+    up to the first failure; or the counter of ``on_every_core``, one thread's share of the pairs, for one stream
+    per robot (each robot's pair depends on its stream only): it draws those it claims and returns −1.
 
     ``track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase)`` fills references (centre,
     amplitude, phase) whose poses at ``n_check`` times of a period, and the segments between them, are all safe.
@@ -148,7 +148,6 @@ class SamplerKernels(NamedTuple):
     """
 
     reach: Any
-    reach_chunks: Any
     track: Any
 
 
@@ -158,37 +157,27 @@ def _sampler_kernels(path: int) -> SamplerKernels:
     Each gets a name of its own per path, hence its own Numba cache index (see ``envs.kernels.step._path_kernels``).
     """
 
-    def reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint):
-        shared = streams.shape[0] == 1
+    def reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint, ok, counter):
+        n = o_start.shape[0]
+        one_thread, shared = counter.shape[0] == 0, streams.shape[0] == 1
         work = (_work(), np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6))
         w, strokes, start, target, waypoint, step = borrow(work)  # arrays borrowed (``borrow``), kept to the end
         c, streams, o_start, o_target, o_waypoint = borrow((c, streams, o_start, o_target, o_waypoint))
         failed = -1
-        for i in range(o_start.shape[0]):
-            s = 0 if shared else i
-            if not _sample_reach_one(
-                path, c, streams[s, 0], streams[s, 1], hard, min_distance, w, strokes, start, target, waypoint, step
-            ):
-                failed = i
-                break
-            _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
-        keep_alive(work)
-        return failed
-
-    def reach_chunks(c, streams, hard, min_distance, o_start, o_target, o_waypoint, ok, counter):
-        n = o_start.shape[0]
-        work = (_work(), np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6))
-        w, strokes, start, target, waypoint, step = borrow(work)
-        c, streams, o_start, o_target, o_waypoint = borrow((c, streams, o_start, o_target, o_waypoint))
-        i = claim(counter)
+        i = 0 if one_thread else claim(counter)
         while i < n:
+            s = 0 if shared else i
             ok[i] = _sample_reach_one(
-                path, c, streams[i, 0], streams[i, 1], hard, min_distance, w, strokes, start, target, waypoint, step
+                path, c, streams[s, 0], streams[s, 1], hard, min_distance, w, strokes, start, target, waypoint, step
             )
             if ok[i]:
                 _put_pair(c, hard, start, target, waypoint, i, o_start, o_target, o_waypoint)
-            i = claim(counter)
+            elif one_thread:  # the caller gives up: draw no further
+                failed = i
+                break
+            i = i + 1 if one_thread else claim(counter)
         keep_alive(work)
+        return failed
 
     def track(c, streams, max_amplitude, n_check, o_center, o_amplitude, o_phase):
         m = int(c[C_N])
@@ -236,10 +225,10 @@ def _sampler_kernels(path: int) -> SamplerKernels:
         keep_alive(work)
         return -1
 
-    kernels = (reach, reach_chunks, track)
+    kernels = (reach, track)
     for kernel in kernels:
         kernel.__qualname__ = kernel.__name__ = f"sample_{kernel.__name__}_path{path}"
-    return SamplerKernels(jit(reach), jit(reach_chunks), jit(track))
+    return SamplerKernels(jit(reach), jit(track))
 
 
 #: The samplers' entry kernels by ``certificate_path``.
@@ -267,14 +256,12 @@ def sample_reach_batch(c, streams, n, m, hard, min_distance):
     """
     c = read_only(c)
     o_start, o_target, o_waypoint = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
-    kernels = sampler_kernels(c)
-    parallel = streams.shape[0] > 1 and n >= PARALLEL_MIN_SAMPLES
-    if parallel:
-        ok = np.empty(n, dtype=np.bool_)
-        on_every_core(kernels.reach_chunks, c, streams, hard, min_distance, o_start, o_target, o_waypoint, ok)
+    reach, ok = sampler_kernels(c).reach, np.empty(n, dtype=np.bool_)
+    if streams.shape[0] > 1 and n >= PARALLEL_MIN_SAMPLES:
+        on_every_core(reach, c, streams, hard, min_distance, o_start, o_target, o_waypoint, ok)
         if not ok.all():
             return None
-    elif kernels.reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint) >= 0:
+    elif reach(c, streams, hard, min_distance, o_start, o_target, o_waypoint, ok, ONE_THREAD) >= 0:
         return None
     return o_start, o_target, o_waypoint
 

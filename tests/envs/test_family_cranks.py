@@ -363,8 +363,9 @@ def test_parallel_reach_sampler_equals_the_serial_one(hard):
             arrays = list(samplers.sample_reach_batch(params.packed, streams, n, 3, hard, params.min_distance))
         else:
             arrays = [np.empty((n, 3)) for _ in range(3)]
-            reach = samplers.sampler_kernels(params.packed).reach
-            assert reach(params.packed, streams, hard, params.min_distance, *arrays) == -1
+            reach, ok = samplers.sampler_kernels(params.packed).reach, np.zeros(n, dtype=np.bool_)
+            assert reach(params.packed, streams, hard, params.min_distance, *arrays, ok, fk.ONE_THREAD) == -1
+            assert ok.all()
         outs.append(arrays + [np.array([g.random() for g in generators])])  # the generators advanced alike
     for a, b in zip(*outs):
         np.testing.assert_array_equal(a, b)

@@ -325,7 +325,7 @@ _ALLOCATORS = {
     "allocate_lanes",
     "_allocate_moved",
     "from_extra",
-    "own_work",
+    "lane_work",
     "_dynamics_work",
     "_unpack",  # a StepCall's records, with the dynamics' work array
 }
@@ -598,7 +598,7 @@ def test_every_role_of_the_step_runs_the_steps_compiled_kernel(monkeypatch, env_
 
     def recording(*args):
         call = original(*args)
-        built.append((args[-1], numba.typeof(call)))  # (its mode, its type)
+        built.append((args[-2], numba.typeof(call)))  # (its mode, its type)
         return call
 
     monkeypatch.setattr(step_kernels, "_new_step_call", recording)
@@ -617,12 +617,47 @@ def test_every_role_of_the_step_runs_the_steps_compiled_kernel(monkeypatch, env_
     env.close()
 
 
+def test_the_register_paths_compile_one_entry_kernel_and_the_work_array_path_two():
+    """On the register paths the one-thread step is the multi-core step's kernel; the work-array path has its own.
+
+    Each entry kernel compiles the whole step. The work-array path's multi-core kernel puts spatial robots' SVDs in
+    SIMD lanes, which a single robot should not have to compile.
+    """
+    from envs.kernels.packing import ROW_PATHS, WORK_ARRAYS
+
+    for (path, space), kernels in step_kernels._PATH_KERNELS.items():
+        assert path in ROW_PATHS
+        assert (kernels.step_serial is kernels.step_chunks) == (path != WORK_ARRAYS), (path, space)
+
+
+def test_a_call_built_for_one_thread_is_refused_on_every_core(params, rng):
+    """``step_on_every_core`` needs a call with a counter of its own (``step_call(threads=True)``).
+
+    Threads sharing the empty counter of a one-thread call would each step every robot, at the same time.
+    """
+    n = fk.PARALLEL_MIN_BATCH
+    state = _random_states(params, rng, n)
+    observation = (*physics.observation_bounds(params, False), False)
+    out = fk.allocate_step(n, 3, observation[0].shape[0])
+    motion = (state.q, state.x, state.t, state.det_sign, state.residual)
+    reference = tuple(physics.with_strokes(params, state.reference, True))
+    kernels = fk.path_kernels(params.packed_rows)
+    action = np.zeros((n, 3))
+    call = fk.step_call(params.packed_rows, params.packed_rows, observation, motion, reference, out)
+    with pytest.raises(ValueError, match=r"counter of shape \(1,\).*got \(0,\)"):
+        fk.step_on_every_core(kernels, call, action)
+    threaded = fk.step_call(params.packed_rows, params.packed_rows, observation, motion, reference, out, threads=True)
+    assert not fk.step_on_every_core(kernels, threaded, action)
+
+
 @pytest.mark.parametrize("num_envs", [1, fk.PARALLEL_MIN_BATCH + 1])
-def test_an_env_runs_one_entry_kernel_of_the_step(monkeypatch, num_envs):
+@pytest.mark.parametrize("env_id", ["StewartGoughReach-v0", "Planar3RPRReach-v0"])
+def test_an_env_runs_one_entry_kernel_of_the_step(monkeypatch, env_id, num_envs):
     """A vector env that steps on every core starts, restarts and looks ahead on that kernel too; a small one never.
 
-    Each entry kernel (one thread, every core) compiles the whole step: an env that used both would compile it
-    twice. Every role (``envs.kernels.modes``) follows the env's choice, the shield's look-ahead included.
+    On the work-array path (the hexapod) each entry kernel (one thread, every core) compiles the whole step: an env
+    that used both would compile it twice. Every role (``envs.kernels.modes``) follows the env's choice, the
+    shield's look-ahead included. The 3-RPR is checked by role: its two are one kernel.
     """
     import gymnasium as gym
 
@@ -643,9 +678,7 @@ def test_an_env_runs_one_entry_kernel_of_the_step(monkeypatch, num_envs):
     }
     monkeypatch.setattr(step_kernels, "_PATH_KERNELS", patched)
     env = VectorSingularityShield(
-        gym.make_vec(
-            "Planar3RPRReach-v0", num_envs=num_envs, vectorization_mode="vector_entry_point", max_episode_steps=3
-        )
+        gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", max_episode_steps=3)
     )
     env.reset(seed=0)
     for _ in range(4):  # the episodes end after 3 steps and restart

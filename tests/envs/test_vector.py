@@ -151,6 +151,34 @@ def test_equals_sync_vector_env_of_single_envs(env_id, mode):
         assert terminated >= 3, f"too few terminations: {terminated} terminated, {truncated} truncated"
 
 
+@pytest.mark.parametrize("env_id", ["Planar3RPRReach-v0", "StewartGoughReach-v0"])
+def test_a_vector_env_on_every_core_steps_as_on_one_thread(monkeypatch, env_id):
+    """A vector env of more than ``PARALLEL_MIN_BATCH`` robots, over steps and restarts, equals itself on one thread.
+
+    Its step's calls are kept from step to step (``physics.StepBuffers``): each multi-core step claims its chunks of
+    robots afresh (``step_on_every_core``), to the last bit of every output.
+    """
+    from envs.kernels import setup
+
+    n = setup.PARALLEL_MIN_BATCH + 7
+    width = gym.make(env_id).action_space.shape[0]
+    actions = large_actions(9, n, hold=2, width=width)
+
+    def run() -> list:
+        env = make_native(env_id, n=n, max_episode_steps=4)
+        outputs = [env.reset(seed=3)[0]]
+        for action in actions:
+            outputs.extend(env.step(action)[:4])
+        env.close()
+        return outputs
+
+    on_every_core = run()
+    monkeypatch.setattr(setup, "PARALLEL_MIN_BATCH", 10**9)
+    assert not setup.uses_every_core(n)
+    for a, b in zip(on_every_core, run(), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_reset_with_seed_list_and_options_equals_sync():
     """A list of seeds and the single env's reset options act per sub-environment as in SyncVectorEnv."""
     native, sync = make_native("Planar3RPRReach-v0", n=4), make_sync("Planar3RPRReach-v0", n=4)
