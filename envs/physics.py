@@ -408,6 +408,7 @@ class StepBuffers:
         self.kernels = fk.path_kernels(params.packed)  # the compiled step of the robot's row path
         #: Force control's outputs (twists, efforts, holding forces), or ().
         self.force = () if params.control != "force" else tuple(np.empty((n, params.robot.n_pose)) for _ in range(3))
+        self.one_thread = self.kernels.one_thread(bool(self.force))  # the kernel of a one-thread step
         if self.force:
             self.outcome = self.outcome._replace(effort=self.force[1], hold=self.force[2])
         #: The step's ``StepCall`` into these buffers (one thread or every core), and what it reads (``call_for``).
@@ -495,7 +496,7 @@ def step(
     if parallel:
         failed = fk.step_on_every_core(out.kernels, call, action)
     else:
-        failed = out.kernels.step_serial(call, action)
+        failed = out.one_thread(call, action)
     if failed:
         _non_finite(action)
     q, x, t, k, k1, residual = out.fields

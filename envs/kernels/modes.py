@@ -75,14 +75,15 @@ def _threads(parallel, n):
     return bool(parallel) and n >= PARALLEL_MIN_BATCH
 
 
-def _run(cs, call, action, parallel):
+def _run(cs, call, action, parallel, force):
     """Run ``call`` on the step's kernel of the robots of ``cs``; True if an action is not finite.
 
     ``parallel``: on the multi-core step's kernel, on every core if the call was built for them (``_threads``).
+    ``force``: whether the call has force control's arrays.
     """
     kernels = path_kernels(cs)
     if not parallel:
-        return kernels.step_serial(call, action)
+        return kernels.one_thread(force)(call, action)
     if _threads(parallel, action.shape[0]):
         return step_on_every_core(kernels, call, action)
     return kernels.step_chunks(call, action)
@@ -112,7 +113,7 @@ def evaluate_batch(cs, observation, measured, reference, outcome, parallel=False
     """
     cs = _constants(cs)
     call, action, evaluation, observations = evaluation_call(cs, observation, measured, reference, outcome, parallel)
-    _run(cs, call, action, parallel)
+    _run(cs, call, action, parallel, len(outcome) > 2)
     return evaluation, observations
 
 
@@ -176,7 +177,10 @@ def transition_batch(cs, state, action, force=(), kernels=None, parallel=None):
     parallel = uses_every_core(n) if parallel is None else parallel
     state, threads = (q, x, t, det_sign, residual), kernels is None and _threads(parallel, n)
     call = step_call(cs, cs, _NO_OBSERVATION, state, (_NO_ROWS,) * 4, o, force, TRANSITION, threads)
-    failed = kernels.step_serial(call, action) if kernels is not None else _run(cs, call, action, parallel)
+    if kernels is not None:
+        failed = kernels.one_thread(bool(force))(call, action)
+    else:
+        failed = _run(cs, call, action, parallel, bool(force))
     if failed:
         raise ValueError(f"action must be finite, got {action[~np.isfinite(action).all(axis=1)][0].tolist()}")
     return (moved, force[2:]) if force else moved
@@ -199,7 +203,7 @@ def _at_rest(cs, x, mode, force, parallel, centers=None):
     motion = (no_rows, x, _NO_STEPS, no_column, no_column)
     reference = (no_rows,) * 4 if centers is None else (writable(centers), no_rows, no_rows, np.empty((n, m)))
     call = step_call(cs, cs, _NO_OBSERVATION, motion, reference, outputs, extra, mode, _threads(parallel, n))
-    _run(cs, call, np.empty((n, 0)), parallel)
+    _run(cs, call, np.empty((n, 0)), parallel, bool(force))
     return (q, k, k1, sign, residual) if centers is None else (q, k, k1, sign, residual, reference[3])
 
 
@@ -248,5 +252,5 @@ def holding_batch(cs, ci, q, x, parallel=False):
     extra = (ci, _NO_ROWS, _NO_ROWS, _NO_ROWS, hold)
     motion = (q, x, _NO_STEPS, _NO_COLUMN, _NO_COLUMN)
     call = step_call(cs, cs, _NO_OBSERVATION, motion, (_NO_ROWS,) * 4, _NO_OUTPUTS, extra, HOLD, _threads(parallel, n))
-    _run(cs, call, np.empty((n, 0)), parallel)
+    _run(cs, call, np.empty((n, 0)), parallel, True)
     return hold

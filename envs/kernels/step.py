@@ -399,6 +399,14 @@ class PathKernels(NamedTuple):
     step_serial: Any
     step_chunks: Any
 
+    def one_thread(self, force: bool):
+        """The kernel of a one-thread call: ``step_serial`` under rate control, else ``step_chunks``.
+
+        Under force control the multi-core step moves robots one at a time too (``lane_work``): its kernel on one
+        thread is the one-thread step, and a process with both compiles it once.
+        """
+        return self.step_chunks if force else self.step_serial
+
 
 def _path_kernels(path: int, space: int) -> PathKernels:
     """The entry kernels of the row path ``path`` and the pose space ``space``, both compile-time constants.

@@ -621,13 +621,17 @@ def test_the_register_paths_compile_one_entry_kernel_and_the_work_array_path_two
     """On the register paths the one-thread step is the multi-core step's kernel; the work-array path has its own.
 
     Each entry kernel compiles the whole step. The work-array path's multi-core kernel puts spatial robots' SVDs in
-    SIMD lanes, which a single robot should not have to compile.
+    SIMD lanes under rate control, which a single robot should not have to compile; under force control it moves
+    them one at a time, and is the one-thread step too.
     """
     from envs.kernels.packing import ROW_PATHS, WORK_ARRAYS
 
     for (path, space), kernels in step_kernels._PATH_KERNELS.items():
         assert path in ROW_PATHS
         assert (kernels.step_serial is kernels.step_chunks) == (path != WORK_ARRAYS), (path, space)
+        # under force control no path uses the lanes: one kernel for both
+        assert kernels.one_thread(force=True) is kernels.step_chunks
+        assert kernels.one_thread(force=False) is kernels.step_serial
 
 
 def test_a_call_built_for_one_thread_is_refused_on_every_core(params, rng):
