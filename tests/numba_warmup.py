@@ -161,11 +161,6 @@ def warm_up(part: int | None = None) -> None:
         family.step(np.zeros(3, dtype=np.float32))
     if "StewartGoughReach-v0" in ids:
         _batch_kernels(gym.make("StewartGoughReach-v0").unwrapped)
-    # the kernels the tests of the certificate and of the dynamics call without an env, on every path
-    for env_id in (
-        env_id for env_id in ("StewartGoughReach-v0", "Planar3RPRReach-v0", "DeltaReach-v0") if env_id in ids
-    ):
-        _test_kernels(gym.make(env_id).unwrapped, certificate=env_id != "DeltaReach-v0")
     if "Planar3RRRReach-v0" in ids:  # the work-array paths of the spaces the register paths serve (compared by a test)
         for env_id in ("Planar3RRRReach-v0", "Planar3PRRReach-v0", "Planar3RPRReach-v0", "DeltaReach-v0"):
             _work_array_transition(gym.make(env_id).unwrapped)
@@ -194,24 +189,6 @@ def _work_array_transition(env: gym.Env) -> None:
     work = step_kernels._PATH_KERNELS[packing.WORK_ARRAYS, packing.pose_space_code(cs)]
     motion = records.Motion(state.q, state.x, state.t, state.det_sign, state.residual)
     modes.transition_batch(cs, motion, np.zeros_like(state.q), kernels=work)
-
-
-def _test_kernels(env: gym.Env, certificate: bool) -> None:
-    """The certificate's safe set and segments (``certificate``) and the batched equations of motion of env's robot."""
-    from envs.kernels import dynamics, dynamics_batch
-    from envs.kernels import generic as fk
-    from kinematics import default_inertia
-
-    params = env.params
-    start, _ = env.sample_tasks([np.random.default_rng(i) for i in range(4)], {})
-    target = start[::-1].copy()
-    if certificate:
-        fk.safe_batch(params.packed, start)
-        fk.segment_batch(params.packed, start, target)
-        fk.certified_segment_batch(params.packed, start, target, params.safe_threshold)
-    q = params.robot.inverse_kinematics(start, validate=False)
-    ci = dynamics.pack_inertia(params.robot, default_inertia(params.robot))
-    dynamics_batch.forward_dynamics_batch(params.packed, ci, q, start, np.zeros_like(start), np.zeros_like(q))
 
 
 def _batch_kernels(env: gym.Env) -> None:
