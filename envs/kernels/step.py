@@ -570,4 +570,4 @@ def step_batch(model, plant, observation, state, reference, action, out, kernels
         kernels = path_kernels(plant)
     if action.shape[0] >= PARALLEL_MIN_BATCH:
         return _step_parallel(model, plant, observation, state, reference, action, out, force)
-    return kernels.step_serial(step_call(model, plant, observation, state, reference, out, force), action)
+    return kernels.one_thread(bool(force))(step_call(model, plant, observation, state, reference, out, force), action)
