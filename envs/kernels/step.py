@@ -117,12 +117,12 @@ def allocate_lanes():
     return np.empty((6, 6, LANES)), np.empty((N_LANE_ROWS, LANES))
 
 
-def lane_work(path, dynamics):
+def lane_work(path, outputs):
     """The parallel step's SIMD lane work arrays (``allocate_lanes``): on the work-array path under rate control.
 
-    ``path`` (the row path) and ``dynamics`` (None: rate control, or a ``Dynamics`` record) are compile-time
-    choices; elsewhere None, and the parallel step moves its robots one at a time with the one-thread step's
-    compiled block. The register paths have no 6 × 6 SVD to put in lanes. Under force control the period's
+    ``path`` (the row path) and ``outputs`` (a ``StepCall``'s: force control's arrays follow the ``StepArrays``) are
+    compile-time choices; elsewhere None, and the parallel step moves its robots one at a time with the one-thread
+    step's compiled block. The register paths have no 6 × 6 SVD to put in lanes. Under force control the period's
     dynamics outweigh the SVD: its blocks in lanes ran about 4 % faster (the hexapod's vector env at N = 16384)
     for a second compile of the block, about 12 s of CPU.
     """
@@ -130,10 +130,10 @@ def lane_work(path, dynamics):
 
 
 @overload(lane_work, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _lane_work_of(path, dynamics):
-    if _literal_path(path) == WORK_ARRAYS and isinstance(dynamics, types.NoneType):
-        return lambda path, dynamics: allocate_lanes()
-    return lambda path, dynamics: None
+def _lane_work_of(path, outputs):
+    if _literal_path(path) == WORK_ARRAYS and len(outputs) == N_STEP_ARRAYS:
+        return lambda path, outputs: allocate_lanes()
+    return lambda path, outputs: None
 
 
 @jit_inline
@@ -387,6 +387,31 @@ def _step_chunks(
         chunk = chunk + 1 if one_thread else claim(counter)
 
 
+@jit_inline
+def _run_call(path, space, call, action, counter, lanes_owned):
+    """An entry kernel's body: ``call`` with ``action`` on the chunks ``counter`` gives (``_step_chunks``).
+
+    On one thread (``counter`` empty) it first checks the actions: True, without stepping, if one is not finite.
+    ``lanes_owned``: the SIMD lane work arrays (``lane_work``) or None. Each thread's call has work arrays of its own
+    (``_unpack`` allocates force control's). The arrays are borrowed (``borrow``): the caller holds the call's, and
+    those allocated here are kept to the end.
+    """
+    mode = call.mode
+    if counter.shape[0] == 0 and (mode == STEP or mode == TRANSITION) and not _finite_actions(action):
+        return True
+    owned, work = _unpack(call), _work()
+    (model, plant, observation, state, reference, out, dynamics), w, lanes, action, counter = borrow(
+        (owned, work, lanes_owned, action, counter)
+    )
+    _step_chunks(
+        path, space, model, plant, observation, state, reference, action, w, lanes, out, dynamics, mode, counter
+    )  # fmt: skip
+    keep_alive(work)
+    keep_alive(lanes_owned)
+    keep_alive(owned)
+    return False
+
+
 class PathKernels(NamedTuple):
     """The entry kernels of one row path and pose space (see ``_path_kernels``), each ``kernel(call, action)``.
 
@@ -420,39 +445,12 @@ def _path_kernels(path: int, space: int) -> PathKernels:
 
     # The entry kernels take one ``StepCall`` record rather than flat arrays: the single env calls them at every
     # step, and Numba types and unboxes each array argument (about 0.06 µs each) where it unboxes a record as one
-    # pointer; a multi-core step's threads each unbox their arguments holding the GIL. Each borrows its arrays
-    # (``borrow``): the caller holds the arguments, and what it allocates is kept to the end.
+    # pointer; a multi-core step's threads each unbox their arguments holding the GIL.
     def step_serial(call, action):
-        mode = call.mode
-        if (mode == STEP or mode == TRANSITION) and not _finite_actions(action):
-            return True
-        owned, work = _unpack(call), _work()
-        (model, plant, observation, state, reference, out, dynamics), w, action = borrow((owned, work, action))
-        lanes = None  # robot by robot: the SIMD lanes of the spatial SVD compile for the parallel step only
-        _step_chunks(
-            path, space, model, plant, observation, state, reference, action, w, lanes, out, dynamics, mode, ONE_THREAD
-        )  # fmt: skip
-        keep_alive(work)
-        keep_alive(owned)
-        return False
+        return _run_call(path, space, call, action, ONE_THREAD, None)  # robot by robot: no SIMD lanes to compile
 
     def step_chunks(call, action):
-        # Each thread's call has work arrays of its own (``_unpack`` allocates force control's).
-        mode, counter = call.mode, call.counter
-        if counter.shape[0] == 0 and (mode == STEP or mode == TRANSITION) and not _finite_actions(action):
-            return True
-        owned, work = _unpack(call), _work()
-        lanes_owned = lane_work(path, owned[6])
-        (model, plant, observation, state, reference, out, dynamics), w, lanes, action, counter = borrow(
-            (owned, work, lanes_owned, action, counter)
-        )
-        _step_chunks(
-            path, space, model, plant, observation, state, reference, action, w, lanes, out, dynamics, mode, counter
-        )  # fmt: skip
-        keep_alive(work)
-        keep_alive(lanes_owned)
-        keep_alive(owned)
-        return False
+        return _run_call(path, space, call, action, call.counter, lane_work(path, call.outputs))
 
     closures = locals()
     compiled = {}
