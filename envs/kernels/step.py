@@ -117,23 +117,24 @@ def allocate_lanes():
     return np.empty((6, 6, LANES)), np.empty((N_LANE_ROWS, LANES))
 
 
-def lane_work(path, outputs):
+def lane_work(path, call):
     """The parallel step's SIMD lane work arrays (``allocate_lanes``): on the work-array path under rate control.
 
-    ``path`` (the row path) and ``outputs`` (a ``StepCall``'s: force control's arrays follow the ``StepArrays``) are
-    compile-time choices; elsewhere None, and the parallel step moves its robots one at a time with the one-thread
-    step's compiled block. The register paths have no 6 × 6 SVD to put in lanes. Under force control the period's
-    dynamics outweigh the SVD: its blocks in lanes ran about 4 % faster (the hexapod's vector env at N = 16384)
-    for a second compile of the block, about 12 s of CPU.
+    ``path`` (the row path) and the type of ``call`` (a ``StepCall``, whose outputs under force control have force
+    control's arrays after the ``StepArrays``) are compile-time choices; the call's fields are not read; elsewhere
+    None, and the parallel step moves its robots one at a time with the one-thread step's compiled block. The
+    register paths have no 6 × 6 SVD to put in lanes. Under force control the period's dynamics outweigh the SVD:
+    its blocks in lanes ran about 4 % faster (the hexapod's vector env at N = 16384) for a second compile of the
+    block, about 12 s of CPU.
     """
     return paths._compiled_only()
 
 
 @overload(lane_work, prefer_literal=True, jit_options=_OVERLOAD_OPTIONS)
-def _lane_work_of(path, outputs):
-    if _literal_path(path) == WORK_ARRAYS and len(outputs) == N_STEP_ARRAYS:
-        return lambda path, outputs: allocate_lanes()
-    return lambda path, outputs: None
+def _lane_work_of(path, call):
+    if _literal_path(path) == WORK_ARRAYS and len(call.field_dict["outputs"]) == N_STEP_ARRAYS:
+        return lambda path, call: allocate_lanes()
+    return lambda path, call: None
 
 
 @jit_inline
@@ -450,7 +451,7 @@ def _path_kernels(path: int, space: int) -> PathKernels:
         return _run_call(path, space, call, action, ONE_THREAD, None)  # robot by robot: no SIMD lanes to compile
 
     def step_chunks(call, action):
-        return _run_call(path, space, call, action, call.counter, lane_work(path, call.outputs))
+        return _run_call(path, space, call, action, call.counter, lane_work(path, call))
 
     closures = locals()
     compiled = {}
